@@ -1,0 +1,20 @@
+# finray: one command rebuilds the study (see README.md). Stages live in workflow/rules.
+from snakemake.utils import min_version
+
+min_version("9.0")
+
+
+# The config is config/config.yaml unless --configfile names another one, which then
+# replaces it (no merge: config/smoke.yaml is a whole, tiny config). See common.smk.
+
+report: "workflow/report/workflow.rst"
+
+
+include: "workflow/rules/common.smk"
+include: "workflow/rules/geometry.smk"
+
+
+rule all:
+    input:
+        all_targets(),
+    default_target: True

@@ -1,0 +1,151 @@
+"""The ``finray`` command line. Lengths in mm, angles in degrees."""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from . import __version__
+
+GEOMETRY_HELP = """\
+Build the finger mesh and place objects at contact heights.
+
+Without --object/--object-file, every object of the config is placed at every
+contact height and a gallery figure is drawn. Outputs in --out: finger.npz/.vtu/
+.json, finger_surface.ply/.npz and objects/<name>_h<height>.npz/.vtu
+(.vtu and .ply open in ParaView).
+
+examples:
+  finray geometry --out results/geometry
+  finray geometry --object circle --size-mm 20 --height-mm 30 --out /tmp/scene --plot
+  finray geometry --object-file part.json --height-mm 20 --out /tmp/part
+"""
+
+
+def _geometry_parser(sub) -> None:
+    p = sub.add_parser("geometry", help="build the finger mesh and place the objects",
+                       description=GEOMETRY_HELP,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--config", type=Path, default=None,
+                   help="YAML config (default: config/config.yaml of the source tree)")
+    p.add_argument("--out", type=Path, required=True, help="output directory")
+    p.add_argument("--object", choices=["circle", "square", "ring", "ellipse"],
+                   help="build only this object kind instead of the config's objects")
+    p.add_argument("--object-file", type=Path,
+                   help="build only this polygon: JSON list of [x, y] in mm around the reference point")
+    p.add_argument("--size-mm", type=float,
+                   help="circle/ring diameter, square side or ellipse width (mm)")
+    p.add_argument("--minor-mm", type=float, help="ellipse height before rotation (mm)")
+    p.add_argument("--wall-mm", type=float, default=2.0, help="ring wall thickness (mm, default 2)")
+    p.add_argument("--angle-deg", type=float, default=0.0,
+                   help="rotation of the object about its reference point (deg, counter-clockwise)")
+    p.add_argument("--fillet-mm", type=float, default=None,
+                   help="corner fillet of squares and polygons (mm; squares default 0.5)")
+    p.add_argument("--height-mm", type=float, action="append",
+                   help="contact height of the reference point (mm); repeat for several "
+                        "(default: the config's heights_mm)")
+    p.add_argument("--mesh-size-mm", type=float, help="target element edge length (mm)")
+    p.add_argument("--deformable", action="store_true",
+                   help="mesh the object (default: rigid, boundary only)")
+    p.add_argument("--plot", action="store_true", help="also draw a PNG of each scene")
+    p.set_defaults(func=_run_geometry)
+
+
+def _object_spec(args) -> tuple[str, dict] | None:
+    if args.object_file is not None:
+        spec = {"type": "polygon_file", "path": str(args.object_file)}
+        name = args.object_file.stem
+    elif args.object is not None:
+        if args.size_mm is None:
+            raise SystemExit("finray geometry: --size-mm is required with --object")
+        kind = args.object
+        spec = {"type": kind}
+        if kind in ("circle", "ring"):
+            spec["diameter_mm"] = args.size_mm
+        if kind == "ring":
+            spec["wall_mm"] = args.wall_mm
+        if kind == "square":
+            spec["side_mm"] = args.size_mm
+        if kind == "ellipse":
+            spec["width_mm"] = args.size_mm
+            spec["height_mm"] = args.minor_mm or args.size_mm / 2
+        name = f"{kind}_{args.size_mm:g}mm"
+    else:
+        return None
+    if args.angle_deg:
+        spec["angle_deg"] = args.angle_deg
+        name += f"_a{args.angle_deg:g}"
+    if args.fillet_mm is not None and spec["type"] in ("square", "polygon_file"):
+        spec["fillet_mm"] = args.fillet_mm
+    return name, spec
+
+
+def _run_geometry(args) -> int:
+    import yaml
+
+    from .config import default_config_path, validate_config
+    from .geometry.build import build_finger, build_object
+    from .geometry.gallery import gallery, scene_figure
+    from .geometry.mesh import TriMesh
+
+    path = args.config or default_config_path()
+    raw = yaml.safe_load(Path(path).read_text()) if Path(path).is_file() else {}
+    one = _object_spec(args)
+    if one is not None:
+        raw["objects"] = {one[0]: one[1]}
+    if args.height_mm:
+        raw["heights_mm"] = args.height_mm
+    if args.mesh_size_mm:
+        raw.setdefault("mesh", {})["size_mm"] = args.mesh_size_mm
+    if not raw.get("objects"):
+        raise SystemExit("finray geometry: no config found; give --config or --object")
+    cfg = validate_config(raw, base_dir=Path.cwd())
+    out = args.out
+    summary = build_finger(cfg, out)
+    q = summary["quality"]
+    print(f"finger: {q['n_triangles']} P{q['order']} triangles, {q['n_nodes']} nodes, "
+          f"min angle {q['min_angle_deg']:.1f} deg -> {out / 'finger.npz'}")
+    finger = TriMesh.load(out / "finger.npz")
+    placed = {}
+    for name, spec in cfg["objects"].items():
+        deformable = args.deformable or any(not cfg["materials"][m]["rigid"] for m in spec["materials"])
+        for h in cfg["heights_mm"]:
+            f = out / "objects" / f"{name}_h{h:g}.npz"
+            obj = build_object(cfg, name, h, f, deformable)
+            placed.setdefault(name, []).append(obj)
+            ref = obj.meta["reference_point_mm"]
+            print(f"{name} at {h:g} mm: reference point ({ref[0]:.3f}, {ref[1]:.3f}) mm -> {f}")
+            if args.plot:
+                scene_figure(finger, obj, f.with_suffix(".png"))
+    if one is None:
+        gallery(finger, placed, out / "gallery.pdf", out / "gallery.png",
+                {n: s["split"] for n, s in cfg["objects"].items()})
+        print(f"gallery -> {out / 'gallery.pdf'}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="finray",
+        description="Force and stress of a soft Fin Ray finger from camera images, "
+                    "learned from finite-element simulations. Units: mm, N, MPa, deg.")
+    parser.add_argument("--version", action="version", version=f"finray {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    _geometry_parser(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    from .config import ConfigError
+    from .geometry.finger import GeometryError
+
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except (ConfigError, GeometryError) as exc:
+        print(f"finray: config error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

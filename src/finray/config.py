@@ -1,0 +1,159 @@
+"""Configuration: load, fill defaults, validate (schema + geometry), list scenes.
+
+The schema is ``workflow/schemas/config.schema.yaml`` (shipped inside the package
+as ``finray/config.schema.yaml``). A bad config raises :class:`ConfigError`
+whose message is one line naming the key and the reason.
+"""
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+import jsonschema
+import yaml
+
+from .geometry.finger import FingerParams, GeometryError, check_ribs, finger_polygon
+from .geometry.objects import object_shape, place_object
+
+
+class ConfigError(ValueError):
+    """A config that cannot run; ``str(err)`` is ``'<key>: <reason>'``."""
+
+    def __init__(self, key: str, message: str):
+        super().__init__(f"{key}: {message}")
+        self.key = key
+
+
+def load_schema() -> dict:
+    with resources.files("finray").joinpath("config.schema.yaml").open() as f:
+        return yaml.safe_load(f)
+
+
+def _extend_with_default(validator_class):
+    """Validator that writes each property's ``default`` into the instance."""
+    validate_properties = validator_class.VALIDATORS["properties"]
+
+    def set_defaults(validator, properties, instance, schema):
+        if isinstance(instance, dict):
+            for name, sub in properties.items():
+                if "default" in sub and name not in instance:
+                    instance[name] = copy.deepcopy(sub["default"])
+        yield from validate_properties(validator, properties, instance, schema)
+
+    return jsonschema.validators.extend(validator_class, {"properties": set_defaults})
+
+
+_Validator = _extend_with_default(jsonschema.Draft202012Validator)
+
+
+def _key(path) -> str:
+    return ".".join(str(p) for p in path) or "<config>"
+
+
+def _schema_error_message(err: jsonschema.ValidationError) -> ConfigError:
+    path = list(err.absolute_path)
+    if err.validator == "additionalProperties" and isinstance(err.instance, dict):
+        allowed = set(err.schema.get("properties", {}))
+        extra = sorted(set(err.instance) - allowed)
+        key = _key(path + extra[:1])
+        return ConfigError(key, f"unknown key (allowed here: {', '.join(sorted(allowed))})")
+    if err.validator == "required":
+        missing = err.message.split("'")[1] if "'" in err.message else err.message
+        return ConfigError(_key(path + [missing]), "is required here")
+    if err.validator == "enum":
+        return ConfigError(_key(path), f"{err.instance!r} is not one of {err.validator_value}")
+    return ConfigError(_key(path), err.message)
+
+
+def validate_config(config: dict, base_dir: str | Path = ".") -> dict:
+    """Return a validated copy of ``config`` with defaults filled in.
+
+    Checks, in order: the JSON schema (types, units' ranges, unknown keys), the
+    references between sections, the finger geometry (ribs fit) and that every
+    object can be placed at every contact height. Relative polygon-file paths are
+    resolved against ``base_dir``.
+    """
+    cfg = copy.deepcopy(config) if config is not None else {}
+    validator = _Validator(load_schema())
+    errors = sorted(validator.iter_errors(cfg), key=lambda e: (len(e.absolute_path), e.path))
+    if errors:
+        best = jsonschema.exceptions.best_match(errors)
+        raise _schema_error_message(best)
+    mats = cfg["materials"]
+    if cfg["finger"]["material"] not in mats:
+        raise ConfigError("finger.material", f"'{cfg['finger']['material']}' is not a key of materials")
+    if mats[cfg["finger"]["material"]]["rigid"]:
+        raise ConfigError("finger.material", "the finger cannot be rigid")
+    finger = FingerParams.from_config(cfg["finger"])
+    if finger.wall_thickness_mm * 2 >= finger.base_width_mm:
+        raise ConfigError("finger.wall_thickness_mm", "the walls are thicker than the finger is wide")
+    if finger.base_thickness_mm >= finger.height_mm / 2:
+        raise ConfigError("finger.base_thickness_mm", "the base plate fills half the finger")
+    try:
+        check_ribs(finger)
+        finger_polygon(finger, cfg["mesh"]["size_mm"])
+    except GeometryError as exc:
+        raise ConfigError(exc.key, str(exc).split(": ", 1)[1]) from None
+    for h in cfg["heights_mm"]:
+        if h >= finger.height_mm:
+            raise ConfigError("heights_mm", (
+                f"contact height {h} mm is at or above the finger (height {finger.height_mm} mm)"))
+    for name, spec in cfg["objects"].items():
+        for m in spec["materials"]:
+            if m not in mats:
+                raise ConfigError(f"objects.{name}.materials", f"'{m}' is not a key of materials")
+        if spec["type"] == "polygon_file":
+            p = Path(spec["path"])
+            spec["path"] = str(p if p.is_absolute() else Path(base_dir) / p)
+        try:
+            shape = object_shape(spec, cfg["mesh"]["size_mm"], f"objects.{name}")
+            for h in cfg["heights_mm"]:
+                place_object(shape, finger, h, cfg["placement"]["gap_mm"], f"objects.{name}")
+        except GeometryError as exc:
+            raise ConfigError(exc.key, str(exc).split(": ", 1)[1]) from None
+    return cfg
+
+
+def load_config(path: str | Path) -> dict:
+    """Read and validate a YAML config file."""
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError("<config>", f"config file '{path}' does not exist")
+    try:
+        raw = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise ConfigError("<config>", f"'{path}' is not valid YAML ({exc})".replace("\n", " "))
+    return validate_config(raw or {}, base_dir=Path.cwd())
+
+
+def default_config_path() -> Path:
+    """``config/config.yaml`` of the source tree, if the package runs from it."""
+    return Path(__file__).resolve().parents[2] / "config" / "config.yaml"
+
+
+@dataclass(frozen=True)
+class Scene:
+    """One finger x object x material x contact height."""
+
+    object: str
+    material: str
+    height_mm: float
+    split: str
+
+    @property
+    def id(self) -> str:
+        return f"{self.object}_{self.material}_h{self.height_mm:g}"
+
+
+def object_is_meshed(cfg: dict, name: str) -> bool:
+    """Deformable objects are meshed; purely rigid ones stay boundaries."""
+    return any(not cfg["materials"][m]["rigid"] for m in cfg["objects"][name]["materials"])
+
+
+def scenes(cfg: dict) -> list[Scene]:
+    """Every scene of the config."""
+    return [Scene(name, m, float(h), spec["split"])
+            for name, spec in cfg["objects"].items()
+            for m in spec["materials"] for h in cfg["heights_mm"]]

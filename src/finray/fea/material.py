@@ -1,0 +1,264 @@
+"""Hyperelastic material laws for 2D plane strain (units: mm, N, MPa).
+
+Stresses and moduli are in MPa (= N/mm^2); the strain-energy density ``W`` is in
+MPa (= N mm / mm^3), so that integrating it over the cross-section (mm^2) gives an
+energy per unit out-of-plane thickness (N mm / mm = N).
+
+Plane strain: the 3D deformation gradient is ``diag(F, 1)`` with ``F`` the 2x2
+in-plane one, so ``I1 = tr(F^T F) + 1`` and ``J = det F``.
+
+Compressible neo-Hookean (Ogden / Simo-Pister form, e.g. Bonet & Wood, *Nonlinear
+Continuum Mechanics for FEA*, eq. 6.27)::
+
+    W = mu/2 (I1 - 3) - mu ln J + lam/2 (ln J)^2
+    P = mu (F - F^-T) + lam ln J F^-T
+    dP/dF = mu I + (mu - lam ln J) F^-T (x) F^-1 (swap) + lam F^-T (x) F^-T
+
+which reduces to linear elasticity with Lame constants ``mu, lam`` at small strain.
+
+Every constant the project uses is in :data:`MATERIALS` with a ``source`` string so
+that the config can take them over.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba as nb
+import numpy as np
+
+#: Material constants. ``E`` Young's modulus (MPa), ``nu`` Poisson's ratio (-).
+#: ``rigid`` materials are never meshed or solved.
+MATERIALS: dict[str, dict] = {
+    "ninjaflex": {
+        "model": "neo_hookean",
+        "rigid": False,
+        "E": {"value": 12.0, "unit": "MPa", "source": (
+            "NinjaTek NinjaFlex technical data sheet: tensile modulus 12 MPa (ASTM D638). "
+            "Printed thin NinjaFlex sheets measured 8-12 MPa (Int. J. Bioprinting 9(4), "
+            "2023, Table 3). Reppel & Weinberg (Tech. Mech. 38(1), 2018) and the SoRoForge "
+            "database (Smith et al., 3D Print. Addit. Manuf. 2023, doi:10.1089/3dp.2023.0010) "
+            "fit hyperelastic laws to printed NinjaFlex, but their coefficients could not "
+            "be retrieved here: the initial modulus is taken from the data sheet.")},
+        "nu": {"value": 0.45, "unit": "-", "source": (
+            "design assumption of the project (printed TPU is nearly but not fully "
+            "incompressible)")},
+    },
+    "neoprene": {
+        "model": "neo_hookean",
+        "rigid": False,
+        "E": {"value": 3.6, "unit": "MPa", "source": (
+            "commercial-grade neoprene (polychloroprene) sheet, Shore A 60, converted with "
+            "Gent's relation E = 0.0981 (56 + 7.62336 S) / (0.137505 (254 - 2.54 S)) MPa "
+            "(A. N. Gent, Trans. Inst. Rubber Ind. 34, 1958). The ANSYS 'Neoprene Rubber' "
+            "library coefficients could not be retrieved here; replace when available.")},
+        "nu": {"value": 0.49, "unit": "-", "source": (
+            "rubber is nearly incompressible (bulk modulus ~ 1000x shear modulus); 0.49 "
+            "keeps plane-strain P2 elements free of volumetric locking")},
+    },
+    "steel": {
+        "model": "rigid",
+        "rigid": True,
+        "E": {"value": 200e3, "unit": "MPa", "source": (
+            "structural steel, ~200 GPa: 4 orders of magnitude stiffer than the "
+            "finger, so it is modelled as rigid (never meshed or solved)")},
+        "nu": {"value": 0.3, "unit": "-", "source": "structural steel"},
+    },
+}
+
+#: Contact constants.
+CONTACT: dict[str, dict] = {
+    "friction_coefficient": {"value": 0.15, "unit": "-", "source": (
+        "project specification (issue): Coulomb friction finger/object, lagged")},
+}
+
+
+def gent_modulus_from_shore_a(shore_a: float) -> float:
+    """Young's modulus (MPa) from Shore A hardness, Gent (1958)."""
+    s = float(shore_a)
+    return 0.0981 * (56.0 + 7.62336 * s) / (0.137505 * (254.0 - 2.54 * s))
+
+
+def lame(E: float, nu: float) -> tuple[float, float]:
+    """(mu, lambda) in MPa from Young's modulus (MPa) and Poisson's ratio."""
+    mu = E / (2.0 * (1.0 + nu))
+    lam = E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu))
+    return mu, lam
+
+
+@dataclass(frozen=True)
+class NeoHookean:
+    """Compressible neo-Hookean law in plane strain; ``mu``, ``lam`` in MPa."""
+
+    mu: float
+    lam: float
+    name: str = "neo_hookean"
+
+    @classmethod
+    def from_E_nu(cls, E: float, nu: float, name: str = "neo_hookean") -> "NeoHookean":
+        mu, lam = lame(E, nu)
+        return cls(mu, lam, name)
+
+    @classmethod
+    def from_library(cls, key: str) -> "NeoHookean":
+        m = MATERIALS[key]
+        if m["rigid"]:
+            raise ValueError(f"material {key!r} is rigid: it has no elastic law")
+        return cls.from_E_nu(m["E"]["value"], m["nu"]["value"], key)
+
+    @property
+    def E(self) -> float:
+        return self.mu * (3 * self.lam + 2 * self.mu) / (self.lam + self.mu)
+
+    @property
+    def nu(self) -> float:
+        return self.lam / (2 * (self.lam + self.mu))
+
+    @property
+    def plane_strain_modulus(self) -> float:
+        """E / (1 - nu^2), MPa."""
+        return self.E / (1 - self.nu**2)
+
+    # -- kinematics helpers -------------------------------------------------------
+    @staticmethod
+    def _det_inv(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        a, b, c, d = F[..., 0, 0], F[..., 0, 1], F[..., 1, 0], F[..., 1, 1]
+        J = a * d - b * c
+        inv = np.empty_like(F)
+        inv[..., 0, 0] = d
+        inv[..., 0, 1] = -b
+        inv[..., 1, 0] = -c
+        inv[..., 1, 1] = a
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv /= J[..., None, None]
+        return J, inv
+
+    # -- energy, stress, tangent --------------------------------------------------
+    def energy(self, F: np.ndarray) -> np.ndarray:
+        """Strain-energy density W (MPa) of (..., 2, 2) gradients; +inf where J <= 0."""
+        J, _ = self._det_inv(F)
+        I1 = np.einsum("...ij,...ij->...", F, F) + 1.0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            lnJ = np.log(np.where(J > 0, J, 1.0))
+        W = 0.5 * self.mu * (I1 - 3.0) - self.mu * lnJ + 0.5 * self.lam * lnJ**2
+        return np.where(J > 0, W, np.inf)
+
+    def pk1(self, F: np.ndarray) -> np.ndarray:
+        """First Piola-Kirchhoff stress P (MPa), (..., 2, 2)."""
+        J, Finv = self._det_inv(F)
+        FinvT = np.swapaxes(Finv, -1, -2)
+        lnJ = np.log(J)
+        return self.mu * (F - FinvT) + (self.lam * lnJ)[..., None, None] * FinvT
+
+    def evaluate(self, F: np.ndarray, order: int = 2):
+        """(W, P, A) with A = dP/dF as (..., 2, 2, 2, 2) [i, J, k, L] (order >= 2).
+
+        W is +inf where J <= 0 (then P and A are not meaningful).
+        """
+        J, Finv = self._det_inv(F)
+        ok = J > 0
+        lnJ = np.log(np.where(ok, J, 1.0))
+        I1 = np.einsum("...ij,...ij->...", F, F) + 1.0
+        W = 0.5 * self.mu * (I1 - 3.0) - self.mu * lnJ + 0.5 * self.lam * lnJ**2
+        W = np.where(ok, W, np.inf)
+        if order < 1:
+            return W, None, None
+        FinvT = np.swapaxes(Finv, -1, -2)
+        P = self.mu * (F - FinvT) + (self.lam * lnJ)[..., None, None] * FinvT
+        if order < 2:
+            return W, P, None
+        eye = np.eye(2)
+        c1 = (self.mu - self.lam * lnJ)[..., None, None, None, None]
+        # A_iJkL = mu d_ik d_JL + (mu - lam lnJ) Finv_Jk Finv_Li + lam Finv_Ji Finv_Lk
+        A = (self.mu * np.einsum("ik,JL->iJkL", eye, eye)
+             + c1 * np.einsum("...Jk,...Li->...iJkL", Finv, Finv)
+             + self.lam * np.einsum("...Ji,...Lk->...iJkL", Finv, Finv))
+        return W, P, A
+
+    def cauchy(self, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """In-plane Cauchy stress (..., 2, 2) and the out-of-plane sigma_zz (MPa)."""
+        J, _ = self._det_inv(F)
+        P = self.pk1(F)
+        sig = np.einsum("...iJ,...kJ->...ik", P, F) / J[..., None, None]
+        # P_33 = mu (1 - 1) + lam ln J (F33 = 1): sigma_zz = lam ln J / J
+        szz = self.lam * np.log(J) / J
+        return sig, szz
+
+
+def von_mises(sig: np.ndarray, szz: np.ndarray) -> np.ndarray:
+    """Von Mises stress (MPa) of a plane state with out-of-plane normal stress szz."""
+    sxx, syy, sxy = sig[..., 0, 0], sig[..., 1, 1], sig[..., 0, 1]
+    return np.sqrt(0.5 * ((sxx - syy) ** 2 + (syy - szz) ** 2 + (szz - sxx) ** 2)
+                   + 3.0 * sxy**2)
+
+
+@nb.njit(cache=True)
+def _project_psd_inplace(M: np.ndarray, eps: float) -> int:
+    """Clamp eigenvalues of each symmetric 4x4 M[n] at eps (in place); returns count.
+
+    A Cholesky attempt first: only matrices that fail it are eigen-decomposed.
+    """
+    count = 0
+    L = np.empty((4, 4))
+    for n in range(M.shape[0]):
+        for i in range(4):
+            for j in range(i + 1, 4):
+                v = 0.5 * (M[n, i, j] + M[n, j, i])
+                M[n, i, j] = v
+                M[n, j, i] = v
+        ok = True
+        for j in range(4):
+            s = M[n, j, j]
+            for k in range(j):
+                s -= L[j, k] * L[j, k]
+            if s <= eps:
+                ok = False
+                break
+            L[j, j] = np.sqrt(s)
+            for i in range(j + 1, 4):
+                t = M[n, i, j]
+                for k in range(j):
+                    t -= L[i, k] * L[j, k]
+                L[i, j] = t / L[j, j]
+        if ok:
+            continue
+        count += 1
+        w, V = np.linalg.eigh(M[n].copy())
+        for i in range(4):
+            if w[i] < eps:
+                w[i] = eps
+        for i in range(4):
+            for j in range(4):
+                s = 0.0
+                for k in range(4):
+                    s += V[i, k] * w[k] * V[j, k]
+                M[n, i, j] = s
+    return count
+
+
+def project_tangent_psd(A: np.ndarray, eps: float = 0.0) -> np.ndarray:
+    """Clamp the eigenvalues of the 4x4 material tangents (..., 2, 2, 2, 2) at ``eps``.
+
+    A PSD material tangent gives PSD element stiffness matrices (K = B^T A B), the
+    standard fix (e.g. Teran et al. 2005) for an indefinite Hessian of a
+    hyperelastic energy in Newton's method. Returns a projected copy.
+    """
+    shp = A.shape
+    M = np.ascontiguousarray(A.reshape(-1, 4, 4), dtype=float).copy()
+    _project_psd_inplace(M, float(eps))
+    return M.reshape(shp)
+
+
+def material_from_name(name: str, overrides: dict | None = None) -> NeoHookean | None:
+    """Elastic law of a library material (None for a rigid one).
+
+    ``overrides`` may give ``E`` (MPa) and ``nu``, e.g. from the project config.
+    """
+    m = MATERIALS[name]
+    if m["rigid"]:
+        return None
+    E = m["E"]["value"]
+    nu = m["nu"]["value"]
+    if overrides:
+        E = overrides.get("E", overrides.get("youngs_modulus_MPa", E))
+        nu = overrides.get("nu", overrides.get("poisson_ratio", nu))
+    return NeoHookean.from_E_nu(E, nu, name)

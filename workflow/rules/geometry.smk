@@ -1,0 +1,63 @@
+# Geometry stage: finger mesh and extruded surface, objects placed at each contact height.
+
+
+rule geometry_finger:
+    output:
+        npz=f"{GEOMETRY}/finger.npz",
+        vtu=f"{GEOMETRY}/finger.vtu",
+        summary=f"{GEOMETRY}/finger.json",
+        surface=f"{GEOMETRY}/finger_surface.ply",
+        surface_npz=f"{GEOMETRY}/finger_surface.npz",
+    params:
+        finger=config["finger"],
+        mesh=config["mesh"],
+    log:
+        f"{RESULTS}/logs/geometry/finger.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/geometry/finger.tsv"
+    threads: 1
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/geometry_finger.py"
+
+
+rule geometry_object:
+    input:
+        finger=f"{GEOMETRY}/finger.json",
+        polygon=polygon_file_input,
+    output:
+        npz=f"{GEOMETRY}/objects/{{object}}_h{{height}}.npz",
+        vtu=f"{GEOMETRY}/objects/{{object}}_h{{height}}.vtu",
+    params:
+        spec=object_spec,
+        deformable=object_deformable,
+    log:
+        f"{RESULTS}/logs/geometry/{{object}}_h{{height}}.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/geometry/{{object}}_h{{height}}.tsv"
+    threads: 1
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/geometry_object.py"
+
+
+rule geometry_gallery:
+    input:
+        finger=f"{GEOMETRY}/finger.npz",
+        objects=object_geometry_files(),
+    output:
+        pdf=report(
+            f"{GEOMETRY}/gallery.pdf",
+            caption="../report/geometry_gallery.rst",
+            category="Geometry",
+        ),
+        png=f"{GEOMETRY}/gallery.png",
+    log:
+        f"{RESULTS}/logs/geometry/gallery.log",
+    threads: 1
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/geometry_gallery.py"

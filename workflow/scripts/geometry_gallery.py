@@ -1,0 +1,12 @@
+from finray.geometry.gallery import gallery
+from finray.geometry.mesh import TriMesh
+from finray.logs import log_to
+
+with log_to(snakemake.log[0]):
+    objects = {}
+    for path in snakemake.input.objects:
+        obj = TriMesh.load(path)
+        objects.setdefault(obj.meta["name"], []).append(obj)
+    splits = {n: s["split"] for n, s in snakemake.config["objects"].items()}
+    gallery(TriMesh.load(snakemake.input.finger), objects, snakemake.output.pdf,
+            snakemake.output.png, splits)
