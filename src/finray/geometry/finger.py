@@ -119,6 +119,8 @@ def check_ribs(p: FingerParams) -> None:
     r = p.ribs
     key = "finger.ribs"
     tip_y = _inner_tip_height(p)
+    t_wall = p.wall_thickness_mm
+    n = _front_normal(p)
     clearance = r.thickness_mm / 2 + 2 * p.fillet_radius_mm
     for i, (b, f) in enumerate(rib_centrelines(p)):
         a = np.radians(p.rib_angles_deg()[i])
@@ -127,6 +129,12 @@ def check_ribs(p: FingerParams) -> None:
             raise GeometryError(f"{key}.spacing_mm", (
                 f"rib {i + 1} meets the back wall at y={b[1]:.2f} mm, above the cavity "
                 f"tip at y={tip_y:.2f} mm; use fewer ribs or a smaller spacing"))
+        # width of the cavity at the rib's back end, along the horizontal
+        width = b[0] - (t_wall - n[1] * b[1]) / n[0]  # inner front face: n . x = t
+        if width < 2 * clearance + r.thickness_mm:
+            raise GeometryError(f"{key}.spacing_mm", (
+                f"rib {i + 1} meets the back wall at y={b[1]:.2f} mm, where the cavity "
+                f"is only {max(width, 0):.2f} mm wide; use fewer ribs or a smaller spacing"))
         if f[0] >= b[0] - 2 * clearance:
             raise GeometryError(f"{key}.first_angle_deg", (
                 f"rib {i + 1} does not reach the front wall (angle "

@@ -32,7 +32,8 @@ def _rounded(poly: Polygon, fillet: float, size_mm: float) -> Polygon:
         return poly
     q = max(2, int(np.ceil(0.5 * np.pi * fillet / (0.25 * size_mm))))
     out = poly.buffer(-fillet, quad_segs=q).buffer(fillet, quad_segs=q)
-    out = out.buffer(fillet, quad_segs=q).buffer(-fillet, quad_segs=q)
+    if poly.convex_hull.area > poly.area * (1 + 1e-9):  # concave corners too
+        out = out.buffer(fillet, quad_segs=q).buffer(-fillet, quad_segs=q)
     return out
 
 
@@ -59,6 +60,8 @@ def validate_vertices(pts, key: str) -> Polygon:
         raise GeometryError(key, f"a polygon needs at least 3 distinct vertices, got {len(pts)}")
     if not np.isfinite(pts).all():
         raise GeometryError(key, "polygon vertices must be finite numbers")
+    if np.linalg.matrix_rank(pts - pts.mean(0), tol=1e-9) < 2:
+        raise GeometryError(key, "the polygon has zero area (its vertices are collinear)")
     ring = shapely.geometry.LinearRing(pts)
     if not ring.is_simple:
         raise GeometryError(key, "the polygon intersects itself (it must be simple)")

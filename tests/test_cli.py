@@ -1,0 +1,55 @@
+"""The finray command line."""
+import subprocess
+import sys
+
+import numpy as np
+
+from finray.cli import build_parser
+from finray.geometry.mesh import TriMesh
+
+
+def run(*args):
+    return subprocess.run([sys.executable, "-m", "finray.cli", *args], capture_output=True, text=True)
+
+
+def test_help_lists_every_option_with_units():
+    r = run("--help")
+    assert r.returncode == 0 and "geometry" in r.stdout
+    r = run("geometry", "--help")
+    assert r.returncode == 0
+    parser = build_parser()
+    geo = parser._subparsers._group_actions[0].choices["geometry"]
+    for action in geo._actions:
+        assert action.help, f"option {action.option_strings} has no help"
+        if action.dest.endswith("_mm"):
+            assert "mm" in action.help
+        if action.dest.endswith("_deg"):
+            assert "deg" in action.help
+
+
+def test_geometry_one_object(tmp_path):
+    r = run("geometry", "--object", "circle", "--size-mm", "20", "--height-mm", "30",
+            "--out", str(tmp_path), "--plot", "--mesh-size-mm", "1.0")
+    assert r.returncode == 0, r.stderr
+    obj = TriMesh.load(tmp_path / "objects" / "circle_20mm_h30.npz")
+    assert obj.meta["reference_point_mm"][1] == 30.0
+    assert len(obj.triangles) == 0
+    finger = TriMesh.load(tmp_path / "finger.npz")
+    assert finger.meta["size_mm"] == 1.0
+    assert (tmp_path / "objects" / "circle_20mm_h30.png").stat().st_size > 0
+    assert (tmp_path / "finger_surface.ply").stat().st_size > 0
+
+
+def test_geometry_object_file(tmp_path):
+    f = tmp_path / "part.json"
+    f.write_text("[[-4, -4], [5, -3], [1, 6]]")
+    r = run("geometry", "--object-file", str(f), "--height-mm", "20", "--out", str(tmp_path / "o"),
+            "--deformable", "--mesh-size-mm", "1.0")
+    assert r.returncode == 0, r.stderr
+    obj = TriMesh.load(tmp_path / "o" / "objects" / "part_h20.npz")
+    assert len(obj.triangles) > 0 and np.isfinite(obj.points).all()
+
+
+def test_geometry_missing_size_is_an_error(tmp_path):
+    r = run("geometry", "--object", "square", "--out", str(tmp_path))
+    assert r.returncode != 0 and "--size-mm" in r.stderr

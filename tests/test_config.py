@@ -1,0 +1,92 @@
+"""Config schema, defaults and the one-line errors of bad configs."""
+import copy
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+from finray.config import ConfigError, load_config, scenes, validate_config
+
+ROOT = Path(__file__).resolve().parents[1]
+FULL = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
+
+
+def test_full_config_scenes():
+    cfg = validate_config(FULL)
+    sc = scenes(cfg)
+    splits = {s.split for s in sc}
+    assert splits == {"train", "shape", "material"}
+    # 3 circles + 12 squares in training, 3 held-out shapes, ring x 3 materials, x 3 heights
+    assert sum(s.split == "train" for s in sc) == 15 * 3
+    assert sum(s.split == "shape" for s in sc) == 3 * 3
+    assert sorted({s.material for s in sc if s.split == "material"}) == ["neoprene", "ninjaflex", "steel"]
+    assert len({s.id for s in sc}) == len(sc)
+
+
+def test_smoke_config_is_valid_and_small():
+    cfg = load_config(ROOT / "config" / "smoke.yaml")
+    assert len(scenes(cfg)) < len(scenes(validate_config(FULL)))
+    assert {s.split for s in scenes(cfg)} == {"train", "shape", "material"}
+
+
+def test_defaults_filled():
+    cfg = validate_config({"objects": {"c": {"type": "circle", "diameter_mm": 10}}})
+    assert cfg["finger"]["ribs"]["angle_step_deg"] == 3.0
+    assert cfg["mesh"]["order"] == 2
+    assert cfg["placement"]["gap_mm"] == 0.1
+    assert cfg["objects"]["c"]["materials"] == ["steel"]
+    assert cfg["heights_mm"] == [20, 30, 40]
+
+
+def bad(mutate):
+    cfg = copy.deepcopy(FULL)
+    mutate(cfg)
+    return cfg
+
+
+BAD = {
+    "unknown object type": (
+        lambda c: c["objects"]["circle_d5"].update(type="hexagon"), "objects.circle_d5.type"),
+    "negative thickness": (
+        lambda c: c["finger"].update(wall_thickness_mm=-1.0), "finger.wall_thickness_mm"),
+    "rib does not fit": (
+        lambda c: c["finger"]["ribs"].update(count=14), "finger.ribs.spacing_mm"),
+    "rib into the base": (
+        lambda c: c["finger"]["ribs"].update(first_height_mm=4.0), "finger.ribs.first_height_mm"),
+    "contact height above the finger": (
+        lambda c: c.update(heights_mm=[20, 95]), "heights_mm"),
+    "unknown key": (lambda c: c["finger"].update(colour="red"), "finger.colour"),
+    "missing size": (lambda c: c["objects"]["circle_d5"].pop("diameter_mm"), "objects.circle_d5.diameter_mm"),
+    "unknown material": (lambda c: c["objects"]["circle_d20"].update(materials=["gold"]),
+                         "objects.circle_d20.materials"),
+    "self-intersecting polygon": (
+        lambda c: c["objects"].update(bow={"type": "polygon", "vertices_mm": [[0, 0], [4, 4], [4, 0], [0, 4]]}),
+        "objects.bow.vertices_mm"),
+    "rigid finger": (lambda c: c["finger"].update(material="steel"), "finger.material"),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD))
+def test_bad_config_names_the_key(case):
+    mutate, key = BAD[case]
+    with pytest.raises(ConfigError) as err:
+        validate_config(bad(mutate))
+    assert err.value.key == key
+    assert str(err.value).startswith(key + ":")
+    assert "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("case", ["unknown object type", "negative thickness", "rib does not fit",
+                                  "contact height above the finger", "self-intersecting polygon"])
+def test_bad_config_cli_one_line_and_exit_code(case, tmp_path):
+    mutate, key = BAD[case]
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(bad(mutate)))
+    r = subprocess.run([sys.executable, "-m", "finray.cli", "geometry", "--config", str(path),
+                        "--out", str(tmp_path / "out")], capture_output=True, text=True)
+    assert r.returncode != 0
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and key in lines[0], r.stderr
+    assert not (tmp_path / "out").exists()  # stopped before any work
