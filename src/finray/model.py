@@ -1,0 +1,133 @@
+"""The paper's network: a convolutional encoder, a U-Net stress decoder and a force head.
+
+Input: a deformation image ``(B, C, H, W)`` with ``H = 2 W`` (values in [0, 1]).
+Outputs: the log-scale stress map ``(B, 1, H, W)`` and the force ``(B, n_forces)`` in N.
+
+- Encoder: four stacks of two 3x3 convolutions (+ ReLU) and a 2x2 max-pool; the
+  number of channels doubles at each stack (``base``, 2 ``base``, 4 ``base``, 8 ``base``).
+  The latent ``h`` is the output of the last pool (``H/16 x W/16``).
+- Stress decoder (U-Net expansion): per step an upsampling, a 2x2 convolution that
+  halves the channels, concatenation with the encoder features of that resolution
+  (skip connection) and two 3x3 convolutions (+ ReLU); a 1x1 convolution gives the map.
+- Force head: ``h`` flattened through fully connected layers 128-64-32-8 and the
+  output; sigmoid after the first, ReLU after the others, batch-norm after the
+  first two. The force is predicted normalised; the mean and scale (N) are stored
+  in the model's buffers, so ``forward`` returns newtons.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import torch
+from torch import nn
+
+
+@dataclass
+class NetConfig:
+    in_channels: int = 3
+    base_channels: int = 16
+    height: int = 64
+    width: int = 32
+    n_forces: int = 1
+    hidden: tuple[int, ...] = (128, 64, 32, 8)
+
+    def __post_init__(self):
+        if self.height % 16 or self.width % 16:
+            raise ValueError(f"input size {self.height}x{self.width} must be divisible by 16 "
+                             "(four 2x2 poolings)")
+        if self.base_channels < 2 or self.base_channels % 2:
+            raise ValueError("base_channels must be an even number >= 2")
+
+
+def _double_conv(c_in: int, c_out: int) -> nn.Sequential:
+    return nn.Sequential(
+        nn.Conv2d(c_in, c_out, 3, padding=1), nn.ReLU(inplace=True),
+        nn.Conv2d(c_out, c_out, 3, padding=1), nn.ReLU(inplace=True),
+    )
+
+
+class UpStep(nn.Module):
+    """Upsample, 2x2 convolution halving the channels, skip concat, two 3x3 convs."""
+
+    def __init__(self, c_in: int, c_skip: int, c_out: int):
+        super().__init__()
+        self.up = nn.Upsample(scale_factor=2, mode="nearest")
+        # 2x2 "up-convolution"; pad right/bottom by one so the size is kept
+        self.reduce = nn.Sequential(nn.ZeroPad2d((0, 1, 0, 1)), nn.Conv2d(c_in, c_in // 2, 2))
+        self.conv = _double_conv(c_in // 2 + c_skip, c_out)
+
+    def forward(self, x: torch.Tensor, skip: torch.Tensor) -> torch.Tensor:
+        x = self.reduce(self.up(x))
+        return self.conv(torch.cat([x, skip], dim=1))
+
+
+class FinRayNet(nn.Module):
+    """Encoder, U-Net stress decoder and force head (see module docstring)."""
+
+    def __init__(self, cfg: NetConfig | None = None):
+        super().__init__()
+        self.cfg = cfg = cfg or NetConfig()
+        b = cfg.base_channels
+        chans = [b, 2 * b, 4 * b, 8 * b]
+        self.down = nn.ModuleList()
+        c_prev = cfg.in_channels
+        for c in chans:
+            self.down.append(_double_conv(c_prev, c))
+            c_prev = c
+        self.pool = nn.MaxPool2d(2)
+        # decoder: latent (8b) -> 4b -> 2b -> b -> b/2
+        outs = [4 * b, 2 * b, b, b // 2]
+        self.up = nn.ModuleList()
+        c_prev = chans[-1]
+        for c_skip, c_out in zip(reversed(chans), outs):
+            self.up.append(UpStep(c_prev, c_skip, c_out))
+            c_prev = c_out
+        self.stress_out = nn.Conv2d(c_prev, 1, 1)
+        n_latent = chans[-1] * (cfg.height // 16) * (cfg.width // 16)
+        h = cfg.hidden
+        layers: list[nn.Module] = [nn.Flatten(), nn.Linear(n_latent, h[0]), nn.Sigmoid(),
+                                   nn.BatchNorm1d(h[0])]
+        layers += [nn.Linear(h[0], h[1]), nn.ReLU(inplace=True), nn.BatchNorm1d(h[1])]
+        for a, c in zip(h[1:-1], h[2:]):
+            layers += [nn.Linear(a, c), nn.ReLU(inplace=True)]
+        layers.append(nn.Linear(h[-1], cfg.n_forces))
+        self.force_head = nn.Sequential(*layers)
+        self.register_buffer("force_mean_N", torch.zeros(cfg.n_forces))
+        self.register_buffer("force_scale_N", torch.ones(cfg.n_forces))
+
+    def encode(self, x: torch.Tensor) -> tuple[torch.Tensor, list[torch.Tensor]]:
+        skips = []
+        for block in self.down:
+            x = block(x)
+            skips.append(x)
+            x = self.pool(x)
+        return x, skips
+
+    def forward_normalised(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Stress map and force in normalised units (what the loss sees)."""
+        h, skips = self.encode(x)
+        y = h
+        for step, skip in zip(self.up, reversed(skips)):
+            y = step(y, skip)
+        return self.stress_out(y), self.force_head(h)
+
+    def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Stress map (log scale) and force in N."""
+        stress, f = self.forward_normalised(x)
+        return stress, f * self.force_scale_N + self.force_mean_N
+
+    def set_force_normalisation(self, mean_N, scale_N) -> None:
+        self.force_mean_N.copy_(torch.as_tensor(mean_N, dtype=torch.float32).reshape(-1))
+        self.force_scale_N.copy_(torch.as_tensor(scale_N, dtype=torch.float32).reshape(-1))
+
+    def normalise_force(self, f_N: torch.Tensor) -> torch.Tensor:
+        return (f_N - self.force_mean_N) / self.force_scale_N
+
+    def config_dict(self) -> dict:
+        d = asdict(self.cfg)
+        d["hidden"] = list(d["hidden"])
+        return d
+
+
+def count_parameters(model: nn.Module) -> int:
+    return sum(p.numel() for p in model.parameters() if p.requires_grad)

@@ -1,0 +1,64 @@
+"""Architecture of the network: shapes, skip connections, force units, export parity."""
+import pytest
+import torch
+
+from finray.model import FinRayNet, NetConfig, count_parameters
+
+
+@pytest.mark.parametrize("h,w,base", [(64, 32, 16), (128, 64, 8)])
+def test_output_shapes(h, w, base):
+    net = FinRayNet(NetConfig(height=h, width=w, base_channels=base)).eval()
+    x = torch.rand(2, 3, h, w)
+    stress, force = net(x)
+    assert stress.shape == (2, 1, h, w)
+    assert force.shape == (2, 1)
+    latent, skips = net.encode(x)
+    assert latent.shape == (2, 8 * base, h // 16, w // 16)
+    assert [s.shape[1] for s in skips] == [base, 2 * base, 4 * base, 8 * base]
+    print(f"parameters ({h}x{w}, base {base}): {count_parameters(net)}")
+
+
+def test_skip_connections_carry_fine_detail():
+    """The stress map depends on the full-resolution encoder features (skip 1):
+    perturbing one input pixel changes the output at that pixel even when the
+    latent is held fixed."""
+    torch.manual_seed(0)
+    net = FinRayNet(NetConfig(height=64, width=32, base_channels=8)).eval()
+    x = torch.rand(1, 3, 64, 32)
+    h, skips = net.encode(x)
+    x2 = x.clone()
+    x2[0, :, 40, 20] += 1.0
+    _, skips2 = net.encode(x2)
+    y1 = h
+    y2 = h  # same latent: only the skips differ
+    for step, s1, s2 in zip(net.up, reversed(skips), reversed(skips2)):
+        y1, y2 = step(y1, s1), step(y2, s2)
+    assert (net.stress_out(y1) - net.stress_out(y2)).abs()[0, 0, 38:43, 18:23].max() > 0
+    # every decoder step concatenates a skip of the matching resolution
+    for step, skip in zip(net.up, reversed(skips)):
+        assert step.conv[0].in_channels == step.reduce[1].out_channels + skip.shape[1]
+
+
+def test_force_head_layers():
+    net = FinRayNet(NetConfig())
+    linear = [m for m in net.force_head if isinstance(m, torch.nn.Linear)]
+    assert [m.out_features for m in linear] == [128, 64, 32, 8, 1]
+    kinds = [type(m).__name__ for m in net.force_head]
+    assert kinds[1:5] == ["Linear", "Sigmoid", "BatchNorm1d", "Linear"]
+    assert kinds.count("BatchNorm1d") == 2
+
+
+def test_force_in_newtons():
+    torch.manual_seed(0)
+    net = FinRayNet(NetConfig(base_channels=4)).eval()
+    x = torch.rand(3, 3, 64, 32)
+    _, f_norm = net.forward_normalised(x)
+    net.set_force_normalisation([2.5], [4.0])
+    _, f = net(x)
+    torch.testing.assert_close(f, f_norm * 4.0 + 2.5)
+    torch.testing.assert_close(net.normalise_force(f), f_norm)
+
+
+def test_bad_input_size():
+    with pytest.raises(ValueError, match="divisible by 16"):
+        NetConfig(height=60, width=30)
