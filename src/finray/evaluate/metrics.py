@@ -1,0 +1,48 @@
+"""Error metrics of the paper and ours (forces in N, stresses as log-stress maps).
+
+Force: MSE (N^2, the paper's metric), RMSE (N), NRMSE (% of the largest |true force|
+of the set, so that sets of different force scales compare), R^2. Stress: MSE of the
+log-stress inside the finger mask and SSIM (scikit-image) of the maps.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def force_metrics(true_N, pred_N) -> dict:
+    """MSE (N^2), RMSE (N), NRMSE (% of max |true|) and R^2 of force predictions."""
+    t = np.asarray(true_N, dtype=float).ravel()
+    p = np.asarray(pred_N, dtype=float).ravel()
+    if t.shape != p.shape or t.size == 0:
+        raise ValueError(f"need two equal, non-empty sets of forces, got {t.shape} and {p.shape}")
+    err = p - t
+    mse = float(np.mean(err**2))
+    scale = float(np.max(np.abs(t)))
+    ss_tot = float(np.sum((t - t.mean()) ** 2))
+    return {
+        "n": int(t.size),
+        "mse_N2": mse,
+        "rmse_N": float(np.sqrt(mse)),
+        "nrmse_pct": float(100 * np.sqrt(mse) / scale) if scale > 0 else float("nan"),
+        "r2": float(1 - np.sum(err**2) / ss_tot) if ss_tot > 0 else float("nan"),
+        "max_abs_error_N": float(np.max(np.abs(err))),
+        "max_true_N": scale,
+    }
+
+
+def stress_metrics(true_maps, pred_maps, masks) -> dict:
+    """Log-stress MSE inside the masks and mean SSIM over maps (N, H, W)."""
+    from skimage.metrics import structural_similarity
+
+    t = np.asarray(true_maps, dtype=float)
+    p = np.asarray(pred_maps, dtype=float)
+    m = np.asarray(masks, dtype=bool)
+    if t.ndim == 2:
+        t, p, m = t[None], p[None], m[None]
+    if not (t.shape == p.shape == m.shape):
+        raise ValueError(f"shapes differ: {t.shape}, {p.shape}, {m.shape}")
+    inside = m.sum()
+    mse = float(((t - p) ** 2)[m].mean()) if inside else float("nan")
+    rng = float(max(t.max() - t.min(), 1e-12))
+    ssim = [structural_similarity(a, b, data_range=rng) for a, b in zip(t, p)]
+    return {"stress_mse_log": mse, "ssim": float(np.mean(ssim)), "n_maps": int(len(t))}

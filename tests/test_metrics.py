@@ -1,0 +1,35 @@
+"""Metrics against hand-computed values."""
+import numpy as np
+import pytest
+
+from finray.evaluate.metrics import force_metrics, stress_metrics
+
+
+def test_force_metrics_by_hand():
+    t = np.array([0.0, 1.0, 2.0, 3.0])
+    p = np.array([0.0, 1.0, 2.0, 5.0])
+    m = force_metrics(t, p)
+    assert m["mse_N2"] == pytest.approx(1.0)
+    assert m["rmse_N"] == pytest.approx(1.0)
+    assert m["nrmse_pct"] == pytest.approx(100 / 3)
+    assert m["r2"] == pytest.approx(1 - 4 / 5)
+    assert force_metrics(t, t)["r2"] == 1.0
+
+
+def test_force_metrics_bad_input():
+    with pytest.raises(ValueError):
+        force_metrics([1, 2], [1])
+
+
+def test_stress_metrics_mask_and_ssim():
+    rng = np.random.default_rng(0)
+    t = rng.random((2, 32, 16))
+    mask = np.zeros_like(t, bool)
+    mask[:, 8:24, 4:12] = True
+    p = t.copy()
+    p[~mask] += 5.0  # errors outside the mask do not count
+    out = stress_metrics(t, p, mask)
+    assert out["stress_mse_log"] == 0.0
+    assert stress_metrics(t, t, mask)["ssim"] == pytest.approx(1.0)
+    p2 = t + 0.1 * mask
+    assert stress_metrics(t, p2, mask)["stress_mse_log"] == pytest.approx(0.01)
