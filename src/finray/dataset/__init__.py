@@ -1,0 +1,27 @@
+"""Dataset stage: rendered scenes -> network shards (one ``.npz`` per scene) + manifest.
+
+Public API:
+
+- :func:`segment`, :func:`area_resample` -- image operations shared with real cameras
+- :func:`sample_augment`, :func:`apply_augment`, :func:`augment_seed` -- seeded,
+  replayable salt-and-pepper noise and disc occlusion
+- :class:`DatasetParams` (config ``dataset``), :func:`build_shard`, :func:`load_shard`,
+  :func:`write_manifest`, :func:`prepare_frame`
+- :func:`pitch_object`, :func:`scene_splits` -- the splits
+- :func:`example_figure` -- the paper-style figure
+"""
+from .augment import (NOISE_LEVELS, OCCLUSION_LEVELS, AugmentParams, apply_augment, augment_seed,
+                      disc_diameters, sample_augment)
+from .figures import example_figure
+from .imageops import area_resample, segment, to_gray
+from .shards import (MANIFEST_COLUMNS, DatasetParams, build_shard, load_shard, prepare_frame,
+                     scene_id, size_key, write_manifest)
+from .splits import SPLITS, pitch_object, scene_splits
+
+__all__ = [
+    "MANIFEST_COLUMNS", "NOISE_LEVELS", "OCCLUSION_LEVELS", "SPLITS", "AugmentParams",
+    "DatasetParams", "apply_augment", "area_resample", "augment_seed", "build_shard",
+    "disc_diameters", "example_figure", "load_shard", "pitch_object", "prepare_frame",
+    "sample_augment", "scene_id", "scene_splits", "segment", "size_key", "to_gray",
+    "write_manifest",
+]

@@ -1,0 +1,24 @@
+"""Render stage: FEA frames -> camera images (PNG) and stress maps (EXR) in one pixel frame.
+
+Public API (see each module's docstring):
+
+- :func:`load_fea_result`, :func:`resample_frames` -- the solver's ``result.npz``
+- :class:`RenderParams` -- window, resolution, colours, stress transform (config ``render``)
+- :func:`render_scene` -- all frames of a scene into a directory (+ ``index.json``)
+- :class:`Rasterizer` (front view, numba) and :class:`~finray.render.pvrender.PyVistaRenderer`
+  (any pitch)
+- :func:`benchmark` -- ms/frame of both paths
+"""
+from .bench import benchmark
+from .imageio import read_exr, read_png, write_exr, write_png
+from .params import RenderParams, inverse_stress_transform, stress_transform
+from .raster import Rasterizer, composite
+from .result import FEAResult, ResultError, load_fea_result, resample_frames
+from .scene import SceneRenderer, load_render_index, read_render_frame, render_scene
+
+__all__ = [
+    "FEAResult", "Rasterizer", "RenderParams", "ResultError", "SceneRenderer", "benchmark",
+    "composite", "inverse_stress_transform", "load_fea_result", "load_render_index",
+    "read_exr", "read_png", "read_render_frame", "render_scene", "resample_frames",
+    "stress_transform", "write_exr", "write_png",
+]

@@ -1,0 +1,138 @@
+"""3D view of the extruded finger with pyvista (VTK), off screen.
+
+One :class:`PyVistaRenderer` (one plotter, one OpenGL context) serves a whole job:
+each frame only updates the surface points and re-renders. Multisampling is off
+(on the software renderer it costs 3-4x); anti-aliasing comes from rendering at
+``supersample`` times the resolution and area-averaging down, as in the 2D
+rasteriser. Parallel (orthographic) projection, the camera framing of
+:class:`~finray.render.params.RenderParams`, a single headlight.
+
+Mesa's software renderer (llvmpipe) starts one thread per core unless
+``LP_NUM_THREADS`` says otherwise; this module sets it to 1 if unset (set it
+before the first plotter is created to change it), so one job uses one core.
+"""
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("LP_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+
+from ..geometry.mesh import TriMesh  # noqa: E402
+from ..geometry.surface import extrude  # noqa: E402
+from .params import RenderParams  # noqa: E402
+from .raster import to_uint8  # noqa: E402
+
+#: Distance of the camera from the window centre (mm); any value outside the scene
+#: gives the same orthographic image.
+CAMERA_DISTANCE_MM = 1000.0
+
+
+def _faces(tri: np.ndarray) -> np.ndarray:
+    return np.column_stack([np.full(len(tri), tri.shape[1]), tri]).ravel()
+
+
+class PyVistaRenderer:
+    """Off-screen renderer of one finger mesh (and optionally its object) for a job.
+
+    ``render(points2d)`` returns the RGB image (H, W, 3) uint8 in the job's pixel
+    frame at the current pitch (:meth:`set_pitch`).
+    """
+
+    def __init__(self, mesh: TriMesh, params: RenderParams | None = None,
+                 extrusion_mm: float = 20.0, pitch_deg: float = 0.0,
+                 object_edges: np.ndarray | None = None, n_object_points: int = 0):
+        import pyvista as pv
+
+        pv.OFF_SCREEN = True
+        self.params = p = params or RenderParams()
+        self.surface = extrude(mesh, extrusion_mm)
+        self.extrusion_mm = extrusion_mm
+        self.ss = int(p.supersample)
+        self.size = (p.width * self.ss, p.height * self.ss)  # (W, H) in pixels
+        self.plotter = pl = pv.Plotter(off_screen=True, window_size=self.size, lighting="none")
+        pl.render_window.SetMultiSamples(0)
+        pl.set_background(p.background_rgb)
+        pl.add_light(pv.Light(light_type="headlight", intensity=1.0))
+        self.poly = pv.PolyData(self.surface.points.copy(), _faces(self.surface.faces))
+        pl.add_mesh(self.poly, color=p.finger_rgb, ambient=p.ambient, diffuse=p.diffuse,
+                    specular=0.0, smooth_shading=False, show_edges=False)
+        self.object_poly = None
+        if object_edges is not None and len(object_edges) and n_object_points:
+            # the object's outline on the camera-side face of the finger, and its
+            # walls through the extrusion (figures only)
+            k = n_object_points
+            zf = 0.5 * extrusion_mm + 0.05
+            pts = np.zeros((2 * k, 3))
+            pts[:k, 2], pts[k:, 2] = zf, -zf
+            a, b = object_edges[:, 0], object_edges[:, 1]
+            quads = np.column_stack([a, b, b + k, a + k])
+            self.object_poly = pv.PolyData(pts, _faces(quads))
+            pl.add_mesh(self.object_poly, color=p.object_rgb, ambient=p.ambient,
+                        diffuse=p.diffuse, specular=0.0)
+            self.object_lines = pv.PolyData(pts[:k].copy(), lines=_faces(object_edges))
+            pl.add_mesh(self.object_lines, color=p.object_rgb, line_width=2 * self.ss,
+                        lighting=False)
+        pl.enable_parallel_projection()
+        # the first show() sets up the render window (and may reset the camera);
+        # frames after it only call render()
+        self.set_pitch(pitch_deg)
+        pl.show(auto_close=False)
+        self.set_pitch(pitch_deg)
+        self._pixels = None
+
+    def set_pitch(self, pitch_deg: float) -> None:
+        """Camera pitch about the image's horizontal axis (deg, + looks down on the tip)."""
+        p = self.params
+        t = np.radians(pitch_deg)
+        xc, yc = p.centre_mm
+        cam = self.plotter.camera
+        cam.focal_point = (xc, yc, 0.0)
+        cam.position = (xc, yc + CAMERA_DISTANCE_MM * np.sin(t), CAMERA_DISTANCE_MM * np.cos(t))
+        cam.up = (0.0, np.cos(t), -np.sin(t))
+        cam.parallel_scale = 0.5 * (p.window_y_mm[1] - p.window_y_mm[0])
+        span = max(p.window_y_mm[1] - p.window_y_mm[0], p.window_x_mm[1] - p.window_x_mm[0])
+        cam.clipping_range = (CAMERA_DISTANCE_MM - 2 * span - self.extrusion_mm,
+                              CAMERA_DISTANCE_MM + 2 * span + self.extrusion_mm)
+        self.pitch_deg = float(pitch_deg)
+
+    def render_fine(self, points2d: np.ndarray, object_points2d: np.ndarray | None = None) -> np.ndarray:
+        """The supersampled RGB frame (H*ss, W*ss, 3) uint8, row 0 at the top."""
+        from vtkmodules.util.numpy_support import vtk_to_numpy
+        from vtkmodules.vtkCommonCore import vtkUnsignedCharArray
+
+        self.poly.points = self.surface.deformed(np.asarray(points2d, dtype=np.float64))
+        if self.object_poly is not None and object_points2d is not None:
+            k = len(object_points2d)
+            pts = self.object_poly.points.copy()
+            pts[:k, :2] = object_points2d
+            pts[k:, :2] = object_points2d
+            self.object_poly.points = pts
+            self.object_lines.points = pts[:k].copy()
+        self.plotter.render()
+        w, h = self.size
+        if self._pixels is None:
+            self._pixels = vtkUnsignedCharArray()
+        self.plotter.render_window.GetPixelData(0, 0, w - 1, h - 1, 0, self._pixels, 0)
+        return vtk_to_numpy(self._pixels).reshape(h, w, 3)[::-1]
+
+    def render(self, points2d: np.ndarray, object_points2d: np.ndarray | None = None) -> np.ndarray:
+        """RGB image (H, W, 3) uint8: the fine frame area-averaged down."""
+        fine = self.render_fine(points2d, object_points2d)
+        return to_uint8(block_mean(fine, self.ss) / 255.0)
+
+    def close(self) -> None:
+        self.plotter.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def block_mean(img: np.ndarray, k: int) -> np.ndarray:
+    """Mean over k x k blocks of an (H*k, W*k, ...) array, float64."""
+    h, w = img.shape[0] // k, img.shape[1] // k
+    return img.reshape(h, k, w, k, *img.shape[2:]).mean(axis=(1, 3), dtype=np.float64)

@@ -1,0 +1,153 @@
+"""Dataset stage: crop + area resampling, segmentation, shards, manifest, splits, figure."""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from finray.dataset import (MANIFEST_COLUMNS, DatasetParams, area_resample, build_shard,
+                            example_figure, load_shard, pitch_object, scene_splits, segment,
+                            write_manifest)
+from finray.render import RenderParams, load_render_index, read_render_frame, render_scene
+
+from test_render_fixture import write_synthetic_fea_result
+
+
+@pytest.fixture(scope="module")
+def renders(tmp_path_factory):
+    """The fixture scene rendered at pitch 0 and 20 (3 frames each)."""
+    tmp = tmp_path_factory.mktemp("ds")
+    res = write_synthetic_fea_result(tmp / "result.npz", n_frames=5)
+    params = RenderParams(frames_per_scene=3)
+    scene = {"object": "ellipse_16x9", "material": "steel", "height_mm": 30.0, "split": "shape"}
+    out = {}
+    for pitch in (0.0, 20.0):
+        out[pitch] = tmp / f"p{pitch:g}"
+        render_scene(res, out[pitch], pitch, params=params, scene=scene)
+    return out
+
+
+def test_area_resample_is_an_exact_area_average():
+    rng = np.random.default_rng(0)
+    img = rng.random((40, 20))
+    # integer factor: block means
+    out = area_resample(img, (0, 0, 20, 40), (10, 5))
+    np.testing.assert_allclose(out, img.reshape(10, 4, 5, 4).mean(axis=(1, 3)))
+    # non-integer factor: the mean is preserved
+    out = area_resample(img, (0, 0, 20, 40), (16, 8))
+    assert out.mean() == pytest.approx(img.mean())
+    # fractional crop of a constant image: constant inside, outside counts as 0
+    one = np.ones((40, 20))
+    np.testing.assert_allclose(area_resample(one, (2.5, 3.25, 12.5, 23.25), (8, 4)), 1.0)
+    edge = area_resample(one, (-2.0, 0.0, 18.0, 40.0), (4, 2))
+    np.testing.assert_allclose(edge[:, 0], 0.8)
+    # colour images resample channel by channel
+    rgb = rng.random((40, 20, 3))
+    np.testing.assert_allclose(area_resample(rgb, (0, 0, 20, 40), (8, 4))[..., 1],
+                               area_resample(rgb[..., 1], (0, 0, 20, 40), (8, 4)))
+
+
+def test_segmentation_works_on_a_noisy_camera_like_image():
+    rng = np.random.default_rng(1)
+    h, w = 200, 100
+    truth = np.zeros((h, w), bool)
+    truth[20:180, 30:40] = True  # a wall
+    truth[20:30, 30:80] = True  # a rib
+    truth[100:104, 30:80] = True  # a thin rib
+    truth[20:180, 70:80] = True
+    img = np.where(truth[..., None], [200, 120, 40], [20, 25, 30]).astype(float)
+    img += rng.normal(0, 12, img.shape)  # sensor noise
+    img[5, 5] = img[150, 55] = 255  # specks on the background
+    img[60, 35] = 0  # a dark speck on the finger
+    seg = segment(np.clip(img, 0, 255).astype(np.uint8))
+    assert (seg == truth).mean() > 0.999
+    assert not seg[5, 5] and not seg[150, 55] and seg[60, 35]
+    # the cavities (large holes) stay open
+    assert not seg[60:90, 45:65].any()
+    # dark finger on a bright background
+    seg_dark = segment(255 - np.clip(img, 0, 255).astype(np.uint8), foreground="dark")
+    assert (seg_dark == truth).mean() > 0.999
+
+
+def test_build_shard_and_manifest(renders, tmp_path):
+    params = DatasetParams()
+    splits0 = scene_splits("shape", 0.0, is_pitch_object=True)
+    splits20 = scene_splits("shape", 20.0, is_pitch_object=True)
+    assert splits0 == ["shape", "pitch"] and splits20 == ["pitch"]
+    m0 = build_shard(renders[0.0], tmp_path / "s0.npz", {"splits": splits0}, params)
+    m20 = build_shard(renders[20.0], tmp_path / "s20.npz", {"splits": splits20}, params)
+    assert m0["scene"]["scene_id"] == "ellipse_16x9_steel_h30_p0"
+    assert m20["scene"]["pitch_deg"] == 20.0
+    d = load_shard(tmp_path / "s0.npz")
+    for h, w in params.sizes:
+        k = f"{h}x{w}"
+        assert d[f"input_{k}"].shape == (3, h, w) and d[f"input_{k}"].dtype == np.uint8
+        assert d[f"mask_{k}"].shape == (3, h, w) and set(np.unique(d[f"mask_{k}"])) == {0, 1}
+        assert d[f"stress_{k}"].dtype == np.float32 and (d[f"stress_{k}"] >= 0).all()
+        # at pitch 0 the stress support and the segmented mask agree (up to the
+        # rounding of sub-pixel ribs: the mask is the area average of a binary
+        # segmentation, the stress support that of the exact coverage)
+        for f in range(3):
+            sup, mask = d[f"stress_{k}"][f] > 0, d[f"mask_{k}"][f] == 1
+            assert (sup & mask).sum() / (sup | mask).sum() >= 0.93
+    # the soft input keeps sub-pixel ribs: more finger area than the binary mask shows
+    assert d["input_64x32"][0].sum() / 255 == pytest.approx(d["mask_64x32"][0].sum(), rel=0.25)
+    np.testing.assert_allclose(d["displacement_mm"], [0.0, 2.5, 5.0])
+    assert d["fx_N"][0] == 0.0 and d["fx_N"][-1] == pytest.approx(3.0)
+    # the finger area in the input equals the rendered area (area averaging is exact)
+    index = load_render_index(renders[0.0])
+    _, maps = read_render_frame(renders[0.0], 0, index)
+    rp = RenderParams.from_config(index["params"])
+    cov_mm2 = maps["coverage"].sum() / rp.px_per_mm**2
+    px_mm = (params.crop_x_mm[1] - params.crop_x_mm[0]) / 64
+    inp_mm2 = d["input_128x64"][0].sum() / 255 * px_mm**2
+    assert inp_mm2 == pytest.approx(cov_mm2, rel=0.02)
+
+    df = write_manifest([tmp_path / "s0.npz", tmp_path / "s20.npz"], tmp_path / "manifest.csv",
+                        relative_to=tmp_path)
+    back = pd.read_csv(tmp_path / "manifest.csv")
+    assert list(back.columns) == MANIFEST_COLUMNS
+    assert len(back) == len(df) == 3 * 2 + 3
+    pitch = back[back.split == "pitch"]
+    assert sorted(pitch.pitch_deg.unique()) == [0.0, 20.0]
+    assert (back[back.split == "shape"].pitch_deg == 0).all()
+    assert set(back.shard) == {"s0.npz", "s20.npz"}
+    assert (back.object == "ellipse_16x9").all() and (back.height_mm == 30.0).all()
+
+
+def test_pitched_shard_keeps_the_front_stress_map(renders, tmp_path):
+    build_shard(renders[0.0], tmp_path / "a.npz")
+    build_shard(renders[20.0], tmp_path / "b.npz", {"splits": ["pitch"]})
+    a, b = load_shard(tmp_path / "a.npz"), load_shard(tmp_path / "b.npz")
+    np.testing.assert_array_equal(a["stress_128x64"], b["stress_128x64"])
+    assert not np.array_equal(a["input_128x64"], b["input_128x64"])
+
+
+def test_splits_and_pitch_object():
+    cfg = {"objects": {"circle_d5": {"split": "train"}, "ring_d15": {"split": "material"},
+                       "ellipse_16x9": {"split": "shape"}, "tri": {"split": "shape"}}}
+    assert pitch_object(cfg) == "ellipse_16x9"
+    assert pitch_object(dict(cfg, dataset={"pitch_object": "tri"})) == "tri"
+    with pytest.raises(ValueError, match="pitch_object"):
+        pitch_object(dict(cfg, dataset={"pitch_object": "nope"}))
+    assert scene_splits("train", 0.0, False) == ["train"]
+    assert scene_splits("material", 0.0, False) == ["material"]
+    with pytest.raises(ValueError):
+        scene_splits("train", 10.0, False)
+
+
+def test_params_from_config():
+    p = DatasetParams.from_config({"sizes": [[64, 32]], "noise_levels": {"none": 0, "low": 0.2},
+                                   "occlusion_levels": {"none": [0, 0], "high": [0.8, 1.0]},
+                                   "crop_x_mm": [0, 40], "crop_y_mm": [0, 80], "unrelated": 1})
+    assert p.sizes == ((64, 32),) and p.noise == {"none": 0.0, "low": 0.2}
+    assert p.occlusion["high"] == (0.8, 1.0)
+    with pytest.raises(ValueError, match="height = 2 x width"):
+        DatasetParams(sizes=((64, 64),))
+    r = RenderParams.from_config({"px_per_mm": 8, "window_x_mm": [-5, 35], "pitches_deg": [0, 5]})
+    assert r.shape == (84 * 8, 40 * 8)
+
+
+def test_example_figure(renders, tmp_path):
+    out = example_figure(renders[0.0], tmp_path / "fig.png", pitch_dirs=renders)
+    assert out.stat().st_size > 10_000
