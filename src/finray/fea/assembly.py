@@ -146,6 +146,123 @@ def _element_forces(G, wdet, P, out):
     return out
 
 
+
+@nb.njit(cache=True)
+def _nh_fused(tri, U, G, wdet, mu_e, lam_e, order, psd, pos, data, g_full):
+    """Fused compressible neo-Hookean element loop (plane strain).
+
+    Computes the energy (returned), adds nodal forces into g_full (2N,) when
+    order >= 1 and element stiffness entries into the CSR data array through the
+    scatter positions pos (M, 2n, 2n; -1 = dropped) when order >= 2. The material
+    tangents are projected to PSD per Gauss point when ``psd``. Returns +inf if an
+    element is inverted (J <= 0).
+    """
+    M, q, n, _ = G.shape
+    E = 0.0
+    A = np.empty((4, 4))
+    L = np.empty((4, 4))
+    c = np.empty((n, 2, 2, 2))  # c[a, i, k, L] = sum_J G[a, J] A[iJ, kL]
+    for m in range(M):
+        mu = mu_e[m]
+        lam = lam_e[m]
+        for p in range(q):
+            w = wdet[m, p]
+            f00 = 1.0
+            f01 = 0.0
+            f10 = 0.0
+            f11 = 1.0
+            for a in range(n):
+                node = tri[m, a]
+                ux = U[node, 0]
+                uy = U[node, 1]
+                g0 = G[m, p, a, 0]
+                g1 = G[m, p, a, 1]
+                f00 += ux * g0
+                f01 += ux * g1
+                f10 += uy * g0
+                f11 += uy * g1
+            J = f00 * f11 - f01 * f10
+            if J <= 0.0:
+                return np.inf
+            lnJ = np.log(J)
+            E += w * (0.5 * mu * (f00 * f00 + f01 * f01 + f10 * f10 + f11 * f11 - 2.0)
+                      - mu * lnJ + 0.5 * lam * lnJ * lnJ)
+            if order < 1:
+                continue
+            # Finv[J, k]
+            i00 = f11 / J
+            i01 = -f01 / J
+            i10 = -f10 / J
+            i11 = f00 / J
+            # P = mu (F - Finv^T) + lam lnJ Finv^T
+            cl = lam * lnJ
+            P00 = mu * (f00 - i00) + cl * i00
+            P01 = mu * (f01 - i10) + cl * i10
+            P10 = mu * (f10 - i01) + cl * i01
+            P11 = mu * (f11 - i11) + cl * i11
+            for a in range(n):
+                node = tri[m, a]
+                g0 = G[m, p, a, 0]
+                g1 = G[m, p, a, 1]
+                g_full[2 * node] += w * (P00 * g0 + P01 * g1)
+                g_full[2 * node + 1] += w * (P10 * g0 + P11 * g1)
+            if order < 2:
+                continue
+            Fi = ((i00, i01), (i10, i11))
+            c1 = mu - lam * lnJ
+            for i in range(2):
+                for Jj in range(2):
+                    for k in range(2):
+                        for Ll in range(2):
+                            v = c1 * Fi[Jj][k] * Fi[Ll][i] + lam * Fi[Jj][i] * Fi[Ll][k]
+                            if i == k and Jj == Ll:
+                                v += mu
+                            A[2 * i + Jj, 2 * k + Ll] = v
+            if psd:
+                ok = True
+                for j in range(4):
+                    sj = A[j, j]
+                    for k in range(j):
+                        sj -= L[j, k] * L[j, k]
+                    if sj <= 0.0:
+                        ok = False
+                        break
+                    L[j, j] = np.sqrt(sj)
+                    for i in range(j + 1, 4):
+                        t = A[i, j]
+                        for k in range(j):
+                            t -= L[i, k] * L[j, k]
+                        L[i, j] = t / L[j, j]
+                if not ok:
+                    wv, V = np.linalg.eigh(A.copy())
+                    for i in range(4):
+                        if wv[i] < 0.0:
+                            wv[i] = 0.0
+                    for i in range(4):
+                        for j in range(4):
+                            t = 0.0
+                            for k in range(4):
+                                t += V[i, k] * wv[k] * V[j, k]
+                            A[i, j] = t
+            for a in range(n):
+                g0 = G[m, p, a, 0]
+                g1 = G[m, p, a, 1]
+                for i in range(2):
+                    for k in range(2):
+                        c[a, i, k, 0] = g0 * A[2 * i, 2 * k] + g1 * A[2 * i + 1, 2 * k]
+                        c[a, i, k, 1] = g0 * A[2 * i, 2 * k + 1] + g1 * A[2 * i + 1, 2 * k + 1]
+            for a in range(n):
+                for i in range(2):
+                    r = 2 * a + i
+                    for b in range(n):
+                        h0 = G[m, p, b, 0]
+                        h1 = G[m, p, b, 1]
+                        for k in range(2):
+                            pp = pos[m, r, 2 * b + k]
+                            if pp >= 0:
+                                data[pp] += w * (c[a, i, k, 0] * h0 + c[a, i, k, 1] * h1)
+    return E
+
 # ----------------------------------------------------------------------------------
 # Sparse pattern with a fixed scatter index
 # ----------------------------------------------------------------------------------
@@ -178,6 +295,12 @@ class ScatterPattern:
     @property
     def nnz(self) -> int:
         return len(self.indices)
+
+    def positions(self, M: int, k: int) -> np.ndarray:
+        """(M, k, k) position of each element entry in the data array (-1: dropped)."""
+        pos = -np.ones(M * k * k, np.int64)
+        pos[self.entry_mask] = self.entry_pos
+        return pos.reshape(M, k, k)
 
     def data(self, Ke: np.ndarray) -> np.ndarray:
         """CSR data array of the assembled element matrices Ke (M, k, k)."""
@@ -242,6 +365,12 @@ class ElasticAssembler:
         self.edof_red = self.dof_map.reshape(-1)[self.edof_full]
         self.pattern = ScatterPattern.from_element_dofs(self.edof_red, self.n_dofs)
         self.areas = self.wdet.sum(axis=1)
+        # fused numba path (neo-Hookean blocks)
+        self.fused = all(isinstance(b.material, NeoHookean) for b in blocks)
+        if self.fused:
+            self._pos = self.pattern.positions(len(self.tri), 2 * n)
+            self._mu = np.concatenate([np.full(len(b.triangles), b.material.mu) for b in blocks])
+            self._lam = np.concatenate([np.full(len(b.triangles), b.material.lam) for b in blocks])
 
     # -- kinematics ----------------------------------------------------------------
     def deformation_gradient(self, U: np.ndarray) -> np.ndarray:
@@ -259,6 +388,8 @@ class ElasticAssembler:
 
     # -- evaluation ----------------------------------------------------------------
     def energy(self, U: np.ndarray) -> float:
+        if self.fused:
+            return self._evaluate_fused(U, 0, False)[0]
         F = self.deformation_gradient(U)
         tot = 0.0
         for b, s in zip(self.blocks, self.block_slices):
@@ -273,6 +404,22 @@ class ElasticAssembler:
         see :attr:`pattern`). ``psd`` projects the material tangents to PSD.
         Returns (E, g_full, H_data); E is +inf if an element is inverted.
         """
+        if self.fused:
+            return self._evaluate_fused(U, order, psd)
+        return self.evaluate_numpy(U, order, psd)
+
+    def _evaluate_fused(self, U, order, psd):
+        U = np.ascontiguousarray(U, dtype=float)
+        g = np.zeros(2 * self.n_nodes)
+        data = np.zeros(self.pattern.nnz if order >= 2 else 1)
+        E = _nh_fused(self.tri, U, self.G, self.wdet, self._mu, self._lam, order, psd,
+                      self._pos, data, g)
+        if not np.isfinite(E):
+            return np.inf, None, None
+        return E, (g if order >= 1 else None), (data if order >= 2 else None)
+
+    def evaluate_numpy(self, U: np.ndarray, order: int = 2, psd: bool = True):
+        """Reference (numpy) implementation of :meth:`evaluate` for any material law."""
         F = self.deformation_gradient(U)
         M, q = F.shape[:2]
         n = self.npe

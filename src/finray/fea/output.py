@@ -1,0 +1,181 @@
+"""One FEA scene from the config to files: inputs, run, ``result.npz``, CSV, JSON, VTU.
+
+Files written into a scene directory (lengths mm, forces N for the extruded finger,
+stresses MPa):
+
+- ``result.npz``: the compact result the render stage reads (see
+  :mod:`finray.render.result` for the keys); forces are those the object applies to
+  the finger (positive along the push), equal and opposite to the force on the
+  object and to the clamp's reaction;
+- ``forces.csv``: ``displacement_mm,fx_N,fy_N`` per frame;
+- ``summary.json``: convergence, timings, peak stress, smallest gap, contact pairs;
+- ``finger.pvd`` + ``vtu/finger_NNNN.vtu`` (and ``object.pvd`` for deformable
+  objects): the deformation series with displacement and von Mises stress, for
+  ParaView (apply "Warp By Vector" on ``u``).
+"""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..geometry.mesh import BOUNDARY_TAGS, TriMesh
+from .contact import ContactParams, split_p2_edges
+from .material import NeoHookean
+from .simulate import (DeformableObject, RigidObject, SimulationError, SimulationOptions,
+                       SimulationResult, simulate)
+
+
+def material_law(cfg: dict, name: str) -> NeoHookean:
+    """Neo-Hookean law of a deformable material of the config."""
+    m = cfg["materials"][name]
+    if m["rigid"]:
+        raise ValueError(f"material {name} is rigid: it has no elastic law")
+    return NeoHookean.from_E_nu(m["youngs_modulus_MPa"], m["poisson_ratio"], name=name)
+
+
+def simulation_options(cfg: dict) -> SimulationOptions:
+    f = cfg["fea"]
+    contact = ContactParams(dhat=f["dhat_mm"], kappa=f["barrier_stiffness_MPa"],
+                            mu=f["friction"], eps_v=f["static_slip_mm"],
+                            self_contact=f["self_contact"])
+    return SimulationOptions(push_mm=f["push_mm"], frame_step_mm=f["frame_step_mm"],
+                             contact=contact, max_step_mm=f["max_step_mm"],
+                             initial_step_mm=f["max_step_mm"], min_step_mm=f["min_step_mm"],
+                             max_retries=f["max_retries"],
+                             extrusion_mm=cfg["finger"]["extrusion_mm"])
+
+
+def scene_object(obj_mesh: TriMesh, material: str, cfg: dict):
+    """The solver's object: rigid boundary or deformable mesh in ``material``."""
+    name = obj_mesh.meta.get("name", "object")
+    if cfg["materials"][material]["rigid"]:
+        # only the outer loop can touch the finger (the bore of a ring never does)
+        outer = obj_mesh.boundary_edges[obj_mesh.boundary_tags == BOUNDARY_TAGS["object"]]
+        segs = split_p2_edges(outer)
+        used = np.unique(segs)
+        remap = -np.ones(len(obj_mesh.points), np.int64)
+        remap[used] = np.arange(len(used))
+        return RigidObject(obj_mesh.points[used], remap[segs], name=name)
+    return DeformableObject(obj_mesh, material_law(cfg, material), name=name)
+
+
+def object_segments(obj, result: SimulationResult) -> tuple[np.ndarray, np.ndarray]:
+    """Object node positions per frame (F, K, 2) and its boundary segments (E, 2)."""
+    if isinstance(obj, RigidObject):
+        pts, segs = obj.points, np.asarray(obj.edges)[:, :2]
+    else:
+        pts = obj.mesh.points
+        segs = split_p2_edges(obj.mesh.boundary_edges)
+    return pts[None] + result.object_displacement_mm, segs
+
+
+def write_result_npz(path: Path, finger: TriMesh, obj, result: SimulationResult) -> None:
+    """The compact per-scene file of the render stage (forces on the finger, N)."""
+    obj_pts, obj_segs = object_segments(obj, result)
+    np.savez_compressed(
+        path, points=finger.points, triangles=finger.triangles,
+        boundary_edges=finger.boundary_edges, boundary_tags=finger.boundary_tags,
+        displacement_mm=result.displacement_mm,
+        u_mm=result.finger_displacement_mm.astype(np.float32),
+        von_mises_MPa=result.finger_von_mises_MPa.astype(np.float32),
+        fx_N=-result.force_N[:, 0], fy_N=-result.force_N[:, 1],
+        object_points_mm=obj_pts.astype(np.float32), object_edges=obj_segs,
+        n_pairs_self=result.n_pairs_self, n_pairs_object=result.n_pairs_object,
+        min_gap_self_mm=result.min_gap_self_mm, min_gap_object_mm=result.min_gap_object_mm,
+    )
+
+
+def write_vtu_series(outdir: Path, finger: TriMesh, obj, result: SimulationResult) -> None:
+    """ParaView series: reference mesh + displacement ``u`` and ``von_mises_MPa``."""
+    import meshio
+
+    vdir = outdir / "vtu"
+    vdir.mkdir(parents=True, exist_ok=True)
+    series = {"finger": [], "object": []}
+    z = lambda a: np.column_stack([a, np.zeros(len(a))]).astype(np.float32)  # noqa: E731
+    cell = "triangle6" if finger.order == 2 else "triangle"
+    for k, d in enumerate(result.displacement_mm):
+        name = f"finger_{k:04d}.vtu"
+        meshio.Mesh(z(finger.points), [(cell, finger.triangles)],
+                    point_data={"u": z(result.finger_displacement_mm[k]),
+                                "von_mises_MPa": result.finger_von_mises_MPa[k].astype(np.float32)},
+                    ).write(vdir / name, compression="zlib")
+        series["finger"].append((float(d), f"vtu/{name}"))
+        if isinstance(obj, DeformableObject):
+            name = f"object_{k:04d}.vtu"
+            point_data = {"u": z(result.object_displacement_mm[k])}
+            if result.object_von_mises_MPa is not None:
+                point_data["von_mises_MPa"] = result.object_von_mises_MPa[k].astype(np.float32)
+            meshio.Mesh(z(obj.mesh.points), [(cell, obj.mesh.triangles)], point_data=point_data,
+                        ).write(vdir / name, compression="zlib")
+            series["object"].append((float(d), f"vtu/{name}"))
+    for body, items in series.items():
+        if not items:
+            continue
+        rows = "\n".join(f'    <DataSet timestep="{t:.6g}" part="0" file="{f}"/>' for t, f in items)
+        (outdir / f"{body}.pvd").write_text(
+            '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n'
+            f"  <Collection>\n{rows}\n  </Collection>\n</VTKFile>\n")
+
+
+def summary(result: SimulationResult, wall_time_s: float, scene: dict) -> dict:
+    """Headline numbers of a converged run (forces on the finger, N)."""
+    gaps = np.concatenate([result.min_gap_object_mm, result.min_gap_self_mm])
+    gaps = gaps[np.isfinite(gaps)]
+    return {
+        **scene, "converged": True, "wall_time_s": round(wall_time_s, 3),
+        "n_frames": int(len(result.displacement_mm)),
+        "n_steps": int(result.load_steps[-1]),
+        "newton_iterations": int(result.newton_iterations.sum()),
+        "max_von_mises_MPa": float(result.finger_von_mises_MPa.max()),
+        "min_gap_mm": float(gaps.min()) if len(gaps) else None,
+        "self_contact_max_pairs": int(result.n_pairs_self.max()),
+        "self_contact_first_mm": (float(result.displacement_mm[np.argmax(result.n_pairs_self > 0)])
+                                  if (result.n_pairs_self > 0).any() else None),
+        "object_contact_max_pairs": int(result.n_pairs_object.max()),
+        "fx_final_N": float(-result.force_N[-1, 0]), "fy_final_N": float(-result.force_N[-1, 1]),
+        "equilibrium_max_rel_error": _equilibrium_error(result),
+        "solver": result.meta,
+    }
+
+
+def _equilibrium_error(result: SimulationResult) -> float:
+    """max |force on object - base reaction| / max |force| over the frames."""
+    scale = max(float(np.abs(result.force_N).max()), 1e-12)
+    return float(np.abs(result.force_N - result.base_reaction_N).max() / scale)
+
+
+def run_scene(cfg: dict, finger: TriMesh, obj_mesh: TriMesh, material: str, outdir: str | Path,
+              scene: dict | None = None, vtu: bool = True) -> dict:
+    """Simulate one scene and write its files; a failed solve writes ``summary.json``
+    with ``converged: false`` and the cause, then raises :class:`SimulationError`."""
+    outdir = Path(outdir)
+    outdir.mkdir(parents=True, exist_ok=True)
+    scene = dict(scene or {})
+    obj = scene_object(obj_mesh, material, cfg)
+    t0 = time.perf_counter()
+    try:
+        res = simulate(finger, obj, material_law(cfg, cfg["finger"]["material"]),
+                       simulation_options(cfg))
+    except SimulationError as exc:
+        fail = {**scene, "converged": False, "wall_time_s": round(time.perf_counter() - t0, 3),
+                "error": str(exc), "failed_step": exc.step}
+        (outdir / "summary.json").write_text(json.dumps(fail, indent=2))
+        raise SimulationError(f"scene {scene.get('scene', '?')}: {exc}", step=exc.step,
+                              load=exc.load, cause=exc.cause) from None
+    wall = time.perf_counter() - t0
+    for name, arr in (("displacement", res.finger_displacement_mm), ("force", res.force_N),
+                      ("stress", res.finger_von_mises_MPa)):
+        if not np.isfinite(arr).all():
+            raise SimulationError(f"scene {scene.get('scene', '?')}: non-finite {name} in the result")
+    write_result_npz(outdir / "result.npz", finger, obj, res)
+    np.savetxt(outdir / "forces.csv", np.column_stack([res.displacement_mm, -res.force_N]),
+               delimiter=",", header="displacement_mm,fx_N,fy_N", comments="", fmt="%.8g")
+    if vtu:
+        write_vtu_series(outdir, finger, obj, res)
+    out = summary(res, wall, scene)
+    (outdir / "summary.json").write_text(json.dumps(out, indent=2))
+    return out

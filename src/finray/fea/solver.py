@@ -1,0 +1,622 @@
+"""Quasi-static Newton solver with CCD-bounded line search and load stepping.
+
+Units: mm, N, MPa; energies per unit out-of-plane thickness (N mm / mm), forces
+N/mm.
+
+The total potential of a load step is minimised over the reduced unknowns ``q``::
+
+    Pi(q) = E_elastic(U) + B_barrier(U) + D_friction(U - U_step_start)
+            + k/2 |t - t_target|^2 - s f_ext . U
+
+``t`` (2 unknowns) is the rigid translation of the *driven* nodes (the rigid
+object, or the inner loop of a deformable ring): it is pulled to its target by a
+stiff penalty spring ``k`` (as the IPC paper enforces moving boundary
+conditions), so that every step of the solve is a line search on one energy and
+the object never enters the finger. The force the finger exerts on the object is
+``k (t - t_target)``, equal to ``-d(B + D)/dt`` at equilibrium.
+
+Newton: the exact Hessian is factorised first (quadratic convergence); when it is
+not positive definite, the material tangents are projected to PSD per Gauss point
+and the contact Hessians per contact (ipctk's "abs" projection) and the system is
+factorised again. The sparse Cholesky (CHOLMOD) reuses its symbolic analysis while
+the pattern stays inside the analysed one. Each step is cut to the collision-free
+fraction found by continuous collision detection, then backtracked (Armijo) so
+that the energy decreases: no accepted state is interpenetrating or has an
+inverted element. Convergence: infinity norm of the Newton step below ``tol_dx``
+(mm); that last, tiny step is taken too.
+
+Load stepping (:func:`march`): adaptive steps (halved on failure, doubled after
+easy steps, bounded by the frame spacing), a linear predictor from the previous
+increment, and friction normal forces/tangents lagged at the step start and
+re-lagged at the solution ``friction_lag_iterations`` times.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from .assembly import ElasticAssembler, ElementBlock
+from .contact import ContactModel
+
+try:  # CHOLMOD (scikit-sparse): symbolic analysis reused across Newton iterations
+    from sksparse.cholmod import CholmodNotPositiveDefiniteError
+    from sksparse.cholmod import analyze as _cholmod_analyze
+    HAVE_CHOLMOD = True
+except Exception:  # pragma: no cover - depends on the machine
+    HAVE_CHOLMOD = False
+try:
+    import cholespy as _cholespy
+    HAVE_CHOLESPY = True
+except Exception:  # pragma: no cover
+    HAVE_CHOLESPY = False
+
+
+class NotPositiveDefinite(np.linalg.LinAlgError):
+    """The Cholesky factorisation met a non-positive pivot."""
+
+
+class SimulationError(RuntimeError):
+    """The solve failed; ``step`` is the load-step index, ``load`` the load factor
+    (fraction of the push) it aimed at, ``cause`` a short reason."""
+
+    def __init__(self, message: str, step: int | None = None, load: float | None = None,
+                 cause: str = ""):
+        super().__init__(message)
+        self.step = step
+        self.load = load
+        self.cause = cause
+
+
+# ----------------------------------------------------------------------------------
+# Linear solver
+# ----------------------------------------------------------------------------------
+class LinearSolver:
+    """Sparse SPD solver.
+
+    ``backend``: "cholmod" (scikit-sparse; the symbolic factorisation is kept and
+    reused while the matrix pattern is a subset of the analysed one; ``mode``
+    "auto" times one simplicial and one supernodal factorisation and keeps the
+    faster), "cholespy"
+    (a fresh factorisation each call), "splu" (scipy SuperLU), or "auto" (the first
+    one available in that order).
+    """
+
+    def __init__(self, backend: str = "auto", mode: str = "auto"):
+        self.mode = mode  # CHOLMOD: "simplicial", "supernodal" or "auto" (timed once)
+        if backend == "auto":
+            backend = "cholmod" if HAVE_CHOLMOD else ("cholespy" if HAVE_CHOLESPY else "splu")
+        self.backend = backend
+        self._factor = None
+        self._base = None  # sorted int64 keys (row * n + col) of the base pattern
+        self._base_csr = None
+        self._base_n = -1
+        self._extra = None  # sorted keys of the varying part seen so far
+        self.n_analyses = 0
+        self.n_factorizations = 0
+        self.time_analyse = 0.0
+        self.time_factor = 0.0
+        self.time_solve = 0.0
+
+    @staticmethod
+    def _keys(A: sp.csr_matrix) -> np.ndarray:
+        n = A.shape[0]
+        rows = np.repeat(np.arange(n, dtype=np.int64), np.diff(A.indptr))
+        return rows * n + A.indices
+
+    @staticmethod
+    def _missing(keys: np.ndarray, sorted_keys: np.ndarray | None) -> np.ndarray:
+        """Keys not in sorted_keys."""
+        if sorted_keys is None or len(sorted_keys) == 0:
+            return keys
+        pos = np.searchsorted(sorted_keys, keys)
+        pos[pos >= len(sorted_keys)] = 0
+        return keys[sorted_keys[pos] != keys]
+
+    @staticmethod
+    def _pick_mode(A: sp.csr_matrix) -> str:
+        """Time one simplicial and one supernodal factorisation of A (CHOLMOD's
+        supernodal mode pays off only with an optimised BLAS)."""
+        Ac = sp.csc_matrix((A.data, A.indices, A.indptr), shape=A.shape)
+        best, best_t = "simplicial", np.inf
+        for mode in ("simplicial", "supernodal"):
+            try:
+                f = _cholmod_analyze(Ac, mode=mode)
+                t0 = time.perf_counter()
+                f.cholesky_inplace(Ac, beta=float(np.abs(A.data).max()))  # surely SPD
+                dt = time.perf_counter() - t0
+            except Exception:
+                continue
+            if dt < best_t:
+                best, best_t = mode, dt
+        return best
+
+    def _ensure_analysis(self, A: sp.csr_matrix, extra: sp.spmatrix | None) -> None:
+        """Analyse the union of the base pattern and every extra pattern seen so far;
+        re-analyse only when an extra entry falls outside it.
+
+        ``extra``: the part of A whose pattern varies (contact); A minus extra is the
+        fixed base pattern, taken from the first call. Without ``extra`` all of A is
+        checked against the analysed pattern.
+        """
+        n = A.shape[0]
+        if self._base is None or self._base_n != n:
+            self._base = self._keys(A)  # sorted: CSR with sorted indices
+            self._base_csr = sp.csr_matrix((np.ones(len(self._base)), A.indices.copy(),
+                                            A.indptr.copy()), shape=A.shape)
+            self._base_n = n
+            self._extra = np.empty(0, np.int64)
+            self._factor = None
+        else:
+            if extra is None:
+                keys = self._keys(A)
+            else:
+                e = extra.tocsr()
+                e.sum_duplicates()
+                keys = self._keys(e)
+            new = self._missing(self._missing(keys, self._extra), self._base)
+            if len(new) == 0 and self._factor is not None:
+                return
+            self._extra = np.union1d(self._extra, new)
+        t0 = time.perf_counter()
+        P = self._base_csr
+        if len(self._extra):
+            r, c = np.divmod(self._extra, n)
+            P = P + sp.csr_matrix((np.ones(len(r)), (r, c)), shape=(n, n))
+        P = P.tocsr()
+        P.sort_indices()
+        # symmetric pattern: its CSR arrays are also its CSC arrays
+        Pc = sp.csc_matrix((P.data, P.indices, P.indptr), shape=P.shape)
+        if self.mode == "auto":
+            self.mode = self._pick_mode(A)
+        self._factor = _cholmod_analyze(Pc, mode=self.mode)
+        self.n_analyses += 1
+        self.time_analyse += time.perf_counter() - t0
+
+    def solve(self, A: sp.csr_matrix, b: np.ndarray, extra: sp.spmatrix | None = None) -> np.ndarray:
+        """Solve A x = b for symmetric positive definite A (CSR, both triangles).
+
+        ``extra``: the contribution to A whose pattern changes between calls (its
+        pattern is merged into the analysed one when new entries appear).
+        Raises :class:`NotPositiveDefinite` (cholmod) if A is not positive definite.
+        """
+        A = A.tocsr()
+        A.sort_indices()
+        if self.backend == "cholmod":
+            self._ensure_analysis(A, extra)
+            t0 = time.perf_counter()
+            # CSR of a symmetric matrix is the CSC of the same matrix
+            Ac = sp.csc_matrix((A.data, A.indices, A.indptr), shape=A.shape)
+            try:
+                self._factor.cholesky_inplace(Ac)
+            except CholmodNotPositiveDefiniteError as e:
+                self.time_factor += time.perf_counter() - t0
+                raise NotPositiveDefinite(str(e)) from None
+            self.n_factorizations += 1
+            t1 = time.perf_counter()
+            x = self._factor(b)
+            self.time_factor += t1 - t0
+            self.time_solve += time.perf_counter() - t1
+            return np.asarray(x).ravel()
+        if self.backend == "cholespy":
+            t0 = time.perf_counter()
+            n = A.shape[0]
+            try:
+                s = _cholespy.CholeskySolverD(n, A.indptr.astype(np.int32),
+                                              A.indices.astype(np.int32),
+                                              np.ascontiguousarray(A.data),
+                                              _cholespy.MatrixType.CSR)
+            except ValueError as e:  # "Matrix is not positive definite!"
+                self.time_factor += time.perf_counter() - t0
+                raise NotPositiveDefinite(str(e)) from None
+            x = np.zeros(n)
+            s.solve(np.ascontiguousarray(b, dtype=float), x)
+            self.n_factorizations += 1
+            self.time_factor += time.perf_counter() - t0
+            return x
+        t0 = time.perf_counter()
+        try:
+            x = spla.splu(A.tocsc()).solve(b)
+        except RuntimeError as e:  # exactly singular
+            raise np.linalg.LinAlgError(str(e)) from None
+        self.n_factorizations += 1
+        self.time_factor += time.perf_counter() - t0
+        return x
+
+
+# ----------------------------------------------------------------------------------
+# The discrete problem
+# ----------------------------------------------------------------------------------
+class Model:
+    """Elastic bodies + contact + a rigidly driven node set, on reduced unknowns.
+
+    Parameters
+    ----------
+    points : (N, 2) reference coordinates (mm) of every node (finger, deformable
+        objects, rigid object vertices).
+    blocks : elastic element blocks (global node ids).
+    fixed_nodes : nodes with prescribed displacement (``prescribed``, default 0).
+    driven_nodes : nodes that translate rigidly with ``t`` (may be empty).
+    contact : :class:`ContactModel` over the same node array, or None.
+    driver_stiffness : penalty k (N/mm per mm thickness) pulling t to its target.
+    external_force : (N, 2) nodal forces (N/mm) applied with the load factor.
+    psd : "auto" (default): exact Hessian first; when its factorisation fails,
+        material tangents projected to PSD per Gauss point and contact Hessians
+        per contact; True: always projected; False: never.
+    """
+
+    def __init__(self, points, blocks: list[ElementBlock], fixed_nodes=(), driven_nodes=(),
+                 contact: ContactModel | None = None, driver_stiffness: float = 1e5,
+                 external_force: np.ndarray | None = None, psd="auto",
+                 quad_degree: int | None = None, linear_solver: str = "auto"):
+        self.points = np.asarray(points, float)
+        N = len(self.points)
+        self.N = N
+        fixed = np.zeros(N, bool)
+        fixed[np.asarray(fixed_nodes, int)] = True
+        driven = np.zeros(N, bool)
+        driven[np.asarray(driven_nodes, int)] = True
+        if (fixed & driven).any():
+            raise ValueError("a node cannot be both fixed and driven")
+        in_elem = np.zeros(N, bool)
+        for b in blocks:
+            in_elem[b.triangles.ravel()] = True
+        # nodes that belong to no element and are not driven are static
+        fixed |= ~in_elem & ~driven
+        free = ~fixed & ~driven
+        dof_map = -np.ones((N, 2), np.int64)
+        n_free = int(free.sum())
+        dof_map[free] = np.arange(2 * n_free).reshape(-1, 2)
+        self.has_driver = bool(driven.any())
+        if self.has_driver:
+            dof_map[driven] = [2 * n_free, 2 * n_free + 1]
+        self.n_free_dofs = 2 * n_free
+        self.n = 2 * n_free + (2 if self.has_driver else 0)
+        self.t_index = np.array([2 * n_free, 2 * n_free + 1]) if self.has_driver else None
+        self.dof_map = dof_map
+        self.fixed = fixed
+        self.driven = driven
+        self.free = free
+        self.U_presc = np.zeros((N, 2))
+        self.k_drive = float(driver_stiffness)
+        self.f_ext = np.zeros((N, 2)) if external_force is None else np.asarray(external_force, float)
+        self.psd = psd
+        self.elastic = ElasticAssembler(self.points, blocks, dof_map, self.n, quad_degree)
+        self.contact = contact
+        if contact is not None:
+            self.coll_red = dof_map.reshape(-1)[contact.full_dof_index()]
+            self.coll_full = contact.full_dof_index()
+        self.linsolve = LinearSolver(linear_solver)
+        self.last_extra = None
+        # load-step context
+        self.t_target = np.zeros(2)
+        self.load = 0.0
+        self.U_step_start: np.ndarray | None = None
+        self.stats = {"assembly_s": 0.0, "contact_s": 0.0, "solve_s": 0.0, "ccd_s": 0.0,
+                      "line_search_s": 0.0}
+
+    # -- state mapping -------------------------------------------------------------
+    def U(self, q: np.ndarray) -> np.ndarray:
+        """Nodal displacements (N, 2) of the reduced vector q."""
+        U = self.U_presc.copy()
+        m = self.dof_map >= 0
+        U[m] = q[self.dof_map[m]]
+        return U
+
+    def q_from_U(self, U: np.ndarray) -> np.ndarray:
+        q = np.zeros(self.n)
+        m = self.dof_map >= 0
+        q[self.dof_map[m]] = U[m]
+        return q
+
+    def t(self, q: np.ndarray) -> np.ndarray:
+        return q[self.t_index] if self.has_driver else np.zeros(2)
+
+    # -- energy --------------------------------------------------------------------
+    def energy(self, q: np.ndarray) -> float:
+        U = self.U(q)
+        E = self.elastic.energy(U)
+        if not np.isfinite(E):
+            return np.inf
+        if self.contact is not None:
+            E += self.contact.energy(U, self.U_step_start)
+        E += self._driver_energy(q) - self.load * float((self.f_ext * U).sum())
+        return E
+
+    def _driver_energy(self, q):
+        if not self.has_driver:
+            return 0.0
+        dt = self.t(q) - self.t_target
+        return 0.5 * self.k_drive * float(dt @ dt)
+
+    def evaluate(self, q: np.ndarray, order: int = 2, psd: bool | None = None):
+        """(E, g, H): energy, reduced gradient, reduced Hessian (CSR) at q.
+
+        ``psd``: project the material tangents and the contact Hessians to PSD
+        (default: the model's ``psd`` setting; with "auto" the exact Hessian is
+        tried first and projected only when its factorisation fails).
+        """
+        U = self.U(q)
+        if psd is None:
+            psd = self.psd is True
+        t0 = time.perf_counter()
+        E, g_full, Hdata = self.elastic.evaluate(U, order, psd=psd)
+        self.stats["assembly_s"] += time.perf_counter() - t0
+        if not np.isfinite(E):
+            return np.inf, None, None
+        g_full = g_full - self.load * self.f_ext.reshape(-1)
+        E -= self.load * float((self.f_ext * U).sum())
+        extra_r, extra_c, extra_v = [], [], []
+        if self.contact is not None:
+            t0 = time.perf_counter()
+            Ec, gc, Hc = self.contact.evaluate(U, self.U_step_start, order, project=psd)
+            E += Ec
+            g_full = g_full.copy()
+            g_full[self.coll_full] += gc
+            if order >= 2 and Hc.nnz:
+                Hc = Hc.tocoo()
+                r = self.coll_red[Hc.row]
+                c = self.coll_red[Hc.col]
+                keep = (r >= 0) & (c >= 0)
+                extra_r.append(r[keep])
+                extra_c.append(c[keep])
+                extra_v.append(Hc.data[keep])
+            self.stats["contact_s"] += time.perf_counter() - t0
+        g = self.elastic.reduce_gradient(g_full)
+        if self.has_driver:
+            dt = self.t(q) - self.t_target
+            E += 0.5 * self.k_drive * float(dt @ dt)
+            g[self.t_index] += self.k_drive * dt
+            extra_r.append(self.t_index)
+            extra_c.append(self.t_index)
+            extra_v.append(np.full(2, self.k_drive))
+        if order < 2:
+            return E, g, None
+        H = self.elastic.pattern.matrix(Hdata)
+        if extra_r:
+            C = sp.coo_matrix((np.concatenate(extra_v), (np.concatenate(extra_r),
+                                                          np.concatenate(extra_c))),
+                              shape=(self.n, self.n)).tocsr()
+            H = H + C
+            self.last_extra = C
+        else:
+            self.last_extra = None
+        return E, g, H
+
+    # -- reactions -----------------------------------------------------------------
+    def contact_force(self, q: np.ndarray, nodes: np.ndarray, friction_only: bool = False) -> np.ndarray:
+        """Total contact force (barrier + friction, N/mm) acting on the given nodes
+        (bool mask or ids), ``-sum d(B + D)/dx`` over them."""
+        if self.contact is None:
+            return np.zeros(2)
+        U = self.U(q)
+        if friction_only:
+            gc = self.contact.friction_gradient(U, self.U_step_start) \
+                if self.U_step_start is not None else np.zeros(len(self.coll_full))
+        else:
+            gc = self.contact.evaluate(U, self.U_step_start, order=1)[1]
+        g = np.zeros(2 * self.N)
+        g[self.coll_full] += gc
+        return -g.reshape(-1, 2)[nodes].sum(axis=0)
+
+    def elastic_force(self, q: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+        """Sum of the elastic internal forces dE/du (N/mm) at the given nodes; at
+        clamped nodes this is the reaction of the support on the body."""
+        _, g, _ = self.elastic.evaluate(self.U(q), 1, psd=False)
+        return g.reshape(-1, 2)[nodes].sum(axis=0)
+
+    def driver_force(self, q: np.ndarray) -> np.ndarray:
+        """k (t - t_target) (N/mm): at equilibrium, the force of the surroundings on
+        the driven nodes (contact + elasticity of the body they belong to)."""
+        if not self.has_driver:
+            return np.zeros(2)
+        return self.k_drive * (self.t(q) - self.t_target)
+
+    def residual(self, q: np.ndarray) -> np.ndarray:
+        """Reduced gradient of the potential (out-of-balance forces, N/mm)."""
+        return self.evaluate(q, order=1)[1]
+
+
+# ----------------------------------------------------------------------------------
+# Newton
+# ----------------------------------------------------------------------------------
+@dataclass
+class NewtonOptions:
+    max_iterations: int = 40
+    tol_dx: float = 1e-5  # mm, infinity norm of the Newton direction
+    armijo: float = 1e-4
+    min_alpha: float = 1e-10
+
+
+@dataclass
+class NewtonResult:
+    q: np.ndarray
+    converged: bool
+    iterations: int
+    cause: str = ""
+    energy: float = np.nan
+    history: list = field(default_factory=list)
+
+
+def newton(model: Model, q0: np.ndarray, opts: NewtonOptions | None = None) -> NewtonResult:
+    """Minimise the model's potential from q0 (must be valid and intersection-free)."""
+    opts = opts or NewtonOptions()
+    q = q0.copy()
+    E, g, H = model.evaluate(q, 2)
+    if not np.isfinite(E):
+        return NewtonResult(q, False, 0, "initial state has an inverted element", E)
+    hist = []
+    for it in range(1, opts.max_iterations + 1):
+        if not (np.all(np.isfinite(g)) and np.isfinite(H.data).all()):
+            return NewtonResult(q, False, it, "non-finite gradient or Hessian", E, hist)
+        t0 = time.perf_counter()
+        d = None
+        if model.psd is not True:
+            try:
+                d = model.linsolve.solve(H, -g, model.last_extra)
+                if not np.all(np.isfinite(d)) or float(g @ d) >= 0:
+                    d = None
+            except np.linalg.LinAlgError:
+                d = None
+        if d is None:  # indefinite: project the material tangents and retry
+            model.stats["n_projected"] = model.stats.get("n_projected", 0) + 1
+            if model.psd is not True:
+                _, _, H = model.evaluate(q, 2, psd=True)
+            try:
+                d = model.linsolve.solve(H, -g, model.last_extra)
+            except np.linalg.LinAlgError as e:
+                return NewtonResult(q, False, it, f"linear solve failed: {e}", E, hist)
+        model.stats["solve_s"] += time.perf_counter() - t0
+        if not np.all(np.isfinite(d)):
+            return NewtonResult(q, False, it, "linear solve returned NaN", E, hist)
+        gd = float(g @ d)
+        if gd >= 0:  # not a descent direction (should not happen with PSD Hessians)
+            d = -g / np.maximum(H.diagonal(), 1e-12)
+            gd = float(g @ d)
+        dmax = float(np.abs(d).max()) if len(d) else 0.0
+        hist.append([E, float(np.abs(g).max()) if len(g) else 0.0, dmax, int(np.abs(d).argmax()) if len(d) else -1, 1.0, 1.0])
+        if dmax < opts.tol_dx:
+            # take the (tiny) last Newton step too: the residual becomes O(|d|^2)
+            q_try = q + d
+            ok = model.contact is None or model.contact.max_step(model.U(q), model.U(q_try)) >= 1.0
+            if ok:
+                E_try = model.energy(q_try)
+                if np.isfinite(E_try) and E_try <= E + 1e-12 * max(1.0, abs(E)):
+                    q, E = q_try, E_try
+            return NewtonResult(q, True, it, "", E, hist)
+        # continuous collision detection bounds the step
+        alpha = 1.0
+        if model.contact is not None:
+            t0 = time.perf_counter()
+            alpha = min(1.0, model.contact.max_step(model.U(q), model.U(q + d)))
+            model.stats["ccd_s"] += time.perf_counter() - t0
+            if alpha <= 0:
+                return NewtonResult(q, False, it, "CCD allows no step", E, hist)
+            hist[-1][4] = alpha
+        t0 = time.perf_counter()
+        slack = 1e-12 * max(1.0, abs(E))
+        while True:
+            q_try = q + alpha * d
+            E_try = model.energy(q_try)
+            if np.isfinite(E_try) and E_try <= E + opts.armijo * alpha * gd + slack:
+                break
+            alpha *= 0.5
+            if alpha < opts.min_alpha:
+                model.stats["line_search_s"] += time.perf_counter() - t0
+                if dmax < 100 * opts.tol_dx:  # converged to round-off
+                    return NewtonResult(q, True, it - 1, "", E, hist)
+                return NewtonResult(q, False, it, "line search failed (no decrease)", E, hist)
+        model.stats["line_search_s"] += time.perf_counter() - t0
+        hist[-1][5] = alpha
+        q = q_try
+        E, g, H = model.evaluate(q, 2)
+    dmax_last = hist[-1][2] if hist else np.nan  # [E, |g|, |d|, argmax, ccd alpha, alpha]
+    return NewtonResult(q, False, opts.max_iterations,
+                        f"no convergence in {opts.max_iterations} iterations "
+                        f"(last |dx| = {dmax_last:.2e} mm)", E, hist)
+
+
+# ----------------------------------------------------------------------------------
+# Load stepping
+# ----------------------------------------------------------------------------------
+@dataclass
+class StepOptions:
+    initial_step: float = 0.05  # fraction of the load path
+    max_step: float = 0.05
+    min_step: float = 1e-4
+    grow: float = 2.0
+    easy_iterations: int = 6  # grow the step when Newton took at most this many
+    max_retries: int = 12  # step cuts in a row before giving up
+    friction_lag_iterations: int = 0  # extra solves with friction re-lagged at the solution
+    predictor: bool = True
+
+
+def march(model: Model, q: np.ndarray, targets, frames: np.ndarray,
+          step_opts: StepOptions | None = None, newton_opts: NewtonOptions | None = None,
+          on_frame=None, friction: bool = True):
+    """Advance the load factor s from its current 0 to each value in ``frames``.
+
+    ``targets(s)`` gives the driver target (2,) at load factor s (also sets
+    ``model.load = s`` for external forces). ``on_frame(k, s, q, info)`` is called
+    at every frame with the Newton iterations and wall time since the previous one.
+    Raises :class:`SimulationError` naming the step and the cause on failure.
+    Returns the final q.
+    """
+    so = step_opts or StepOptions()
+    no = newton_opts or NewtonOptions()
+    s = 0.0
+    ds = so.initial_step
+    step = 0
+    q_prev, s_prev = None, None
+    iters_frame = 0
+    t_frame = time.perf_counter()
+    for k, s_f in enumerate(frames):
+        while s < s_f - 1e-12:
+            s_new = min(s + ds, s_f)
+            if s_f - s_new < 0.25 * ds:  # avoid a sliver step before the frame
+                s_new = s_f
+            retries = 0
+            while True:
+                step += 1
+                model.load = s_new
+                model.t_target = np.asarray(targets(s_new), float)
+                U_start = model.U(q)
+                model.U_step_start = U_start
+                if model.contact is not None:
+                    model.contact.update_friction(U_start if friction else None)
+                q_init = q
+                if so.predictor and q_prev is not None and s > s_prev:
+                    q_init = _predict(model, q, q_prev, (s_new - s) / (s - s_prev))
+                res = newton(model, q_init, no)
+                iters = res.iterations
+                if res.converged and friction and model.contact is not None \
+                        and model.contact.params.mu > 0:
+                    for _ in range(so.friction_lag_iterations):
+                        model.contact.update_friction(model.U(res.q))
+                        r2 = newton(model, res.q, no)
+                        iters += r2.iterations
+                        if not r2.converged:
+                            res = r2
+                            break
+                        res = r2
+                        if r2.iterations <= 1:
+                            break
+                iters_frame += iters
+                if res.converged:
+                    break
+                retries += 1
+                if retries > so.max_retries or (s_new - s) / 2 < so.min_step:
+                    raise SimulationError(
+                        f"load step {step} (load factor {s:.5f} -> {s_new:.5f}) failed: "
+                        f"{res.cause}", step=step, load=s_new, cause=res.cause)
+                ds = (s_new - s) / 2
+                s_new = s + ds
+            q_prev, s_prev = q, s
+            q, s = res.q, s_new
+            if iters <= so.easy_iterations:
+                ds = min(so.max_step, ds * so.grow)
+        if on_frame is not None:
+            on_frame(k, s, q, {"newton_iterations": iters_frame,
+                               "wall_time_s": time.perf_counter() - t_frame, "steps": step})
+        iters_frame = 0
+        t_frame = time.perf_counter()
+    return q
+
+
+def _predict(model: Model, q, q_prev, ratio):
+    """Linear extrapolation of the previous increment, cut to a valid, collision-free
+    fraction (falls back to q)."""
+    d = (q - q_prev) * ratio
+    alpha = 1.0
+    if model.contact is not None:
+        alpha = min(1.0, model.contact.max_step(model.U(q), model.U(q + d)))
+    for _ in range(4):
+        q_try = q + alpha * d
+        if np.isfinite(model.energy(q_try)):
+            return q_try
+        alpha *= 0.5
+    return q
+

@@ -1,0 +1,159 @@
+"""Contact: derivatives of the total energy, 2D Hertz, Coulomb sliding."""
+import numpy as np
+import pytest
+
+from finray.fea.assembly import ElementBlock
+from finray.fea.benchmarks import (arc_polyline, circle_polyline, graded_coords, rectangle_mesh,
+                                   segment_polyline)
+from finray.fea.contact import ContactModel, ContactParams, split_p2_edges
+from finray.fea.material import NeoHookean
+from finray.fea.solver import Model, NewtonOptions, StepOptions, march
+
+MAT = NeoHookean.from_E_nu(12.0, 0.45)
+
+
+def top_edges(mesh, y, xmin=-np.inf, xmax=np.inf):
+    X = mesh.points
+    be = mesh.boundary_edges
+    mid = 0.5 * (X[be[:, 0]] + X[be[:, 1]])
+    keep = (np.abs(mid[:, 1] - y) < 1e-9) & (mid[:, 0] > xmin) & (mid[:, 0] < xmax)
+    return be[keep]
+
+
+def block_and_rigid(mesh, rigid_pts, rigid_edges, contact_edges, params, fixed, driver_k=1e5,
+                    rigid_driven=True):
+    """Elastic block (nodes 0..N-1) + rigid polyline (driven, or static)."""
+    N = len(mesh.points)
+    pts = np.vstack([mesh.points, rigid_pts])
+    segs = np.vstack([split_p2_edges(contact_edges), rigid_edges + N])
+    body = np.r_[np.zeros(N, int), np.ones(len(rigid_pts), int)]
+    cm = ContactModel(pts, segs, body, rigid_bodies=[1], params=params)
+    rigid = np.arange(N, len(pts))
+    model = Model(pts, [ElementBlock(mesh.triangles, MAT)], fixed_nodes=fixed,
+                  driven_nodes=rigid if rigid_driven else (), contact=cm,
+                  driver_stiffness=driver_k)
+    return model, cm
+
+
+def test_total_energy_gradient_and_hessian_vs_finite_differences():
+    """Elastic + barrier + lagged friction, exact (unprojected) Hessian."""
+    mesh = rectangle_mesh(np.linspace(-2, 2, 9), np.linspace(-1.5, 0, 4), order=2)
+    R, dhat = 2.0, 0.02
+    cp, ce = circle_polyline([0.0, R + 0.012], R, 160)
+    fixed = np.where(np.abs(mesh.points[:, 1] + 1.5) < 1e-9)[0]
+    model, cm = block_and_rigid(mesh, cp, ce, top_edges(mesh, 0.0),
+                                ContactParams(dhat=dhat, kappa=0.5, mu=0.3, eps_v=1e-3),
+                                fixed, driver_k=1.0)
+    rng = np.random.default_rng(0)
+    q_lag = np.zeros(model.n)
+    q_lag[model.t_index] = [0.0, -0.005]  # the circle 7 um from the block: active pairs
+    cm.update_friction(model.U(q_lag))
+    model.U_step_start = model.U(q_lag)
+    model.t_target = np.array([0.01, -0.006])
+    # a state with slip (sliding and sticking pairs) and small elastic deformation
+    q = q_lag.copy()
+    q[: model.n_free_dofs] = 1e-4 * rng.standard_normal(model.n_free_dofs)
+    q[model.t_index] = [0.004, -0.0055]
+    assert cm.pairs(model.U(q))["d"].size > 5
+    assert cm._tangential is not None and len(cm._tangential) > 5
+    E, g, H = model.evaluate(q, 2, psd=False)
+    h = 1e-7
+    for _ in range(4):
+        v = rng.standard_normal(model.n)
+        v /= np.abs(v).max()
+        fd = (model.energy(q + h * v) - model.energy(q - h * v)) / (2 * h)
+        assert fd == pytest.approx(g @ v, rel=1e-5, abs=1e-9)
+        gp = model.evaluate(q + h * v, 1, psd=False)[1]
+        gm = model.evaluate(q - h * v, 1, psd=False)[1]
+        Hv = H @ v
+        np.testing.assert_allclose((gp - gm) / (2 * h), Hv, atol=2e-5 * np.abs(Hv).max())
+
+
+def test_hertz_contact_half_width():
+    """Frictionless rigid cylinder (R = 10 mm) on a 20 x 10 mm block, plane strain:
+    a = sqrt(4 P R / (pi E*)), E* = E / (1 - nu^2) (rigid indenter)."""
+    W, H, R, gap, delta = 10.0, 10.0, 10.0, 0.05, 0.2
+    x = graded_coords(-W, W, 80, 0.95, "both")
+    y = graded_coords(-H, 0.0, 40, 0.92, "b")
+    mesh = rectangle_mesh(x, y, order=2)
+    cp, ce = arc_polyline([0.0, R + gap], R, -np.pi / 2 - 0.5, -np.pi / 2 + 0.5, 400)
+    fixed = np.where(np.abs(mesh.points[:, 1] + H) < 1e-9)[0]
+    model, cm = block_and_rigid(mesh, cp, ce, top_edges(mesh, 0.0, -5, 5),
+                                ContactParams(dhat=0.01, kappa=1.0, mu=0.0), fixed)
+    q = march(model, np.zeros(model.n), lambda s: [0.0, -(gap + delta) * s], [1.0],
+              StepOptions(initial_step=0.5, max_step=0.5), friction=False)
+    N = len(mesh.points)
+    U = model.U(q)
+    _, gc, _ = cm.evaluate(U, None, 1)
+    gf = np.zeros(2 * len(model.points))
+    gf[model.coll_full] += gc
+    fy = gf.reshape(-1, 2)[:N, 1]  # force on the block: -grad, downwards -> gc_y > 0
+    P = fy.sum()
+    xs = (mesh.points + U[:N])[:, 0]
+    a = 2.0 * np.sqrt((xs**2 * fy).sum() / P)  # Hertz: <x^2>_p = a^2 / 4
+    a_hertz = np.sqrt(4 * P * R / (np.pi * MAT.plane_strain_modulus))
+    assert a_hertz > 0.5  # resolved by ~10 surface elements
+    assert a == pytest.approx(a_hertz, rel=0.05)
+    # the indenter force equals the support reaction
+    Fobj = model.contact_force(q, np.arange(N, len(model.points)))
+    Rbase = model.elastic_force(q, fixed)
+    np.testing.assert_allclose(Fobj, Rbase, rtol=5e-3, atol=1e-6 * abs(P))
+
+
+def test_block_dragged_under_normal_load_slips_at_mu_N():
+    """Elastic block pressed on a rigid floor, then dragged: T = mu N once it slides."""
+    mu = 0.15
+    mesh = rectangle_mesh(np.linspace(0, 6, 13), np.linspace(0.01, 2.01, 5), order=2)
+    fp, fe = segment_polyline([-5.0, 0.0], [20.0, 0.0], 100)
+    X = mesh.points
+    top = np.where(np.abs(X[:, 1] - 2.01) < 1e-9)[0]
+    N = len(X)
+    pts = np.vstack([X, fp])
+    segs = np.vstack([split_p2_edges(top_edges(mesh, 0.01)), fe + N])
+    body = np.r_[np.zeros(N, int), np.ones(len(fp), int)]
+    cm = ContactModel(pts, segs, body, rigid_bodies=[1],
+                      params=ContactParams(dhat=0.01, kappa=1.0, mu=mu, eps_v=1e-4))
+    model = Model(pts, [ElementBlock(mesh.triangles, MAT)], driven_nodes=top, contact=cm)
+    press, slide = 0.06, 1.0
+
+    def path(s):  # press during the first 30 %, then slide
+        if s <= 0.3:
+            return [0.0, -press * s / 0.3]
+        return [slide * (s - 0.3) / 0.7, -press]
+
+    frames = [0.3, 0.65, 1.0]
+    out = []
+    floor = np.arange(N, len(pts))
+
+    def on_frame(k, s, q, info):
+        out.append(model.contact_force(q, floor))
+
+    march(model, np.zeros(model.n), path, frames,
+          StepOptions(initial_step=0.1, max_step=0.1, friction_lag_iterations=4),
+          NewtonOptions(tol_dx=1e-7), on_frame=on_frame)
+    T, Nn = out[-1]
+    assert Nn < -0.5  # the block pushes the floor down (force on the floor)
+    assert abs(T) / abs(Nn) == pytest.approx(mu, rel=0.02)
+    assert T > 0  # friction drags the floor along +x
+
+
+def test_linear_solver_backends_agree():
+    """CHOLMOD (reused analysis), cholespy and SuperLU give the same contact solution."""
+    from finray.fea import solver as S
+
+    backends = ["splu"] + (["cholmod"] if S.HAVE_CHOLMOD else []) \
+        + (["cholespy"] if S.HAVE_CHOLESPY else [])
+    mesh = rectangle_mesh(np.linspace(-3, 3, 13), np.linspace(-2, 0, 5), order=2)
+    cp, ce = circle_polyline([0.0, 3.05], 3.0, 200)
+    fixed = np.where(np.abs(mesh.points[:, 1] + 2) < 1e-9)[0]
+    forces = []
+    for b in backends:
+        model, cm = block_and_rigid(mesh, cp, ce, top_edges(mesh, 0.0),
+                                    ContactParams(dhat=0.01, kappa=1.0, mu=0.15), fixed)
+        model.linsolve = S.LinearSolver(b)
+        q = march(model, np.zeros(model.n), lambda s: [0.2 * s, -0.25 * s], [1.0],
+                  StepOptions(initial_step=0.5, max_step=0.5))
+        forces.append(model.contact_force(q, np.arange(len(mesh.points), len(model.points))))
+    assert np.abs(forces[0][1]) > 0.1
+    for f in forces[1:]:
+        np.testing.assert_allclose(f, forces[0], rtol=1e-4)  # to the Newton tolerance

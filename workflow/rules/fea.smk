@@ -1,0 +1,49 @@
+# FEA stage: one job per scene (finger x object x material x contact height).
+
+
+rule fea_scene:
+    input:
+        finger=f"{GEOMETRY}/finger.npz",
+        object=f"{GEOMETRY}/objects/{{object}}_h{{height}}.npz",
+    output:
+        result=f"{FEA}/{{object}}/{{material}}/h{{height}}/result.npz",
+        forces=f"{FEA}/{{object}}/{{material}}/h{{height}}/forces.csv",
+        summary=f"{FEA}/{{object}}/{{material}}/h{{height}}/summary.json",
+    params:
+        fea=config["fea"],
+        material=material_params,
+    log:
+        f"{RESULTS}/logs/fea/{{object}}_{{material}}_h{{height}}.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/fea/{{object}}_{{material}}_h{{height}}.tsv"
+    threads: 1
+    resources:
+        runtime=30,
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/fea_scene.py"
+
+
+rule fea_figures:
+    input:
+        summaries=fea_files("summary.json"),
+        results=fea_files("result.npz"),
+    output:
+        curves=report(
+            f"{FEA}/force_displacement.pdf",
+            caption="../report/fea_curves.rst",
+            category="FEA",
+        ),
+        curves_png=f"{FEA}/force_displacement.png",
+        jamming=report(
+            f"{FEA}/jamming.png", caption="../report/fea_jamming.rst", category="FEA"
+        ),
+        table=f"{RESULTS}/benchmarks/fea_scenes.csv",
+    log:
+        f"{RESULTS}/logs/fea/figures.log",
+    threads: 1
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/fea_figures.py"
