@@ -18,13 +18,13 @@ def test_help_lists_every_option_with_units():
     r = run("geometry", "--help")
     assert r.returncode == 0
     parser = build_parser()
-    geo = parser._subparsers._group_actions[0].choices["geometry"]
-    for action in geo._actions:
-        assert action.help, f"option {action.option_strings} has no help"
-        if action.dest.endswith("_mm"):
-            assert "mm" in action.help
-        if action.dest.endswith("_deg"):
-            assert "deg" in action.help
+    for name, sub in parser._subparsers._group_actions[0].choices.items():
+        for action in sub._actions:
+            assert action.help, f"finray {name}: option {action.option_strings} has no help"
+            if action.dest.endswith("_mm"):
+                assert "mm" in action.help, (name, action.dest)
+            if action.dest.endswith("_deg"):
+                assert "deg" in action.help, (name, action.dest)
 
 
 def test_geometry_one_object(tmp_path):

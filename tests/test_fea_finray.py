@@ -72,3 +72,12 @@ def test_initial_intersection_is_refused(finger):
     obj = front_contact_circle(FingerParams(), 30.0, 20.0, gap_mm=-1.0)
     with pytest.raises(SimulationError, match="intersects"):
         simulate(finger, obj, FINGER, SimulationOptions(push_mm=1.0))
+
+
+def test_object_blocked_by_the_clamp_is_reported(finger):
+    from finray.fea.benchmarks import circle_polyline
+    from finray.fea.simulate import RigidObject
+
+    pts, edges = circle_polyline([-1.15, 0.0], 1.0, 64)  # aims at the clamped corner (0, 0)
+    with pytest.raises(SimulationError, match="blocked"):
+        simulate(finger, RigidObject(pts, edges), FINGER, SimulationOptions(push_mm=1.0))

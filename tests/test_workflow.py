@@ -48,7 +48,7 @@ def smoke_run(tmp_path_factory):
     return work
 
 
-def test_smoke_geometry_outputs(smoke_run):
+def test_smoke_geometry_outputs(smoke_run):  # noqa: D103
     cfg = yaml.safe_load((ROOT / "config" / "smoke.yaml").read_text())
     geo = smoke_run / "results" / "geometry"
     finger = TriMesh.load(geo / "finger.npz")
@@ -63,3 +63,39 @@ def test_smoke_geometry_outputs(smoke_run):
             assert np.isfinite(obj.points).all()
     assert (geo / "gallery.pdf").stat().st_size > 0
     assert (geo / "finger_surface.ply").stat().st_size > 0
+
+
+def test_smoke_fea_outputs(smoke_run):
+    import json
+
+    cfg = yaml.safe_load((ROOT / "config" / "smoke.yaml").read_text())
+    n = 0
+    for name, spec in cfg["objects"].items():
+        for mat in spec.get("materials", ["steel"]):
+            for h in cfg["heights_mm"]:
+                d = smoke_run / "results" / "fea" / name / mat / f"h{h:g}"
+                s = json.loads((d / "summary.json").read_text())
+                assert s["converged"] and s["min_gap_mm"] > 0  # never interpenetrates
+                assert s["equilibrium_max_rel_error"] < 5e-3  # object force = base reaction
+                forces = np.loadtxt(d / "forces.csv", delimiter=",", skiprows=1)
+                assert np.isfinite(forces).all() and forces[-1, 0] == pytest.approx(10.0, abs=1e-4)
+                assert forces[-1, 1] > 0  # the finger pushes back
+                assert (d / "finger.pvd").is_file()
+                n += 1
+    assert n == 10
+
+
+def test_smoke_dataset_and_training(smoke_run):
+    import json
+
+    import pandas as pd
+
+    man = pd.read_csv(smoke_run / "results" / "dataset" / "manifest.csv")
+    assert set(man.split) == {"train", "shape", "material", "pitch"}
+    assert sorted(man[man.split == "pitch"].pitch_deg.unique()) == [0, 5, 10, 15, 20, 25, 30]
+    assert man.fx_N.notna().all()
+    for model in ("plain", "occlusion"):
+        d = smoke_run / "results" / "train" / model
+        hist = json.loads((d / "history.json").read_text())
+        assert len(hist["train_loss"]) == 2 and np.isfinite(hist["train_loss"]).all()
+        assert (d / "model.ts").is_file() and (d / "curves.png").is_file()

@@ -124,6 +124,115 @@ def _run_geometry(args) -> int:
     return 0
 
 
+SIMULATE_HELP = """\
+Simulate one scene: the object pushed 10 mm (fea.push_mm) in +x into the clamped
+finger. Writes forces.csv (displacement_mm, fx_N, fy_N: force of the object on the
+20 mm finger, N), summary.json, result.npz and a ParaView series (finger.pvd).
+
+examples:
+  finray simulate --object circle --size-mm 20 --height-mm 30 --material steel --out /tmp/c20
+  finray simulate --object ring --size-mm 15 --wall-mm 2 --material neoprene --height-mm 20 --out /tmp/ring
+"""
+
+
+def _simulate_parser(sub) -> None:
+    p = sub.add_parser("simulate", help="simulate one object pushed into the finger (FEA)",
+                       description=SIMULATE_HELP,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--config", type=Path, default=None,
+                   help="YAML config for the finger, mesh, materials and solver "
+                        "(default: config/config.yaml of the source tree)")
+    p.add_argument("--out", type=Path, required=True, help="output directory")
+    p.add_argument("--object", choices=["circle", "square", "ring", "ellipse"],
+                   help="object kind (or --object-file)")
+    p.add_argument("--object-file", type=Path,
+                   help="polygon: JSON list of [x, y] in mm around the reference point")
+    p.add_argument("--size-mm", type=float,
+                   help="circle/ring diameter, square side or ellipse width (mm)")
+    p.add_argument("--minor-mm", type=float, help="ellipse height before rotation (mm)")
+    p.add_argument("--wall-mm", type=float, default=2.0, help="ring wall thickness (mm, default 2)")
+    p.add_argument("--angle-deg", type=float, default=0.0,
+                   help="rotation of the object about its reference point (deg)")
+    p.add_argument("--fillet-mm", type=float, default=None,
+                   help="corner fillet of squares and polygons (mm; squares default 0.5)")
+    p.add_argument("--height-mm", type=float, required=True,
+                   help="contact height of the object's reference point (mm)")
+    p.add_argument("--material", default="steel",
+                   help="object material, a key of the config's materials (default steel: rigid)")
+    p.add_argument("--mesh-size-mm", type=float, help="element edge length of the finger (mm)")
+    p.add_argument("--no-vtu", action="store_true", help="skip the ParaView series")
+    p.set_defaults(func=_run_simulate)
+
+
+def _run_simulate(args) -> int:
+    import json
+
+    import yaml
+
+    from .config import default_config_path, object_is_meshed, validate_config
+    from .fea.output import run_scene
+    from .fea.solver import SimulationError
+    from .geometry.build import finger_from_config
+    from .geometry.finger import mesh_finger
+    from .geometry.objects import object_geometry
+
+    path = args.config or default_config_path()
+    raw = yaml.safe_load(Path(path).read_text()) if Path(path).is_file() else {}
+    one = _object_spec(args)
+    if one is None:
+        raise SystemExit("finray simulate: give --object or --object-file")
+    name, spec = one
+    spec["materials"] = [args.material]
+    raw["objects"] = {name: spec}
+    raw["heights_mm"] = [args.height_mm]
+    if args.mesh_size_mm:
+        raw.setdefault("mesh", {})["size_mm"] = args.mesh_size_mm
+    cfg = validate_config(raw, base_dir=Path.cwd())
+    m = cfg["mesh"]
+    finger = mesh_finger(finger_from_config(cfg), m["size_mm"], m["min_angle_deg"], m["order"])
+    obj = object_geometry(name, cfg["objects"][name], finger_from_config(cfg), args.height_mm,
+                          m["size_mm"], object_is_meshed(cfg, name), cfg["placement"]["gap_mm"],
+                          m["min_angle_deg"])
+    scene = {"scene": f"{name}_{args.material}_h{args.height_mm:g}", "object": name,
+             "material": args.material, "height_mm": args.height_mm}
+    try:
+        out = run_scene(cfg, finger, obj, args.material, args.out, scene, vtu=not args.no_vtu)
+    except SimulationError as exc:
+        print(f"finray simulate: {exc}", file=sys.stderr)
+        return 1
+    print(json.dumps({k: v for k, v in out.items() if k != "solver"}, indent=1))
+    return 0
+
+
+PREDICT_HELP = """\
+Predict the contact force (N) and the stress map of each frame of an image, a folder
+of images or a video. The finger is segmented and cropped as in the dataset stage,
+anchored on its clamped base, so camera frames of any size work. Writes forces.csv
+and, per frame, <name>_stress.exr (log10(1 + sigma / 1 kPa)) and <name>_stress.png.
+"""
+
+
+def _predict_parser(sub) -> None:
+    p = sub.add_parser("predict", help="force and stress map from camera images",
+                       description=PREDICT_HELP,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--model", type=Path, required=True,
+                   help="exported model (model.ts, with model.ts.json beside it)")
+    p.add_argument("source", type=Path, help="image, folder of images or video")
+    p.add_argument("--out", type=Path, required=True, help="output directory")
+    p.add_argument("--threads", type=int, default=1, help="intra-op threads (default 1)")
+    p.set_defaults(func=_run_predict)
+
+
+def _run_predict(args) -> int:
+    from .predict import predict_files
+
+    rows = predict_files(args.model, args.source, args.out, args.threads)
+    for r in rows:
+        print(f"{r['frame']}\t{r['fx_N']:.4f} N")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="finray",
@@ -132,6 +241,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"finray {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     _geometry_parser(sub)
+    _simulate_parser(sub)
+    _predict_parser(sub)
     return parser
 
 

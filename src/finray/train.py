@@ -51,6 +51,65 @@ class History:
     wall_time_s: list = field(default_factory=list)
 
 
+@dataclass
+class AugmentConfig:
+    """On-the-fly training augmentation (kornia + the dataset's disc occlusion)."""
+
+    affine_p: float = 0.5
+    degrees: float = 2.0  # rotation jitter (deg)
+    translate: float = 0.02  # fraction of the image size
+    scale: float = 0.03  # relative
+    perspective_p: float = 0.0
+    perspective: float = 0.1  # kornia distortion scale
+    salt_pepper_p: float = 0.5
+    salt_pepper_amount: tuple[float, float] = (0.0, 0.05)  # fraction of pixels
+    occlusion_p: float = 0.0  # probability of a random occluding disc
+    occlusion_levels: tuple[str, ...] = ("low", "medium", "high")
+
+
+class TrainAugment:
+    """Random jitter (image and stress map alike), salt-and-pepper and occlusion
+    (image only), drawn from the training generator, so training stays replayable."""
+
+    def __init__(self, cfg: AugmentConfig, occlusion_levels: dict | None = None):
+        import kornia.augmentation as K
+
+        self.cfg = cfg
+        self.geometric = []
+        if cfg.affine_p > 0:
+            self.geometric.append(K.RandomAffine(cfg.degrees, (cfg.translate, cfg.translate),
+                                                 (1 - cfg.scale, 1 + cfg.scale), p=cfg.affine_p))
+        if cfg.perspective_p > 0:
+            self.geometric.append(K.RandomPerspective(cfg.perspective, p=cfg.perspective_p))
+        self.noise = (K.RandomSaltAndPepperNoise(amount=tuple(cfg.salt_pepper_amount),
+                                                 salt_vs_pepper=0.5, p=cfg.salt_pepper_p)
+                      if cfg.salt_pepper_p > 0 else None)
+        self.occlusion_levels = occlusion_levels
+
+    def __call__(self, x: torch.Tensor, s: torch.Tensor, gen: torch.Generator):
+        from .dataset.augment import sample_augment
+
+        # kornia draws from torch's global generator: seed it from ours (replayable)
+        torch.manual_seed(int(torch.randint(0, 2**62, (1,), generator=gen)))
+        if self.geometric:
+            both = torch.cat([x, s], dim=1)
+            for aug in self.geometric:
+                both = aug(both)
+            x, s = both[:, :x.shape[1]], both[:, x.shape[1]:]
+        if self.cfg.occlusion_p > 0:
+            x = x.clone()
+            draw = torch.rand(len(x), generator=gen) < self.cfg.occlusion_p
+            for i in torch.nonzero(draw).flatten().tolist():
+                k = int(torch.randint(0, len(self.cfg.occlusion_levels), (1,), generator=gen))
+                p = sample_augment(int(torch.randint(0, 2**62, (1,), generator=gen)),
+                                   tuple(x.shape[2:]), occlusion=self.cfg.occlusion_levels[k],
+                                   occlusion_levels=self.occlusion_levels)
+                x[i, :, torch.from_numpy(p.disc_mask())] = 0.0
+        if self.noise is not None:
+            x = self.noise(x)
+        return x, s
+
+
 def seed_everything(seed: int) -> torch.Generator:
     torch.manual_seed(seed)
     np.random.seed(seed % 2**32)
@@ -198,8 +257,11 @@ def load_checkpoint(path: str | Path) -> tuple[FinRayNet, dict]:
     return model, ck
 
 
-def export_torchscript(model: FinRayNet, path: str | Path) -> None:
-    """Trace the model (eval mode, float32) to TorchScript; outputs are (stress, force N)."""
+def export_torchscript(model: FinRayNet, path: str | Path, preprocess: dict | None = None) -> None:
+    """Trace the model (eval mode, float32) to TorchScript; outputs are (stress, force N).
+
+    ``path + '.json'`` keeps the network's settings and the preprocessing (crop window,
+    base width, segmentation) that :class:`finray.predict.Predictor` needs."""
     model = copy.deepcopy(model).eval().to(memory_format=torch.contiguous_format)
     c = model.cfg
     example = torch.rand(1, c.in_channels, c.height, c.width)
@@ -207,4 +269,92 @@ def export_torchscript(model: FinRayNet, path: str | Path) -> None:
         ts = torch.jit.trace(model, example)
         ts = torch.jit.freeze(ts)
     ts.save(str(path))
-    Path(str(path) + ".json").write_text(json.dumps(model.config_dict()))
+    Path(str(path) + ".json").write_text(json.dumps({**model.config_dict(),
+                                                      "preprocess": preprocess or {}}, indent=1))
+
+
+# ----------------------------------------------------------------------------------
+# Data from the dataset stage
+# ----------------------------------------------------------------------------------
+def load_split(shards, size: tuple[int, int]) -> dict[str, np.ndarray]:
+    """Stack the frames of shards at one input size: ``images`` (N, 1, H, W) in [0, 1],
+    ``stress`` (N, 1, H, W), ``mask`` (N, H, W) bool, ``fx_N`` (N, 1), and per-frame
+    ``scene_id``, ``displacement_mm``."""
+    from .dataset import load_shard, size_key
+
+    k = size_key(size)
+    parts: dict[str, list] = {n: [] for n in ("images", "stress", "mask", "fx_N", "scene_id",
+                                              "displacement_mm")}
+    for path in shards:
+        d = load_shard(path)
+        n = len(d["frame"])
+        parts["images"].append(d[f"input_{k}"][:, None].astype(np.float32) / 255.0)
+        parts["stress"].append(d[f"stress_{k}"][:, None].astype(np.float32))
+        parts["mask"].append(d[f"mask_{k}"].astype(bool))
+        parts["fx_N"].append(d["fx_N"][:, None].astype(np.float32))
+        parts["scene_id"].append(np.full(n, d["meta"]["scene"]["scene_id"]))
+        parts["displacement_mm"].append(d["displacement_mm"])
+    if not parts["images"]:
+        raise ValueError("no shards given")
+    return {n: np.concatenate(v) for n, v in parts.items()}
+
+
+def validation_scenes(scene_ids, fraction: float, seed: int) -> set[str]:
+    """Whole scenes held out for validation (frames of one scene are too alike to split)."""
+    ids = sorted(set(scene_ids))
+    rng = np.random.default_rng(seed)
+    n_val = max(1, int(round(fraction * len(ids)))) if len(ids) > 1 else 0
+    return set(rng.permutation(ids)[:n_val].tolist())
+
+
+def train_from_shards(shards, out_dir: str | Path, net_cfg: NetConfig, cfg: TrainConfig,
+                      augment: AugmentConfig | None, val_fraction: float = 0.1,
+                      occlusion_levels: dict | None = None, preprocess: dict | None = None,
+                      log=print) -> dict:
+    """Train on the shards, keep the best model by validation loss and write
+    ``model.pt``, ``model.ts`` (TorchScript), ``history.json`` and ``curves.png``."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    data = load_split(shards, (net_cfg.height, net_cfg.width))
+    val_ids = validation_scenes(data["scene_id"], val_fraction, cfg.seed)
+    is_val = np.isin(data["scene_id"], list(val_ids))
+    tr = {k: v[~is_val] for k, v in data.items()}
+    va = {k: v[is_val] for k, v in data.items()}
+    log(f"training frames {len(tr['images'])} from {len(set(tr['scene_id']))} scenes, "
+        f"validation frames {len(va['images'])} from {len(val_ids)} scenes")
+    aug = TrainAugment(augment, occlusion_levels) if augment is not None else None
+    t0 = time.perf_counter()
+    model, hist = train(tr["images"], tr["stress"], tr["fx_N"],
+                        (va["images"], va["stress"], va["fx_N"]) if len(va["images"]) else None,
+                        net_cfg, cfg, aug, log=log)
+    seconds = time.perf_counter() - t0
+    extra = {"train_config": asdict(cfg), "augment": asdict(augment) if augment else None,
+             "validation_scenes": sorted(val_ids), "n_train": int(len(tr["images"])),
+             "n_val": int(len(va["images"])), "train_seconds": seconds}
+    save_checkpoint(model, hist, out_dir / "model.pt", extra)
+    export_torchscript(model, out_dir / "model.ts", preprocess)
+    (out_dir / "history.json").write_text(json.dumps({**asdict(hist), **extra}, indent=1))
+    training_curves(hist, out_dir / "curves.png")
+    return extra
+
+
+def training_curves(hist: History, path: str | Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(1, 2, figsize=(8, 3.2))
+    ax[0].semilogy(hist.epoch, hist.train_loss, "o-", label="train")
+    if hist.val_loss:
+        ax[0].semilogy(hist.epoch, hist.val_loss, "s-", label="validation")
+    ax[0].set_xlabel("epoch")
+    ax[0].set_ylabel("loss (stress MSE + 10 force MSE)")
+    ax[0].legend()
+    if hist.val_force_rmse_N:
+        ax[1].plot(hist.epoch, hist.val_force_rmse_N, "s-")
+    ax[1].set_xlabel("epoch")
+    ax[1].set_ylabel("validation force RMSE (N)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)

@@ -1,10 +1,12 @@
 # Config validation and target lists. Stage rules use these helpers only.
+import os
 import sys
 
 import yaml
 from snakemake.utils import update_config
 
 from finray.config import ConfigError, object_is_meshed, scenes, validate_config
+from finray.dataset import pitch_object, scene_splits
 
 DEFAULT_CONFIGFILE = "config/config.yaml"
 if not workflow.config_settings.configfiles:
@@ -24,11 +26,22 @@ config.update(_validated)
 
 RESULTS = "results"
 GEOMETRY = f"{RESULTS}/geometry"
+FEA = f"{RESULTS}/fea"
+RENDER = f"{RESULTS}/render"
+DATASET = f"{RESULTS}/dataset"
+TRAIN = f"{RESULTS}/train"
+
+# one thread per job: the DAG runs jobs side by side (numpy/scipy/torch would
+# otherwise each start a thread per core and fight for the two cores)
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
 
 
 wildcard_constraints:
     object="[A-Za-z0-9_-]+",
+    material="[A-Za-z0-9_-]+",
     height=r"\d+(\.\d+)?",
+    pitch=r"\d+(\.\d+)?",
 
 
 def height_labels():
@@ -59,5 +72,94 @@ def object_deformable(wildcards):
     return object_is_meshed(config, wildcards.object)
 
 
+def material_params(wildcards):
+    """The material's constants, so that editing them re-runs its scenes."""
+    return config["materials"][wildcards.material]
+
+
+def fea_files(name, splits=None):
+    """A file of every FEA scene (optionally of some splits only)."""
+    return [
+        f"{FEA}/{s.object}/{s.material}/h{s.height_mm:g}/{name}"
+        for s in scenes(config)
+        if splits is None or s.split in splits
+    ]
+
+
+def pitch_label(p):
+    return f"{float(p):g}"
+
+
+def rendered_views():
+    """(scene, pitch) of every render: pitch 0 for all scenes, every pitch of
+    render.pitches_deg for the pitch object (in its first material)."""
+    pobj = pitch_object(config)
+    pmat = config["objects"][pobj]["materials"][0]
+    views = []
+    for s in scenes(config):
+        pitches = {0.0}
+        if s.object == pobj and s.material == pmat:
+            pitches |= {float(p) for p in config["render"]["pitches_deg"]}
+        views += [(s, p) for p in sorted(pitches)]
+    return views
+
+
+def shard_files(splits=None, pitch=None):
+    """Shards of every rendered view (optionally of some splits, or one pitch only)."""
+    return [
+        f"{DATASET}/shards/{s.object}/{s.material}/h{s.height_mm:g}/p{pitch_label(p)}.npz"
+        for s, p in rendered_views()
+        if (splits is None or s.split in splits) and (pitch is None or p == pitch)
+    ]
+
+
+def model_augment(wildcards):
+    return config["train"]["models"][wildcards.model]
+
+
+def pitch_scene():
+    """The pitch object, its first material and the middle contact height."""
+    pobj = pitch_object(config)
+    heights = sorted(config["heights_mm"])
+    return pobj, config["objects"][pobj]["materials"][0], f"{heights[len(heights) // 2]:g}"
+
+
+def pitch_series_indices():
+    """Render indices of the pitch scene at every pitch (the figure's series)."""
+    obj, mat, h = pitch_scene()
+    pitches = sorted({0.0} | {float(p) for p in config["render"]["pitches_deg"]})
+    return [f"{RENDER}/{obj}/{mat}/h{h}/p{pitch_label(p)}/index.json" for p in pitches]
+
+
+def render_benchmark_input(wildcards):
+    obj, mat, h = pitch_scene()
+    return f"{FEA}/{obj}/{mat}/h{h}/result.npz"
+
+
+def render_scene_params(wildcards):
+    """Scene description copied into the render index (and from there into the shard)."""
+    return {
+        "object": wildcards.object,
+        "material": wildcards.material,
+        "height_mm": float(wildcards.height),
+        "split": config["objects"][wildcards.object]["split"],
+    }
+
+
+def shard_scene_params(wildcards):
+    scene = render_scene_params(wildcards)
+    is_pitch_object = wildcards.object == pitch_object(config)
+    scene["splits"] = scene_splits(scene["split"], float(wildcards.pitch), is_pitch_object)
+    return scene
+
+
 def all_targets():
-    return [f"{GEOMETRY}/gallery.pdf", f"{GEOMETRY}/finger_surface.ply"] + object_geometry_files()
+    return [
+        f"{GEOMETRY}/gallery.pdf",
+        f"{GEOMETRY}/finger_surface.ply",
+        f"{FEA}/force_displacement.pdf",
+        f"{RESULTS}/benchmarks/fea_scenes.csv",
+        f"{RESULTS}/benchmarks/render_throughput.json",
+        f"{DATASET}/manifest.csv",
+        f"{DATASET}/examples.pdf",
+    ] + expand(f"{TRAIN}/{{model}}/model.ts", model=list(config["train"]["models"])) + object_geometry_files()

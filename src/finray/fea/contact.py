@@ -49,6 +49,11 @@ class ContactParams:
     self_contact : let bodies touch themselves (rib on rib).
     projection : PSD projection of the contact Hessians, "abs" (eigenvalues made
         absolute, Chen et al. 2024: faster Newton convergence) or "clamp".
+    ccd, ccd_max_iterations : narrow-phase continuous collision detection,
+        "additive" (Li et al. 2021; default, ~10 % fewer Newton iterations here) or
+        "tight_inclusion" (Wang et al. 2021), and its iteration cap (both stay
+        conservative when the cap is hit; ipctk's default cap of 1e7 let single
+        degenerate queries run for seconds).
     """
 
     dhat: float = 0.02
@@ -57,6 +62,8 @@ class ContactParams:
     eps_v: float = 1e-3
     self_contact: bool = True
     projection: str = "abs"
+    ccd: str = "additive"
+    ccd_max_iterations: int = 100_000
 
 
 def split_p2_edges(edges: np.ndarray) -> np.ndarray:
@@ -116,7 +123,10 @@ class ContactModel:
             self.mesh.can_collide = filt
         self.barrier = ipctk.BarrierPotential(self.params.dhat, self.params.kappa, True)
         self.friction = ipctk.FrictionPotential(self.params.eps_v)
-        self.ccd = ipctk.TightInclusionCCD(1e-6, 10_000_000, 0.8)
+        if self.params.ccd == "additive":
+            self.ccd = ipctk.AdditiveCCD(self.params.ccd_max_iterations, 0.9)
+        else:
+            self.ccd = ipctk.TightInclusionCCD(1e-6, self.params.ccd_max_iterations, 0.8)
         self.broad_phase = ipctk.HashGrid()
         self._tangential = None
         self._proj = {"abs": ipctk.PSDProjectionMethod.ABS,

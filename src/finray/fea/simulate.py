@@ -115,7 +115,8 @@ class SimulationResult:
     object_displacement_mm: np.ndarray  # (F, No, 2) object nodes (polyline vertices if rigid)
     object_von_mises_MPa: np.ndarray | None  # (F, No) deformable objects only
     min_gap_object_mm: np.ndarray  # (F,) NaN above gap_probe_mm
-    min_gap_self_mm: np.ndarray  # (F,) between boundary points far apart along the boundary
+    min_gap_self_mm: np.ndarray  # (F,) finger-finger, points > self_neighbour_mm apart along
+    #   the boundary (includes the acute apex of the top cavity, ~0.7 mm at rest)
     n_pairs_object: np.ndarray  # (F,) active barrier pairs finger-object
     n_pairs_self: np.ndarray  # (F,) active barrier pairs finger-finger
     newton_iterations: np.ndarray  # (F,) since the previous frame
@@ -296,6 +297,7 @@ def simulate(finger_mesh: TriMesh, obj: RigidObject | DeformableObject, material
         "extrusion_mm": extrusion, "push_mm": push, "direction": direction.tolist(),
         "contact": asdict(opts.contact), "driver_stiffness": opts.driver_stiffness,
         "linear_solver": model.linsolve.backend,
+        "cholmod_mode": model.linsolve.mode,
         "n_factorizations": model.linsolve.n_factorizations,
         "n_analyses": model.linsolve.n_analyses,
         "timings_s": {**{k: round(v, 4) for k, v in model.stats.items()},

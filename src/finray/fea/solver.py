@@ -532,6 +532,7 @@ class StepOptions:
     max_retries: int = 12  # step cuts in a row before giving up
     friction_lag_iterations: int = 0  # extra solves with friction re-lagged at the solution
     predictor: bool = True
+    max_driver_lag: float | None = 1e-3  # mm; a larger lag means the object is blocked
 
 
 def march(model: Model, q: np.ndarray, targets, frames: np.ndarray,
@@ -585,6 +586,14 @@ def march(model: Model, q: np.ndarray, targets, frames: np.ndarray,
                         if r2.iterations <= 1:
                             break
                 iters_frame += iters
+                if res.converged and model.has_driver and so.max_driver_lag is not None:
+                    lag = float(np.abs(model.t(res.q) - model.t_target).max())
+                    if lag > so.max_driver_lag:
+                        raise SimulationError(
+                            f"load step {step} (load factor {s:.5f} -> {s_new:.5f}): the "
+                            f"driven object lags its prescribed position by {lag:.3g} mm; it "
+                            f"is blocked (e.g. pressed against the clamped base)",
+                            step=step, load=s_new, cause="object blocked")
                 if res.converged:
                     break
                 retries += 1

@@ -1,0 +1,29 @@
+# Training: one job per model of train.models (e.g. without and with occlusion).
+
+
+rule train_model:
+    input:
+        shards=shard_files(splits=["train"], pitch=0.0),
+    output:
+        model=f"{TRAIN}/{{model}}/model.pt",
+        torchscript=f"{TRAIN}/{{model}}/model.ts",
+        history=f"{TRAIN}/{{model}}/history.json",
+        curves=report(
+            f"{TRAIN}/{{model}}/curves.png",
+            caption="../report/train_curves.rst",
+            category="Training",
+        ),
+    params:
+        train=config["train"],
+        augment=model_augment,
+    log:
+        f"{RESULTS}/logs/train/{{model}}.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/train/{{model}}.tsv"
+    threads: 1
+    resources:
+        runtime=120,
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/train_model.py"

@@ -1,0 +1,12 @@
+import json
+
+from finray.logs import log_to
+from finray.render import RenderParams, benchmark
+
+cfg = snakemake.config
+with log_to(snakemake.log[0]):
+    out = benchmark(snakemake.input.result, params=RenderParams.from_config(cfg["render"]),
+                    extrusion_mm=cfg["finger"]["extrusion_mm"])
+    print(out)
+    with open(snakemake.output.json, "w") as f:
+        json.dump(out, f, indent=2)

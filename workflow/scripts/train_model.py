@@ -1,0 +1,23 @@
+from pathlib import Path
+
+from finray.logs import log_to
+from finray.model import NetConfig
+from finray.train import AugmentConfig, TrainConfig, train_from_shards
+
+t = snakemake.params.train
+with log_to(snakemake.log[0]):
+    h, w = t["input_size"]
+    net = NetConfig(in_channels=1, base_channels=t["base_channels"], height=h, width=w)
+    cfg = TrainConfig(epochs=t["epochs"], batch_size=t["batch_size"], lr=t["lr"],
+                      alpha_stress=t["alpha_stress"], alpha_force=t["alpha_force"], seed=t["seed"],
+                      threads=snakemake.threads, bf16=t["bf16"], channels_last=t["channels_last"],
+                      progress=False)
+    aug = AugmentConfig(**snakemake.params.augment)
+    occ = {k: tuple(v) for k, v in snakemake.config["dataset"]["occlusion_levels"].items()}
+    d = snakemake.config["dataset"]
+    preprocess = {"base_width_mm": snakemake.config["finger"]["base_width_mm"],
+                  "crop_x_mm": d["crop_x_mm"], "crop_y_mm": d["crop_y_mm"],
+                  "segment": {k: d[k] for k in ("threshold", "foreground", "min_object_frac",
+                                                "max_hole_frac", "keep_largest")}}
+    train_from_shards(snakemake.input.shards, Path(snakemake.output.model).parent, net, cfg, aug,
+                      t["val_fraction"], occ, preprocess)
