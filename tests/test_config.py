@@ -52,7 +52,7 @@ BAD = {
     "negative thickness": (
         lambda c: c["finger"].update(wall_thickness_mm=-1.0), "finger.wall_thickness_mm"),
     "rib does not fit": (
-        lambda c: c["finger"]["ribs"].update(count=14), "finger.ribs.spacing_mm"),
+        lambda c: c["finger"]["ribs"].update(count=16), "finger.ribs.spacing_mm"),
     "rib into the base": (
         lambda c: c["finger"]["ribs"].update(first_height_mm=4.0), "finger.ribs.first_height_mm"),
     "contact height above the finger": (

@@ -79,13 +79,14 @@ class LinearSolver:
 
     ``backend``: "cholmod" (scikit-sparse; the symbolic factorisation is kept and
     reused while the matrix pattern is a subset of the analysed one; ``mode``
-    "auto" times one simplicial and one supernodal factorisation and keeps the
-    faster), "cholespy"
+    "simplicial" by default (faster than "supernodal" for these 2D systems with
+    Debian's reference BLAS and still with OpenBLAS); "auto" times one of each and
+    keeps the faster, at the cost of a run-to-run dependence), "cholespy"
     (a fresh factorisation each call), "splu" (scipy SuperLU), or "auto" (the first
     one available in that order).
     """
 
-    def __init__(self, backend: str = "auto", mode: str = "auto"):
+    def __init__(self, backend: str = "auto", mode: str = "simplicial"):
         self.mode = mode  # CHOLMOD: "simplicial", "supernodal" or "auto" (timed once)
         if backend == "auto":
             backend = "cholmod" if HAVE_CHOLMOD else ("cholespy" if HAVE_CHOLESPY else "splu")

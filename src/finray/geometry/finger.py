@@ -33,11 +33,11 @@ class GeometryError(ValueError):
 
 @dataclass
 class RibParams:
-    count: int = 9
+    count: int = 11
     thickness_mm: float = 1.0
-    first_height_mm: float = 10.0
-    spacing_mm: float = 6.0
-    first_angle_deg: float = 10.0
+    first_height_mm: float = 17.0
+    spacing_mm: float = 4.0
+    first_angle_deg: float = 25.0
     angle_step_deg: float = 3.0
 
 
@@ -96,9 +96,15 @@ def front_face_x(p: FingerParams, y_mm):
     return np.asarray(y_mm) * p.base_width_mm / p.apex_height_mm
 
 
+#: Longest chord of a fillet or tip arc (mm), whatever the element size: a coarse
+#: polygonal fillet, not the element size, was the main mesh error of the force.
+ARC_CHORD_MM = 0.25
+
+
 def _arc_segments(radius: float, size_mm: float) -> int:
-    """Segments per quarter circle so that arcs are resolved at ~size/2."""
-    return max(2, int(np.ceil(0.5 * np.pi * radius / (0.5 * size_mm))))
+    """Segments per quarter circle: chords of at most ``min(size / 2, ARC_CHORD_MM)``."""
+    chord = min(0.5 * size_mm, ARC_CHORD_MM)
+    return max(2, int(np.ceil(0.5 * np.pi * radius / chord)))
 
 
 def rib_centrelines(p: FingerParams) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -200,8 +206,8 @@ def cavities(p: FingerParams, size_mm: float = 0.5) -> list[Polygon]:
         rc = c.buffer(-r, quad_segs=q).buffer(r, quad_segs=q) if r > 0 else c
         if not isinstance(rc, Polygon) or rc.is_empty or rc.area < 0.5 * c.area:
             raise GeometryError("finger.fillet_radius_mm", (
-                f"a {r} mm fillet does not fit in cavity {i + 1} "
-                f"(area {c.area:.2f} mm^2); reduce it or widen the cavity"))
+                f"a {r} mm fillet does not fit in cavity {i + 1} (area {c.area:.2f} mm^2, "
+                f"below rib {i + 1}); reduce the fillet, the number of ribs or angle_step_deg"))
         out.append(shapely.set_precision(rc, 1e-9))
     return out
 
