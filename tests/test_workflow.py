@@ -99,3 +99,23 @@ def test_smoke_dataset_and_training(smoke_run):
         hist = json.loads((d / "history.json").read_text())
         assert len(hist["train_loss"]) == 2 and np.isfinite(hist["train_loss"]).all()
         assert (d / "model.ts").is_file() and (d / "curves.png").is_file()
+
+
+def test_smoke_renders_are_pixel_aligned(smoke_run):
+    """Every front-view frame of the smoke run: the segmented camera image and the
+    stress map's support cover the same pixels (IoU >= 0.98)."""
+    from finray.dataset import segment
+    from finray.render.scene import load_render_index, read_render_frame
+
+    dirs = sorted((smoke_run / "results" / "render").glob("*/*/*/p0"))
+    assert dirs
+    worst = 1.0
+    for d in dirs:
+        index = load_render_index(d)
+        for k in range(index["n_frames"]):
+            rgb, maps = read_render_frame(d, k, index)
+            mask = segment(rgb)
+            support = maps["stress"] > 0
+            iou = (mask & support).sum() / (mask | support).sum()
+            worst = min(worst, iou)
+    assert worst >= 0.98, worst

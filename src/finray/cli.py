@@ -22,17 +22,11 @@ examples:
 """
 
 
-def _geometry_parser(sub) -> None:
-    p = sub.add_parser("geometry", help="build the finger mesh and place the objects",
-                       description=GEOMETRY_HELP,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--config", type=Path, default=None,
-                   help="YAML config (default: config/config.yaml of the source tree)")
-    p.add_argument("--out", type=Path, required=True, help="output directory")
-    p.add_argument("--object", choices=["circle", "square", "ring", "ellipse"],
-                   help="build only this object kind instead of the config's objects")
+def _add_object_options(p, object_help: str) -> None:
+    """Options that describe one object (shared by geometry and simulate)."""
+    p.add_argument("--object", choices=["circle", "square", "ring", "ellipse"], help=object_help)
     p.add_argument("--object-file", type=Path,
-                   help="build only this polygon: JSON list of [x, y] in mm around the reference point")
+                   help="polygon: JSON list of [x, y] in mm around the reference point")
     p.add_argument("--size-mm", type=float,
                    help="circle/ring diameter, square side or ellipse width (mm)")
     p.add_argument("--minor-mm", type=float, help="ellipse height before rotation (mm)")
@@ -41,6 +35,16 @@ def _geometry_parser(sub) -> None:
                    help="rotation of the object about its reference point (deg, counter-clockwise)")
     p.add_argument("--fillet-mm", type=float, default=None,
                    help="corner fillet of squares and polygons (mm; squares default 0.5)")
+
+
+def _geometry_parser(sub) -> None:
+    p = sub.add_parser("geometry", help="build the finger mesh and place the objects",
+                       description=GEOMETRY_HELP,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--config", type=Path, default=None,
+                   help="YAML config (default: config/config.yaml of the source tree)")
+    p.add_argument("--out", type=Path, required=True, help="output directory")
+    _add_object_options(p, "build only this object kind instead of the config's objects")
     p.add_argument("--height-mm", type=float, action="append",
                    help="contact height of the reference point (mm); repeat for several "
                         "(default: the config's heights_mm)")
@@ -143,18 +147,7 @@ def _simulate_parser(sub) -> None:
                    help="YAML config for the finger, mesh, materials and solver "
                         "(default: config/config.yaml of the source tree)")
     p.add_argument("--out", type=Path, required=True, help="output directory")
-    p.add_argument("--object", choices=["circle", "square", "ring", "ellipse"],
-                   help="object kind (or --object-file)")
-    p.add_argument("--object-file", type=Path,
-                   help="polygon: JSON list of [x, y] in mm around the reference point")
-    p.add_argument("--size-mm", type=float,
-                   help="circle/ring diameter, square side or ellipse width (mm)")
-    p.add_argument("--minor-mm", type=float, help="ellipse height before rotation (mm)")
-    p.add_argument("--wall-mm", type=float, default=2.0, help="ring wall thickness (mm, default 2)")
-    p.add_argument("--angle-deg", type=float, default=0.0,
-                   help="rotation of the object about its reference point (deg)")
-    p.add_argument("--fillet-mm", type=float, default=None,
-                   help="corner fillet of squares and polygons (mm; squares default 0.5)")
+    _add_object_options(p, "object kind (or --object-file)")
     p.add_argument("--height-mm", type=float, required=True,
                    help="contact height of the object's reference point (mm)")
     p.add_argument("--material", default="steel",

@@ -8,7 +8,7 @@ from snakemake.utils import update_config
 from finray.config import ConfigError, object_is_meshed, scenes, validate_config
 from finray.dataset import pitch_object, scene_splits
 
-DEFAULT_CONFIGFILE = "config/config.yaml"
+DEFAULT_CONFIGFILE = os.path.join(workflow.basedir, "config", "config.yaml")
 if not workflow.config_settings.configfiles:
     # no --configfile: the paper's full set-up, with any --config KEY=VALUE on top
     _overrides = dict(config)

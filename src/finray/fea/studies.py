@@ -1,0 +1,357 @@
+"""Benchmarks of the FEA stage: cost against accuracy, and robustness (results/benchmarks/).
+
+:func:`run_time_vs_error` varies the discretisation (mesh size and order, load step,
+barrier distance) one factor at a time around the config's defaults for one scene
+(rigid steel circle, 20 mm diameter, contact height 30 mm, 10 mm push) and compares
+the force at 10 mm with a fine reference. :func:`stability_suite` runs hard scenes
+(sharp corners, long push, near-incompressible finger, small object at the tip,
+soft deformable ring, friction extremes, initial contact, extreme meshes) and
+records whether each converges or stops with a clear message.
+
+Units: lengths mm, forces N on the 20 mm finger (Fx positive along the push, i.e.
+the force the object applies to the finger), times s (wall clock, one thread).
+"""
+from __future__ import annotations
+
+import copy
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..config import validate_config
+from ..geometry.finger import FingerParams, mesh_finger
+from ..geometry.mesh import TriMesh
+from ..geometry.objects import object_geometry
+from .output import material_law, scene_object, simulation_options
+from .simulate import SimulationError, simulate
+
+__all__ = ["run_time_vs_error", "stability_suite", "run_case", "pareto_front"]
+
+CIRCLE_D20 = {"type": "circle", "diameter_mm": 20.0}
+
+
+def _set(cfg: dict, dotted: str, value) -> None:
+    d = cfg
+    *head, last = dotted.split(".")
+    for k in head:
+        d = d[k]
+    d[last] = value
+
+
+def with_overrides(cfg: dict, overrides: dict | None, validate: bool = True) -> dict:
+    """Copy of ``cfg`` with dotted-key ``overrides`` (e.g. ``{"mesh.size_mm": 0.5}``),
+    validated again (a forbidden value raises :class:`~finray.config.ConfigError`)."""
+    out = copy.deepcopy(cfg)
+    for k, v in (overrides or {}).items():
+        _set(out, k, v)
+    return validate_config(out) if validate else out
+
+
+class _FingerCache:
+    """Finger meshes by (geometry, size, order): meshing a fine finger takes seconds."""
+
+    def __init__(self):
+        self._meshes: dict = {}
+
+    def get(self, cfg: dict) -> tuple[TriMesh, float]:
+        m = cfg["mesh"]
+        key = (repr(sorted(cfg["finger"].items())), m["size_mm"], m["min_angle_deg"], m["order"])
+        if key not in self._meshes:
+            t0 = time.perf_counter()
+            mesh = mesh_finger(FingerParams.from_config(cfg["finger"]), m["size_mm"],
+                               m["min_angle_deg"], m["order"])
+            self._meshes[key] = (mesh, time.perf_counter() - t0)
+        return self._meshes[key]
+
+
+def _place(cfg: dict, spec: dict, material: str, height_mm: float, name: str,
+           shift_mm: float = 0.0, gap_mm: float | None = None) -> TriMesh:
+    deformable = not cfg["materials"][material]["rigid"]
+    m = cfg["mesh"]
+    obj = object_geometry(name, spec, FingerParams.from_config(cfg["finger"]), height_mm,
+                          size_mm=m["size_mm"], deformable=deformable,
+                          gap_mm=cfg["placement"]["gap_mm"] if gap_mm is None else gap_mm,
+                          min_angle_deg=m["min_angle_deg"])
+    if shift_mm:
+        obj.points = obj.points + np.array([shift_mm, 0.0])  # towards (into) the finger
+    return obj
+
+
+def run_case(cfg: dict, spec: dict = CIRCLE_D20, material: str = "steel", height_mm: float = 30.0,
+             name: str = "circle_d20", cache: _FingerCache | None = None, frame_step_mm=None,
+             shift_mm: float = 0.0, gap_mm: float | None = None) -> dict:
+    """Mesh, place and simulate one scene of ``cfg``; returns the result and timings.
+
+    Raises whatever the geometry or the solver raise (the callers decide).
+    """
+    cache = cache or _FingerCache()
+    finger, t_mesh = cache.get(cfg)
+    obj_mesh = _place(cfg, spec, material, height_mm, name, shift_mm, gap_mm)
+    obj = scene_object(obj_mesh, material, cfg)
+    opts = simulation_options(cfg)
+    if frame_step_mm is not None:
+        opts.frame_step_mm = frame_step_mm
+    t0 = time.perf_counter()
+    res = simulate(finger, obj, material_law(cfg, cfg["finger"]["material"]), opts)
+    wall = time.perf_counter() - t0
+    return {"result": res, "wall_time_s": wall, "mesh_time_s": t_mesh,
+            "n_nodes": len(finger.points), "n_dofs": res.meta["n_dofs"]}
+
+
+def fx_at(res, push_mm: float = 10.0) -> float:
+    """Fx (N, on the finger, + along the push) at ``push_mm`` of prescribed push."""
+    fx = -res.force_N[:, 0]
+    if push_mm > res.target_mm[-1] + 1e-9:
+        return float("nan")
+    return float(np.interp(push_mm, res.target_mm, fx))
+
+
+def _min_gap(res) -> float:
+    g = np.concatenate([np.asarray(res.min_gap_object_mm, float),
+                        np.asarray(res.min_gap_self_mm, float)])
+    g = g[np.isfinite(g)]
+    return float(g.min()) if len(g) else float("nan")
+
+
+def _any_nan(res) -> bool:
+    arrays = [res.force_N, res.base_reaction_N, res.finger_displacement_mm,
+              res.object_displacement_mm, res.displacement_mm]
+    if res.finger_von_mises_MPa is not None:
+        arrays.append(res.finger_von_mises_MPa)
+    return not all(np.isfinite(a).all() for a in arrays)
+
+
+# ----------------------------------------------------------------------------------
+# 1. Wall time against error
+# ----------------------------------------------------------------------------------
+def _variants(cfg: dict, mesh_p2, mesh_p1, steps, dhats):
+    """(label, factor, overrides) one factor at a time; the default once."""
+    d_size, d_order = cfg["mesh"]["size_mm"], cfg["mesh"]["order"]
+    d_step, d_dhat = cfg["fea"]["max_step_mm"], cfg["fea"]["dhat_mm"]
+    out = [("default", "default", {})]
+    for s in mesh_p2:
+        if not (np.isclose(s, d_size) and d_order == 2):
+            out.append((f"mesh {s:g} P2", "mesh", {"mesh.size_mm": s, "mesh.order": 2}))
+    for s in mesh_p1:
+        out.append((f"mesh {s:g} P1", "mesh", {"mesh.size_mm": s, "mesh.order": 1}))
+    for st in steps:
+        if not np.isclose(st, d_step):
+            out.append((f"step {st:g}", "load step", {"fea.max_step_mm": st}))
+    for dh in dhats:
+        if not np.isclose(dh, d_dhat):
+            out.append((f"dhat {dh:g}", "dhat", {"fea.dhat_mm": dh}))
+    return out
+
+
+def pareto_front(time_s, err) -> np.ndarray:
+    """Indices of the non-dominated points (lower time and lower error), by time."""
+    time_s, err = np.asarray(time_s, float), np.asarray(err, float)
+    ok = np.flatnonzero(np.isfinite(time_s) & np.isfinite(err))
+    front, best = [], np.inf
+    for i in ok[np.lexsort((err[ok], time_s[ok]))]:
+        if err[i] < best:
+            front.append(i)
+            best = err[i]
+    return np.array(front, int)
+
+
+def run_time_vs_error(cfg: dict, out_csv, out_png, out_md=None, *, height_mm: float = 30.0,
+                      push_mm: float = 10.0, reference_size_mm: float = 0.25,
+                      mesh_p2=(1.0, 0.75, 0.5, 0.35), mesh_p1=(0.5, 0.35),
+                      steps=(1.0, 0.5, 0.25), dhats=(0.01, 0.02, 0.04),
+                      log=print) -> pd.DataFrame:
+    """Wall time, Newton iterations and Fx at ``push_mm`` of the discretisation variants
+    of the steel Ø20 mm circle scene, error relative to the finest P2 mesh.
+
+    Writes ``out_csv`` (one row per variant), ``out_png`` (time vs |error|, log axes,
+    Pareto front, default highlighted) and ``out_md`` (default: ``out_csv`` with
+    ``.md``). Frames are recorded every max(frame_step, max_step) mm, because a load
+    step never crosses a frame (a 1 mm step needs 1 mm frames).
+    """
+    base = with_overrides(cfg, {"fea.push_mm": push_mm, "fea.write_vtu": False})
+    cache = _FingerCache()
+    t_all = time.perf_counter()
+    rows = []
+
+    def one(label, factor, overrides):
+        c = with_overrides(base, overrides)
+        frame = max(c["fea"]["frame_step_mm"], c["fea"]["max_step_mm"])
+        r = run_case(c, CIRCLE_D20, "steel", height_mm, "circle_d20", cache, frame_step_mm=frame)
+        res = r["result"]
+        row = {"variant": label, "factor": factor, "mesh_size_mm": c["mesh"]["size_mm"],
+               "order": c["mesh"]["order"], "max_step_mm": c["fea"]["max_step_mm"],
+               "dhat_mm": c["fea"]["dhat_mm"], "n_nodes": r["n_nodes"],
+               "wall_time_s": round(r["wall_time_s"], 3), "mesh_time_s": round(r["mesh_time_s"], 3),
+               "newton_iterations": int(res.newton_iterations.sum()),
+               "load_steps": int(res.load_steps[-1]), "fx_10mm_N": fx_at(res, push_mm),
+               "min_gap_mm": _min_gap(res)}
+        log(f"  {label:<14s} {row['wall_time_s']:7.2f} s  {row['newton_iterations']:4d} it  "
+            f"Fx {row['fx_10mm_N']:.5f} N")
+        return row
+
+    log(f"reference: P2 mesh {reference_size_mm} mm")
+    ref = one(f"reference {reference_size_mm:g} P2", "reference",
+              {"mesh.size_mm": reference_size_mm, "mesh.order": 2})
+    for label, factor, overrides in _variants(base, mesh_p2, mesh_p1, steps, dhats):
+        rows.append(one(label, factor, overrides))
+    rows.append(ref)
+    df = pd.DataFrame(rows)
+    df["rel_error_pct"] = 100 * (df["fx_10mm_N"] - ref["fx_10mm_N"]) / ref["fx_10mm_N"]
+    df["is_default"] = df["variant"] == "default"
+    cand = df["factor"] != "reference"
+    front = pareto_front(df.loc[cand, "wall_time_s"], df.loc[cand, "rel_error_pct"].abs())
+    df["pareto"] = False
+    df.loc[df.index[cand][front], "pareto"] = True
+    total = time.perf_counter() - t_all
+    log(f"study wall time {total:.1f} s")
+
+    out_csv = Path(out_csv)
+    out_csv.parent.mkdir(parents=True, exist_ok=True)
+    df.to_csv(out_csv, index=False, float_format="%.6g")
+    _pareto_figure(df, out_png, ref, height_mm, push_mm)
+    md = Path(out_md) if out_md else out_csv.with_suffix(".md")
+    cols = ["variant", "n_nodes", "wall_time_s", "newton_iterations", "fx_10mm_N",
+            "rel_error_pct", "pareto"]
+    md.write_text(
+        "# FEA cost against accuracy\n\n"
+        f"Steel circle Ø20 mm at contact height {height_mm:g} mm, {push_mm:g} mm push; one "
+        "factor varied at a time around the defaults (mesh "
+        f"{cfg['mesh']['size_mm']:g} mm P{cfg['mesh']['order']}, max step "
+        f"{cfg['fea']['max_step_mm']:g} mm, dhat {cfg['fea']['dhat_mm']:g} mm). Fx: force on "
+        f"the 20 mm finger at {push_mm:g} mm; error relative to the reference (P2, "
+        f"{reference_size_mm:g} mm, default steps). Wall time of the solve on one thread "
+        f"(meshing excluded). Whole study: {total:.0f} s.\n\n"
+        + df[cols].to_markdown(index=False, floatfmt=".4g") + "\n")
+    return df
+
+
+def _pareto_figure(df: pd.DataFrame, out_png, ref: dict, height_mm, push_mm) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    d = df[df["factor"] != "reference"].copy()
+    d["abs_err"] = d["rel_error_pct"].abs().clip(lower=1e-3)  # log axis: 0 -> floor
+    colors = {"default": "k", "mesh": "tab:blue", "load step": "tab:orange", "dhat": "tab:green"}
+    fig, ax = plt.subplots(figsize=(6.4, 4.6))
+    for factor, g in d.groupby("factor"):
+        ax.scatter(g["wall_time_s"], g["abs_err"], c=colors.get(factor, "gray"), s=30,
+                   label=factor, zorder=3)
+    de = d[d["is_default"]]
+    ax.scatter(de["wall_time_s"], de["abs_err"], s=180, facecolors="none", edgecolors="red",
+               linewidths=2, zorder=4, label="default")
+    f = d[d["pareto"]].sort_values("wall_time_s")
+    ax.step(f["wall_time_s"], f["abs_err"], where="post", color="red", lw=1, alpha=0.6,
+            zorder=2, label="Pareto front")
+    for _, r in d.iterrows():
+        ax.annotate(r["variant"], (r["wall_time_s"], r["abs_err"]), textcoords="offset points",
+                    xytext=(4, 3), fontsize=7)
+    ax.axvline(ref["wall_time_s"], color="gray", ls=":", lw=1)
+    ax.text(ref["wall_time_s"], d["abs_err"].max(),
+            f" reference\n {ref['wall_time_s']:.1f} s", fontsize=7, color="gray", va="top")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("wall time of the solve (s, one thread)")
+    ax.set_ylabel(f"|relative error of Fx at {push_mm:g} mm| (%)")
+    ax.set_title(f"FEA cost vs accuracy: steel Ø20 mm at {height_mm:g} mm "
+                 f"(ref Fx = {ref['fx_10mm_N']:.4f} N)", fontsize=9)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, loc="lower left")
+    fig.tight_layout()
+    Path(out_png).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out_png, dpi=150)
+    plt.close(fig)
+
+
+# ----------------------------------------------------------------------------------
+# 2. Stability suite
+# ----------------------------------------------------------------------------------
+#: case -> (config overrides, scene keywords of :func:`run_case`, expected outcome).
+#: expected: "converge" or "refuse" (a clear stop is the correct answer).
+STABILITY_CASES: dict[str, tuple[dict, dict, str]] = {
+    "baseline": ({}, {}, "converge"),
+    "sharp_corners_no_fillet": ({"finger.fillet_radius_mm": 0.0}, {}, "converge"),
+    "push_15mm": ({"fea.push_mm": 15.0}, {}, "converge"),
+    "finger_nu_0.499": ({"materials.@finger.poisson_ratio": 0.499}, {}, "converge"),
+    "circle_d5_tip_h70": ({}, {"spec": {"type": "circle", "diameter_mm": 5.0},
+                              "height_mm": 70.0, "name": "circle_d5"}, "converge"),
+    "neoprene_ring_h20": ({}, {"spec": {"type": "ring", "diameter_mm": 15.0, "wall_mm": 2.0},
+                              "material": "neoprene", "height_mm": 20.0, "name": "ring_d15"},
+                          "converge"),
+    "friction_0": ({"fea.friction": 0.0}, {}, "converge"),
+    "friction_1": ({"fea.friction": 1.0}, {}, "converge"),
+    "gap_0.001mm": ({"placement.gap_mm": 0.001}, {}, "converge"),
+    "gap_0_touching": ({}, {"gap_mm": 1e-9}, "either"),
+    "overlap_0.2mm": ({}, {"shift_mm": 0.3}, "refuse"),  # 0.1 mm gap - 0.3 mm shift
+    "mesh_2.0mm": ({"mesh.size_mm": 2.0}, {}, "converge"),
+    "mesh_0.3mm": ({"mesh.size_mm": 0.3}, {}, "converge"),
+}
+
+
+def _resolve(overrides: dict, cfg: dict) -> dict:
+    fm = cfg["finger"]["material"]
+    return {k.replace("@finger", fm): v for k, v in overrides.items()}
+
+
+def stability_suite(cfg: dict, out_csv, out_md=None, cases: dict | None = None, *,
+                    mesh_size_mm: float = 0.75, log=print) -> pd.DataFrame:
+    """Run the hard scenes of :data:`STABILITY_CASES` (steel Ø20 mm circle at 30 mm,
+    mesh ``mesh_size_mm``, unless a case says otherwise); one row each, never raises
+    for a failing scene. ``ok``: converged without NaN and with every gap > 0, or
+    stopped with a message naming the scene, the step and the cause."""
+    cases = STABILITY_CASES if cases is None else cases
+    base = with_overrides(cfg, {"mesh.size_mm": mesh_size_mm, "fea.write_vtu": False})
+    cache = _FingerCache()
+    rows = []
+    t_all = time.perf_counter()
+    for case, (overrides, scene, expected) in cases.items():
+        row = {"case": case, "converged": False, "stop_message": "", "failed_step": None,
+               "wall_time_s": np.nan, "newton_iterations": None, "fx_10mm_N": np.nan,
+               "min_gap_mm": np.nan, "any_nan": False, "expected": expected}
+        t0 = time.perf_counter()
+        try:
+            c = with_overrides(base, _resolve(overrides, base))
+            r = run_case(c, cache=cache, **scene)
+            res = r["result"]
+            row.update(converged=True, wall_time_s=round(r["wall_time_s"], 3),
+                       newton_iterations=int(res.newton_iterations.sum()),
+                       fx_10mm_N=fx_at(res, 10.0), min_gap_mm=_min_gap(res),
+                       any_nan=_any_nan(res))
+        except SimulationError as e:
+            row.update(stop_message=f"scene {case}: load step {e.step}: {e} [cause: {e.cause}]",
+                       failed_step=e.step, any_nan="non-finite" in f"{e} {e.cause}")
+        except Exception as e:  # noqa: BLE001 - the suite records every failure
+            row.update(stop_message=f"scene {case}: {type(e).__name__}: {e}")
+        if not np.isfinite(row["wall_time_s"]):
+            row["wall_time_s"] = round(time.perf_counter() - t0, 3)
+        good_run = row["converged"] and not row["any_nan"] and row["min_gap_mm"] > 0
+        clear_stop = (not row["converged"] and bool(row["stop_message"])
+                      and not row["any_nan"])
+        row["ok"] = bool(good_run if expected == "converge" else
+                         clear_stop if expected == "refuse" else good_run or clear_stop)
+        log(f"  {case:<24s} conv={row['converged']!s:5s} ok={row['ok']!s:5s} "
+            f"{row['wall_time_s']:6.1f} s  Fx={row['fx_10mm_N']:.4f}  gap={row['min_gap_mm']:.2e}"
+            + (f"  {row['stop_message']}" if row["stop_message"] else ""))
+        rows.append(row)
+    total = time.perf_counter() - t_all
+    log(f"suite wall time {total:.1f} s")
+    df = pd.DataFrame(rows)
+    out_csv = Path(out_csv)
+    out_csv.parent.mkdir(parents=True, exist_ok=True)
+    df.to_csv(out_csv, index=False, float_format="%.6g")
+    md = Path(out_md) if out_md else out_csv.with_suffix(".md")
+    md.write_text(
+        "# FEA stability suite\n\n"
+        f"Steel circle Ø20 mm at contact height 30 mm, 10 mm push, P2 mesh {mesh_size_mm:g} mm, "
+        "unless the case says otherwise. A case is `ok` when it converges without NaN and "
+        "with every gap (object and self contact, all frames) > 0, or, where a refusal is "
+        "expected, stops with a message naming the scene, the step and the cause. "
+        f"{int(df['ok'].sum())}/{len(df)} ok; whole suite {total:.0f} s.\n\n"
+        + df.drop(columns=["stop_message"]).to_markdown(index=False, floatfmt=".4g")
+        + "\n\nStop messages:\n\n"
+        + "".join(f"- `{r.case}`: {r.stop_message}\n" for r in df.itertuples() if r.stop_message)
+        + ("" if (df["stop_message"] != "").any() else "- none\n"))
+    return df
