@@ -92,13 +92,13 @@ def pitch_label(p):
 
 def rendered_views():
     """(scene, pitch) of every render: pitch 0 for all scenes, every pitch of
-    render.pitches_deg for the pitch object (in its first material)."""
-    pobj = pitch_object(config)
-    pmat = config["objects"][pobj]["materials"][0]
+    render.pitches_deg for the pitch scene (pitch object, first material, middle
+    height: the 3D renderer is ~25x slower than the 2D one, so only where needed)."""
+    pobj, pmat, ph = pitch_scene()
     views = []
     for s in scenes(config):
         pitches = {0.0}
-        if s.object == pobj and s.material == pmat:
+        if (s.object, s.material, f"{s.height_mm:g}") == (pobj, pmat, ph):
             pitches |= {float(p) for p in config["render"]["pitches_deg"]}
         views += [(s, p) for p in sorted(pitches)]
     return views
@@ -159,6 +159,8 @@ def all_targets():
         f"{GEOMETRY}/finger_surface.ply",
         f"{FEA}/force_displacement.pdf",
         f"{RESULTS}/benchmarks/fea_scenes.csv",
+        f"{RESULTS}/benchmarks/fea_pareto.png",
+        f"{RESULTS}/benchmarks/fea_stability.csv",
         f"{RESULTS}/benchmarks/render_throughput.json",
         f"{DATASET}/manifest.csv",
         f"{DATASET}/examples.pdf",

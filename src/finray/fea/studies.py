@@ -49,6 +49,18 @@ def with_overrides(cfg: dict, overrides: dict | None, validate: bool = True) -> 
     return validate_config(out) if validate else out
 
 
+def _markdown(df: pd.DataFrame) -> str:
+    """``df.to_markdown`` (needs ``tabulate``), else a plain pipe table."""
+    try:
+        return df.to_markdown(index=False, floatfmt=".4g")
+    except ImportError:
+        fmt = lambda v: f"{v:.4g}" if isinstance(v, float) else str(v)  # noqa: E731
+        lines = ["| " + " | ".join(map(str, df.columns)) + " |",
+                 "|" + "---|" * len(df.columns)]
+        lines += ["| " + " | ".join(fmt(v) for v in r) + " |" for r in df.itertuples(index=False)]
+        return "\n".join(lines)
+
+
 class _FingerCache:
     """Finger meshes by (geometry, size, order): meshing a fine finger takes seconds."""
 
@@ -67,11 +79,12 @@ class _FingerCache:
 
 
 def _place(cfg: dict, spec: dict, material: str, height_mm: float, name: str,
-           shift_mm: float = 0.0, gap_mm: float | None = None) -> TriMesh:
+           shift_mm: float = 0.0, gap_mm: float | None = None,
+           object_size_mm: float | None = None) -> TriMesh:
     deformable = not cfg["materials"][material]["rigid"]
     m = cfg["mesh"]
     obj = object_geometry(name, spec, FingerParams.from_config(cfg["finger"]), height_mm,
-                          size_mm=m["size_mm"], deformable=deformable,
+                          size_mm=object_size_mm or m["size_mm"], deformable=deformable,
                           gap_mm=cfg["placement"]["gap_mm"] if gap_mm is None else gap_mm,
                           min_angle_deg=m["min_angle_deg"])
     if shift_mm:
@@ -81,14 +94,18 @@ def _place(cfg: dict, spec: dict, material: str, height_mm: float, name: str,
 
 def run_case(cfg: dict, spec: dict = CIRCLE_D20, material: str = "steel", height_mm: float = 30.0,
              name: str = "circle_d20", cache: _FingerCache | None = None, frame_step_mm=None,
-             shift_mm: float = 0.0, gap_mm: float | None = None) -> dict:
+             shift_mm: float = 0.0, gap_mm: float | None = None,
+             object_size_mm: float | None = None) -> dict:
     """Mesh, place and simulate one scene of ``cfg``; returns the result and timings.
+
+    The object is discretised at ``object_size_mm`` (default: the mesh size, as in
+    the workflow: a rigid circle gets chords of about half of it).
 
     Raises whatever the geometry or the solver raise (the callers decide).
     """
     cache = cache or _FingerCache()
     finger, t_mesh = cache.get(cfg)
-    obj_mesh = _place(cfg, spec, material, height_mm, name, shift_mm, gap_mm)
+    obj_mesh = _place(cfg, spec, material, height_mm, name, shift_mm, gap_mm, object_size_mm)
     obj = scene_object(obj_mesh, material, cfg)
     opts = simulation_options(cfg)
     if frame_step_mm is not None:
@@ -126,7 +143,7 @@ def _any_nan(res) -> bool:
 # ----------------------------------------------------------------------------------
 # 1. Wall time against error
 # ----------------------------------------------------------------------------------
-def _variants(cfg: dict, mesh_p2, mesh_p1, steps, dhats):
+def _variants(cfg: dict, mesh_p2, mesh_p1, steps, dhats, object_sizes=()):
     """(label, factor, overrides) one factor at a time; the default once."""
     d_size, d_order = cfg["mesh"]["size_mm"], cfg["mesh"]["order"]
     d_step, d_dhat = cfg["fea"]["max_step_mm"], cfg["fea"]["dhat_mm"]
@@ -142,6 +159,8 @@ def _variants(cfg: dict, mesh_p2, mesh_p1, steps, dhats):
     for dh in dhats:
         if not np.isclose(dh, d_dhat):
             out.append((f"dhat {dh:g}", "dhat", {"fea.dhat_mm": dh}))
+    for s in object_sizes:
+        out.append((f"object {s:g}", "object facets", {"_object_size_mm": s}))
     return out
 
 
@@ -161,14 +180,17 @@ def run_time_vs_error(cfg: dict, out_csv, out_png, out_md=None, *, height_mm: fl
                       push_mm: float = 10.0, reference_size_mm: float = 0.25,
                       mesh_p2=(1.0, 0.75, 0.5, 0.35), mesh_p1=(0.5, 0.35),
                       steps=(1.0, 0.5, 0.25), dhats=(0.01, 0.02, 0.04),
-                      log=print) -> pd.DataFrame:
+                      object_sizes=(0.25,), log=print) -> pd.DataFrame:
     """Wall time, Newton iterations and Fx at ``push_mm`` of the discretisation variants
     of the steel Ø20 mm circle scene, error relative to the finest P2 mesh.
 
     Writes ``out_csv`` (one row per variant), ``out_png`` (time vs |error|, log axes,
     Pareto front, default highlighted) and ``out_md`` (default: ``out_csv`` with
     ``.md``). Frames are recorded every max(frame_step, max_step) mm, because a load
-    step never crosses a frame (a 1 mm step needs 1 mm frames).
+    step never crosses a frame (a 1 mm step needs 1 mm frames). The rigid circle is
+    discretised with the mesh size, as in the workflow; the ``object_sizes`` variants
+    keep the default finger mesh and refine the circle only (its facets are part of
+    the default's error).
     """
     base = with_overrides(cfg, {"fea.push_mm": push_mm, "fea.write_vtu": False})
     cache = _FingerCache()
@@ -176,13 +198,17 @@ def run_time_vs_error(cfg: dict, out_csv, out_png, out_md=None, *, height_mm: fl
     rows = []
 
     def one(label, factor, overrides):
+        overrides = dict(overrides)
+        obj_size = overrides.pop("_object_size_mm", None)
         c = with_overrides(base, overrides)
         frame = max(c["fea"]["frame_step_mm"], c["fea"]["max_step_mm"])
-        r = run_case(c, CIRCLE_D20, "steel", height_mm, "circle_d20", cache, frame_step_mm=frame)
+        r = run_case(c, CIRCLE_D20, "steel", height_mm, "circle_d20", cache, frame_step_mm=frame,
+                     object_size_mm=obj_size)
         res = r["result"]
         row = {"variant": label, "factor": factor, "mesh_size_mm": c["mesh"]["size_mm"],
                "order": c["mesh"]["order"], "max_step_mm": c["fea"]["max_step_mm"],
-               "dhat_mm": c["fea"]["dhat_mm"], "n_nodes": r["n_nodes"],
+               "dhat_mm": c["fea"]["dhat_mm"],
+               "object_size_mm": obj_size or c["mesh"]["size_mm"], "n_nodes": r["n_nodes"],
                "wall_time_s": round(r["wall_time_s"], 3), "mesh_time_s": round(r["mesh_time_s"], 3),
                "newton_iterations": int(res.newton_iterations.sum()),
                "load_steps": int(res.load_steps[-1]), "fx_10mm_N": fx_at(res, push_mm),
@@ -194,7 +220,7 @@ def run_time_vs_error(cfg: dict, out_csv, out_png, out_md=None, *, height_mm: fl
     log(f"reference: P2 mesh {reference_size_mm} mm")
     ref = one(f"reference {reference_size_mm:g} P2", "reference",
               {"mesh.size_mm": reference_size_mm, "mesh.order": 2})
-    for label, factor, overrides in _variants(base, mesh_p2, mesh_p1, steps, dhats):
+    for label, factor, overrides in _variants(base, mesh_p2, mesh_p1, steps, dhats, object_sizes):
         rows.append(one(label, factor, overrides))
     rows.append(ref)
     df = pd.DataFrame(rows)
@@ -223,7 +249,7 @@ def run_time_vs_error(cfg: dict, out_csv, out_png, out_md=None, *, height_mm: fl
         f"the 20 mm finger at {push_mm:g} mm; error relative to the reference (P2, "
         f"{reference_size_mm:g} mm, default steps). Wall time of the solve on one thread "
         f"(meshing excluded). Whole study: {total:.0f} s.\n\n"
-        + df[cols].to_markdown(index=False, floatfmt=".4g") + "\n")
+        + _markdown(df[cols]) + "\n")
     return df
 
 
@@ -235,20 +261,23 @@ def _pareto_figure(df: pd.DataFrame, out_png, ref: dict, height_mm, push_mm) -> 
 
     d = df[df["factor"] != "reference"].copy()
     d["abs_err"] = d["rel_error_pct"].abs().clip(lower=1e-3)  # log axis: 0 -> floor
-    colors = {"default": "k", "mesh": "tab:blue", "load step": "tab:orange", "dhat": "tab:green"}
+    colors = {"default": "k", "mesh": "tab:blue", "load step": "tab:orange", "dhat": "tab:green",
+              "object facets": "tab:purple"}
     fig, ax = plt.subplots(figsize=(6.4, 4.6))
-    for factor, g in d.groupby("factor"):
+    for factor, g in d[~d["is_default"]].groupby("factor"):
         ax.scatter(g["wall_time_s"], g["abs_err"], c=colors.get(factor, "gray"), s=30,
                    label=factor, zorder=3)
     de = d[d["is_default"]]
+    ax.scatter(de["wall_time_s"], de["abs_err"], c="k", s=30, zorder=4)
     ax.scatter(de["wall_time_s"], de["abs_err"], s=180, facecolors="none", edgecolors="red",
-               linewidths=2, zorder=4, label="default")
+               linewidths=2, zorder=4, label="default (config)")
     f = d[d["pareto"]].sort_values("wall_time_s")
     ax.step(f["wall_time_s"], f["abs_err"], where="post", color="red", lw=1, alpha=0.6,
             zorder=2, label="Pareto front")
     for _, r in d.iterrows():
+        below = r["factor"] in ("object facets", "dhat")  # keep clear of the default's label
         ax.annotate(r["variant"], (r["wall_time_s"], r["abs_err"]), textcoords="offset points",
-                    xytext=(4, 3), fontsize=7)
+                    xytext=(4, -9 if below else 3), fontsize=7)
     ax.axvline(ref["wall_time_s"], color="gray", ls=":", lw=1)
     ax.text(ref["wall_time_s"], d["abs_err"].max(),
             f" reference\n {ref['wall_time_s']:.1f} s", fontsize=7, color="gray", va="top")
@@ -294,6 +323,14 @@ STABILITY_CASES: dict[str, tuple[dict, dict, str]] = {
 def _resolve(overrides: dict, cfg: dict) -> dict:
     fm = cfg["finger"]["material"]
     return {k.replace("@finger", fm): v for k, v in overrides.items()}
+
+
+def stability_cases(coarse_mm: float = 2.0, fine_mm: float = 0.3) -> dict:
+    """:data:`STABILITY_CASES` with the very coarse and very fine meshes resized."""
+    cases = {k: v for k, v in STABILITY_CASES.items() if k not in ("mesh_2.0mm", "mesh_0.3mm")}
+    cases[f"mesh_{coarse_mm:g}mm"] = ({"mesh.size_mm": coarse_mm}, {}, "converge")
+    cases[f"mesh_{fine_mm:g}mm"] = ({"mesh.size_mm": fine_mm}, {}, "converge")
+    return cases
 
 
 def stability_suite(cfg: dict, out_csv, out_md=None, cases: dict | None = None, *,
@@ -350,7 +387,7 @@ def stability_suite(cfg: dict, out_csv, out_md=None, cases: dict | None = None, 
         "with every gap (object and self contact, all frames) > 0, or, where a refusal is "
         "expected, stops with a message naming the scene, the step and the cause. "
         f"{int(df['ok'].sum())}/{len(df)} ok; whole suite {total:.0f} s.\n\n"
-        + df.drop(columns=["stop_message"]).to_markdown(index=False, floatfmt=".4g")
+        + _markdown(df.drop(columns=["stop_message"]))
         + "\n\nStop messages:\n\n"
         + "".join(f"- `{r.case}`: {r.stop_message}\n" for r in df.itertuples() if r.stop_message)
         + ("" if (df["stop_message"] != "").any() else "- none\n"))
