@@ -65,6 +65,11 @@ BAD = {
         lambda c: c["objects"].update(bow={"type": "polygon", "vertices_mm": [[0, 0], [4, 4], [4, 0], [0, 4]]}),
         "objects.bow.vertices_mm"),
     "rigid finger": (lambda c: c["finger"].update(material="steel"), "finger.material"),
+    "crop not 2:1": (lambda c: c.setdefault("dataset", {}).update(crop_y_mm=[0.0, 70.0]),
+                     "dataset.crop_y_mm"),
+    "input size not rendered": (lambda c: c["train"].update(input_size=[96, 48]), "train.input_size"),
+    "unknown pitch object": (lambda c: c.setdefault("dataset", {}).update(pitch_object="nope"),
+                             "dataset.pitch_object"),
 }
 
 

@@ -96,6 +96,7 @@ def validate_config(config: dict, base_dir: str | Path = ".") -> dict:
         finger_polygon(finger, cfg["mesh"]["size_mm"])
     except GeometryError as exc:
         raise ConfigError(exc.key, str(exc).split(": ", 1)[1]) from None
+    _check_stage_sections(cfg)
     for h in cfg["heights_mm"]:
         if h >= finger.height_mm:
             raise ConfigError("heights_mm", (
@@ -114,6 +115,35 @@ def validate_config(config: dict, base_dir: str | Path = ".") -> dict:
         except GeometryError as exc:
             raise ConfigError(exc.key, str(exc).split(": ", 1)[1]) from None
     return cfg
+
+
+def _check_stage_sections(cfg: dict) -> None:
+    """Cross-key checks of the render, dataset and train sections."""
+    import re
+
+    from .dataset.shards import DatasetParams
+    from .dataset.splits import pitch_object
+    from .render.params import RenderParams
+
+    for section, build in (("render", RenderParams.from_config),
+                           ("dataset", DatasetParams.from_config)):
+        try:
+            build(cfg[section])
+        except (ValueError, TypeError) as exc:
+            m = re.match(rf"({section}\.[A-Za-z_]+)[: ]+(.*)", str(exc))
+            key, msg = (m.group(1), m.group(2)) if m else (section, str(exc))
+            raise ConfigError(key, msg) from None
+    if cfg["dataset"].get("pitch_object"):  # a named one must exist (else: the first shape)
+        try:
+            pitch_object(cfg)
+        except ValueError as exc:
+            raise ConfigError("dataset.pitch_object", str(exc).split(": ", 1)[-1]) from None
+    sizes = [list(s) for s in cfg["dataset"]["sizes"]]
+    if list(cfg["train"]["input_size"]) not in sizes:
+        raise ConfigError("train.input_size", (
+            f"{cfg['train']['input_size']} is not one of dataset.sizes {sizes}"))
+    if cfg["train"]["input_size"][0] % 16 or cfg["train"]["input_size"][1] % 16:
+        raise ConfigError("train.input_size", "height and width must be multiples of 16")
 
 
 def load_config(path: str | Path) -> dict:

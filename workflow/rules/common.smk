@@ -18,6 +18,10 @@ if not workflow.config_settings.configfiles:
 
 try:
     _validated = validate_config(config, base_dir=workflow.basedir)
+    try:  # the viewpoint study needs a held-out shape (or dataset.pitch_object)
+        pitch_object(_validated)
+    except ValueError as _exc:
+        raise ConfigError("dataset.pitch_object", str(_exc).split(": ", 1)[-1]) from None
 except ConfigError as _err:
     sys.stderr.write(f"finray: config error: {_err}\n")
     sys.exit(1)
