@@ -12,7 +12,8 @@ def log_to(path: str | Path):
     """Redirect stdout/stderr and the ``logging`` root to ``path`` for the block."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "w") as f, contextlib.redirect_stdout(f), contextlib.redirect_stderr(f):
+    # line-buffered, so that a running job's log can be followed (tail -f)
+    with open(path, "w", buffering=1) as f, contextlib.redirect_stdout(f), contextlib.redirect_stderr(f):
         handler = logging.StreamHandler(f)
         logging.getLogger().addHandler(handler)
         logging.getLogger().setLevel(logging.INFO)
