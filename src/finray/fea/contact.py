@@ -29,6 +29,8 @@ from dataclasses import dataclass
 import ipctk
 import numpy as np
 
+from ..geometry.mesh import split_p2_edges  # noqa: F401  (shared with the fea modules)
+
 ipctk.set_logger_level(ipctk.LoggerLevel.error)
 
 
@@ -64,14 +66,6 @@ class ContactParams:
     projection: str = "abs"
     ccd: str = "additive"
     ccd_max_iterations: int = 100_000
-
-
-def split_p2_edges(edges: np.ndarray) -> np.ndarray:
-    """(E, 3) [a, b, mid] boundary edges -> (2E, 2) straight segments (a-mid, mid-b)."""
-    edges = np.asarray(edges)
-    if edges.shape[1] == 2 or (edges[:, 2] < 0).all():
-        return edges[:, :2].astype(np.int32)
-    return np.vstack([edges[:, [0, 2]], edges[:, [2, 1]]]).astype(np.int32)
 
 
 def point_segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:

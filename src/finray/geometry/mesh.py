@@ -76,6 +76,15 @@ class TriMesh:
         return meshio.Mesh(pts3, [(ctype, self.triangles)])
 
 
+def split_p2_edges(edges: np.ndarray) -> np.ndarray:
+    """Boundary edges ``[a, b, mid]`` as straight 2-node segments: ``a-mid, mid-b`` for
+    quadratic edges, ``a-b`` for linear ones (``mid < 0``); order and orientation kept."""
+    edges = np.asarray(edges)
+    if edges.shape[1] == 2 or (edges[:, 2] < 0).all():
+        return edges[:, :2].astype(np.int32)
+    return np.vstack([edges[:, [0, 2]], edges[:, [2, 1]]]).astype(np.int32)
+
+
 def signed_areas(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
     """Signed area (mm^2) of each triangle from its first three nodes."""
     a, b, c = (points[tri[:, i]] for i in range(3))

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .mesh import TriMesh
+from .mesh import TriMesh, split_p2_edges
 
 #: Each 6-node triangle split into four 3-node triangles (keeps the ribs' curvature).
 P2_SUBTRIANGLES = np.array([[0, 3, 5], [3, 1, 4], [5, 4, 2], [3, 4, 5]])
@@ -40,14 +40,6 @@ def linear_triangles(mesh: TriMesh) -> np.ndarray:
     return mesh.triangles[:, P2_SUBTRIANGLES].reshape(-1, 3)
 
 
-def boundary_segments(mesh: TriMesh) -> np.ndarray:
-    """Boundary as 2-node segments, material on the left (P2 edges split at mid)."""
-    e = mesh.boundary_edges
-    if mesh.order == 1:
-        return e[:, :2]
-    return np.vstack([e[:, [0, 2]], e[:, [2, 1]]])
-
-
 def extrude(mesh: TriMesh, extrusion_mm: float) -> Surface:
     """Watertight, outward-oriented surface of the extruded 2D mesh."""
     n = len(mesh.points)
@@ -61,7 +53,7 @@ def extrude(mesh: TriMesh, extrusion_mm: float) -> Surface:
         np.column_stack([mesh.points[used], np.full(k, -half)]),
     ])
     tri = remap[linear_triangles(mesh)]
-    seg = remap[boundary_segments(mesh)]
+    seg = remap[split_p2_edges(mesh.boundary_edges)]
     top = tri  # counter-clockwise seen from +z: normal +z
     bottom = tri[:, ::-1] + k
     a, b = seg[:, 0], seg[:, 1]
