@@ -65,6 +65,22 @@ class AugmentConfig:
     salt_pepper_amount: tuple[float, float] = (0.0, 0.05)  # fraction of pixels
     occlusion_p: float = 0.0  # probability of a random occluding disc
     occlusion_levels: tuple[str, ...] = ("low", "medium", "high")
+    pitch_p: float = 0.0  # probability of a camera pitch (finray.dataset.viewpoint)
+    pitch_max_deg: float = 30.0  # pitch drawn uniformly in [0, pitch_max_deg]
+    # geometry of the input for the pitch: set by the training script from the config
+    mm_per_px: float = 1.25  # image-plane mm per input pixel
+    pitch_centre_row: float = 31.5  # input row of the camera's rotation axis
+    extrusion_mm: float = 20.0
+
+
+def pitch_geometry(dataset: dict, render: dict, height_px: int, extrusion_mm: float) -> dict:
+    """Input geometry the pitch augmentation needs, from the config sections
+    ``dataset`` (crop) and ``render`` (camera window, whose centre is the pitch axis)."""
+    y0, y1 = dataset["crop_y_mm"]
+    mm_per_px = (y1 - y0) / height_px
+    yc = 0.5 * sum(render["window_y_mm"])
+    return {"mm_per_px": mm_per_px, "pitch_centre_row": (y1 - yc) / mm_per_px - 0.5,
+            "extrusion_mm": float(extrusion_mm)}
 
 
 class TrainAugment:
@@ -105,6 +121,13 @@ class TrainAugment:
                                    tuple(x.shape[2:]), occlusion=self.cfg.occlusion_levels[k],
                                    occlusion_levels=self.occlusion_levels)
                 x[i, :, torch.from_numpy(p.disc_mask())] = 0.0
+        if self.cfg.pitch_p > 0:
+            from .dataset.viewpoint import pitch_silhouette
+
+            draw = torch.rand(len(x), generator=gen) < self.cfg.pitch_p
+            pitch = torch.rand(len(x), generator=gen) * self.cfg.pitch_max_deg * draw
+            x = pitch_silhouette(x, pitch, self.cfg.mm_per_px, self.cfg.pitch_centre_row,
+                                 self.cfg.extrusion_mm)
         if self.noise is not None:
             x = self.noise(x)
         return x, s

@@ -2,7 +2,7 @@ from pathlib import Path
 
 from finray.logs import log_to
 from finray.model import NetConfig
-from finray.train import AugmentConfig, TrainConfig, train_from_shards
+from finray.train import AugmentConfig, TrainConfig, pitch_geometry, train_from_shards
 
 t = snakemake.params.train
 with log_to(snakemake.log[0]):
@@ -12,9 +12,11 @@ with log_to(snakemake.log[0]):
                       alpha_stress=t["alpha_stress"], alpha_force=t["alpha_force"], seed=t["seed"],
                       threads=snakemake.threads, bf16=t["bf16"], channels_last=t["channels_last"],
                       progress=False)
-    aug = AugmentConfig(**snakemake.params.augment)
-    occ = {k: tuple(v) for k, v in snakemake.config["dataset"]["occlusion_levels"].items()}
     d = snakemake.config["dataset"]
+    aug = AugmentConfig(**snakemake.params.augment,
+                        **pitch_geometry(d, snakemake.config["render"], h,
+                                         snakemake.config["finger"]["extrusion_mm"]))
+    occ = {k: tuple(v) for k, v in d["occlusion_levels"].items()}
     preprocess = {"base_width_mm": snakemake.config["finger"]["base_width_mm"],
                   "crop_x_mm": d["crop_x_mm"], "crop_y_mm": d["crop_y_mm"],
                   "segment": {k: d[k] for k in ("threshold", "foreground", "min_object_frac",
