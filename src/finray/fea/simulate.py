@@ -7,8 +7,9 @@ N for the extruded finger (``*_N``, times ``extrusion_mm``), stresses MPa, times
 ``push_mm`` along ``direction`` (default +x) in adaptive load steps and records a
 frame every ``frame_step_mm`` (frame 0 is the undeformed state). Rigid objects
 (:class:`RigidObject`, e.g. steel) are closed polylines that translate rigidly and
-are never meshed; deformable ones (:class:`DeformableObject`) are P2 meshes whose
-inner loop is driven rigidly. No file is written here.
+are never meshed; deformable ones (:class:`DeformableObject`) are P2 meshes driven
+by the back half of their inner loop (a pusher inside the ring, so that the ring
+can ovalise against the finger). No file is written here.
 
 Sign conventions: ``force_*`` is the force that the finger exerts *on the object*
 (a +x push gives a negative Fx); ``base_reaction_*`` is the force of the clamp on
@@ -45,7 +46,10 @@ class DeformableObject:
     """Deformable object: a (P2) mesh and its material.
 
     ``driven_nodes``: nodes translated rigidly with the push (default: the nodes of
-    every boundary loop but the outer one, i.e. the inner loop of a ring).
+    the inner loop(s) on the back half, away from the finger: ``(p - c) . d <= 0``
+    with ``c`` the loop's centroid and ``d`` the push direction. Driving the whole
+    inner loop would make a ring's hoop rigid, and only its wall thickness could
+    compress: a neoprene ring would push like a steel one).
     ``contact_edges``: boundary edges ``[a, b, mid]`` that can touch the finger
     (default: the outer loop).
     """
@@ -153,7 +157,7 @@ def _signed_area(points, edges):
     return 0.5 * float((a[:, 0] * b[:, 1] - b[:, 0] * a[:, 1]).sum())
 
 
-def _deformable_defaults(obj: DeformableObject):
+def _deformable_defaults(obj: DeformableObject, direction=(1.0, 0.0)):
     m = obj.mesh
     loops = boundary_loops(m.boundary_edges)
     areas = [abs(_signed_area(m.points, m.boundary_edges[l])) for l in loops]
@@ -165,8 +169,13 @@ def _deformable_defaults(obj: DeformableObject):
         inner = [m.boundary_edges[l] for k, l in enumerate(loops) if k != outer]
         if not inner:
             raise ValueError("deformable object without an inner loop: give driven_nodes")
-        e = np.vstack(inner)
-        driven = np.unique(e[e >= 0])
+        d = np.asarray(direction, float) / np.linalg.norm(direction)
+        driven = []
+        for e in inner:
+            nodes = np.unique(e[e >= 0])
+            c = m.points[nodes].mean(0)
+            driven.append(nodes[(m.points[nodes] - c) @ d <= 1e-9])
+        driven = np.concatenate(driven)
     return contact, driven
 
 
@@ -194,7 +203,7 @@ def simulate(finger_mesh: TriMesh, obj: RigidObject | DeformableObject, material
         rigid = [1]
     elif isinstance(obj, DeformableObject):
         obj_pts = np.asarray(obj.mesh.points, float)
-        contact_edges, drv = _deformable_defaults(obj)
+        contact_edges, drv = _deformable_defaults(obj, opts.direction)
         obj_segs = split_p2_edges(contact_edges).astype(np.int64) + Nf
         driven = drv + Nf
         blocks.append(ElementBlock(obj.mesh.triangles + Nf, obj.material))
