@@ -17,6 +17,8 @@ include: "workflow/rules/fea_benchmarks.smk"
 include: "workflow/rules/render.smk"
 include: "workflow/rules/dataset.smk"
 include: "workflow/rules/train.smk"
+include: "workflow/rules/evaluate.smk"
+include: "workflow/rules/paper.smk"
 
 
 rule all:

@@ -121,3 +121,43 @@ def test_smoke_renders_are_pixel_aligned(smoke_run):
             iou = (mask & support).sum() / (mask | support).sum()
             worst = min(worst, iou)
     assert worst >= 0.98, worst
+
+
+def test_smoke_evaluation_summary_and_paper(smoke_run):
+    """Every experiment has its table, figure and headline numbers; the manuscript
+    carries the numbers of results/summary.json and no unfilled placeholder."""
+    import json
+
+    s = json.loads((smoke_run / "results" / "summary.json").read_text())
+    exps = s["experiments"]
+    assert set(exps) == {"shape", "material", "occlusion", "pitch"}
+    shape = exps["shape"]["all"]["plain"]["all"]
+    assert shape["mse_N2"] == pytest.approx(shape["rmse_N"] ** 2)
+    assert shape["nrmse_pct"] == pytest.approx(100 * shape["rmse_N"] / shape["max_true_N"])
+    assert shape["r2"] <= 1 and np.isfinite(shape["stress_mse_log"]) and -1 <= shape["ssim"] <= 1
+    assert set(exps["shape"]["all"]) == {"plain", "baseline"}
+    assert list(exps["occlusion"]) == ["none", "low", "medium", "high"]
+    assert set(exps["occlusion"]["high"]) == {"plain", "occlusion", "baseline"}
+    assert [float(p) for p in exps["pitch"]] == [0, 5, 10, 15, 20, 25, 30]
+    assert set(exps["material"]["all"]["plain"]["groups"]) == {"steel", "neoprene"}
+    assert set(s["speed"]["stages"]) >= {"geometry", "fea", "render", "dataset", "train"}
+    for name in ("shape_generalisation", "material_generalisation", "occlusion", "viewpoint", "speed"):
+        for ext in ("pdf", "png"):
+            assert (smoke_run / "paper" / "figures" / f"{name}.{ext}").stat().st_size > 1000
+    html = (smoke_run / "paper" / "manuscript.html").read_text()
+    assert "{{" not in html and "{%" not in html
+    assert f"{shape['nrmse_pct']:.1f} %" in html
+    assert 'src="figures/shape_generalisation.png"' in html
+
+
+def test_one_figure_builds_only_what_it_needs(tmp_path):
+    """`snakemake paper/figures/shape_generalisation.pdf` plans the plain model and the
+    shape evaluation, not the other models, experiments or figures."""
+    r = snakemake("-n", "--configfile", str(ROOT / "config" / "smoke.yaml"), "--directory",
+                  str(tmp_path), "paper/figures/shape_generalisation.pdf", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    jobs = dict(line.split()[:2] for line in r.stdout.splitlines()
+                if len(line.split()) == 2 and line.split()[1].isdigit())
+    assert jobs["train_model"] == "1" and jobs["evaluate_experiment"] == "1"
+    assert jobs["figure_shape_generalisation"] == "1"
+    assert not {"figure_speed", "summary", "manuscript", "fea_pareto"} & set(jobs)

@@ -157,6 +157,44 @@ def shard_scene_params(wildcards):
     return scene
 
 
+def model_file(name):
+    return f"{TRAIN}/{name}/model.ts"
+
+
+def eval_models(*names):
+    """The models an experiment compares (name -> TorchScript), those of the config only."""
+    return {n: model_file(n) for n in names if n in config["train"]["models"]}
+
+
+def pitch_series_shards():
+    obj, mat, h = pitch_scene()
+    pitches = sorted({0.0} | {float(p) for p in config["render"]["pitches_deg"]})
+    return [f"{DATASET}/shards/{obj}/{mat}/h{h}/p{pitch_label(p)}.npz" for p in pitches]
+
+
+def experiment_setup(wildcards):
+    """Test shards, models and conditions of an experiment (see finray.evaluate)."""
+    e = wildcards.experiment
+    occ = [lvl for lvl in config["dataset"]["occlusion_levels"]]
+    pitches = sorted({0.0} | {float(p) for p in config["render"]["pitches_deg"]})
+    return {
+        "shape": {"shards": shard_files(splits=["shape"], pitch=0.0), "models": eval_models("plain"),
+                  "group_col": "object", "conditions": None},
+        "material": {"shards": shard_files(splits=["material"], pitch=0.0),
+                     "models": eval_models("plain"), "group_col": "material", "conditions": None},
+        "occlusion": {"shards": shard_files(splits=["shape"], pitch=0.0),
+                      "models": eval_models("plain", "occlusion"), "group_col": "object",
+                      "conditions": {lvl: {"occlusion": lvl} for lvl in occ}},
+        "pitch": {"shards": pitch_series_shards(), "models": eval_models("plain", "pitch"),
+                  "group_col": None, "conditions": {f"{p:g}": {"pitch_deg": p} for p in pitches}},
+    }[e]
+
+
+def experiment_inputs(wildcards):
+    setup = experiment_setup(wildcards)
+    return {"shards": setup["shards"], "models": list(setup["models"].values())}
+
+
 def all_targets():
     return [
         f"{GEOMETRY}/gallery.pdf",
@@ -168,4 +206,6 @@ def all_targets():
         f"{RESULTS}/benchmarks/render_throughput.json",
         f"{DATASET}/manifest.csv",
         f"{DATASET}/examples.pdf",
-    ] + expand(f"{TRAIN}/{{model}}/model.ts", model=list(config["train"]["models"])) + object_geometry_files()
+        f"{RESULTS}/summary.json",
+        "paper/manuscript.html",
+    ] + expand("paper/figures/{name}.pdf", name=FIGURES) + expand(f"{TRAIN}/{{model}}/model.ts", model=list(config["train"]["models"])) + object_geometry_files()

@@ -1,0 +1,153 @@
+"""The paper's simulation experiments: predictions of the network(s) and the ridge
+baseline on a test set, per condition, with force and stress metrics.
+
+Every experiment writes into one directory:
+
+- ``frames.csv``: one row per test frame and condition (scene, frame, displacement,
+  FEA force ``fx_N`` and one ``pred_<predictor>`` column per predictor);
+- ``metrics.csv``: force metrics (:func:`~finray.evaluate.metrics.force_metrics`) per
+  condition and predictor, with ``group == "all"`` for the condition as a whole and
+  one row per object (or material, height...) otherwise; stress metrics (log-stress
+  MSE inside the FEA mask, SSIM) for the networks;
+- ``metrics.json``: ``{condition: {predictor: metrics of "all"}}`` for the summary;
+- ``examples.npz``: a few frames (input, FEA and predicted stress) for the figures.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .baseline import RidgeBaseline
+from .metrics import force_metrics, stress_metrics
+from .predictions import ExportedModel, load_test_set, occlude
+
+METRIC_COLUMNS = ["mse_N2", "rmse_N", "nrmse_pct", "r2", "max_abs_error_N", "max_true_N", "n"]
+
+
+def _predict_all(images_u8, models: dict[str, ExportedModel], baseline: RidgeBaseline | None):
+    preds, maps = {}, {}
+    for name, m in models.items():
+        preds[name], maps[name] = m.predict(images_u8)
+    if baseline is not None:
+        preds["baseline"] = baseline.predict_images(images_u8.astype(np.float32) / 255.0)
+    return preds, maps
+
+
+def _metric_rows(frames: pd.DataFrame, group_col: str | None, condition: str,
+                 predictors, stress: dict | None = None) -> list[dict]:
+    """Force (and stress) metrics over the condition and per value of ``group_col``."""
+    groups = [("all", np.ones(len(frames), bool))]
+    if group_col:
+        groups += [(str(g), (frames[group_col] == g).to_numpy()) for g in sorted(frames[group_col].unique())]
+    rows = []
+    for gname, sel in groups:
+        for p in predictors:
+            row = {"condition": condition, "group": gname, "predictor": p,
+                   **force_metrics(frames["fx_N"][sel], frames[f"pred_{p}"][sel])}
+            if stress is not None and p in stress["pred"]:
+                row.update(stress_metrics(stress["true"][sel], stress["pred"][p][sel], stress["mask"][sel]))
+            rows.append(row)
+    return rows
+
+
+def _example_indices(table: pd.DataFrame, per: str, n: int = 1) -> np.ndarray:
+    """Per value of ``per``: the frame of largest FEA force (where stress shows most)."""
+    idx = []
+    for _, g in table.groupby(per, sort=True):
+        idx += list(g["fx_N"].nlargest(n).index)
+    return np.asarray(idx, dtype=int)
+
+
+def run_experiment(out_dir, shard_paths, size, models: dict[str, str], baseline_path=None, *,
+                   conditions: dict[str, dict] | None = None, condition_col: str = "condition",
+                   group_col: str | None = "object", occlusion_levels: dict | None = None,
+                   seed: int = 0, log=print) -> pd.DataFrame:
+    """Evaluate ``models`` (name -> TorchScript path) and the baseline on the shards.
+
+    ``conditions``: name -> ``{"occlusion": level}`` (images corrupted, replayable from
+    ``seed``) or ``{"pitch_deg": p}`` (frames of that pitch only); default: one condition
+    ``"all"`` over every frame. Returns the metrics table (also written).
+    """
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    arrays, table = load_test_set(shard_paths, size)
+    nets = {name: ExportedModel(path) for name, path in models.items()}
+    base = RidgeBaseline.load(baseline_path) if baseline_path else None
+    predictors = list(nets) + (["baseline"] if base is not None else [])
+    conditions = conditions or {"all": {}}
+    frames_out, rows, examples = [], [], {}
+    for cname, cond in conditions.items():
+        sel = np.ones(len(table), bool)
+        if "pitch_deg" in cond:
+            sel = np.isclose(table["pitch_deg"].to_numpy(), float(cond["pitch_deg"]))
+        tab = table[sel].reset_index(drop=True)
+        images = arrays["images"][sel]
+        if cond.get("occlusion", "none") != "none":
+            images = occlude(images, tab, cond["occlusion"], seed, occlusion_levels)
+        log(f"{cname}: {len(tab)} frames, predictors {predictors}")
+        preds, maps = _predict_all(images, nets, base)
+        fr = tab.copy()
+        fr.insert(0, condition_col, cname)
+        for p, v in preds.items():
+            fr[f"pred_{p}"] = v
+        stress = {"true": arrays["stress"][sel], "mask": arrays["mask"][sel], "pred": maps}
+        rows += _metric_rows(fr, group_col, cname, predictors, stress)
+        frames_out.append(fr)
+        ex = _example_indices(tab, group_col or "scene_id")
+        examples[cname] = {"input": images[ex], "stress_true": stress["true"][ex],
+                           "mask": stress["mask"][ex],
+                           **{f"stress_{k}": v[ex] for k, v in maps.items()},
+                           "label": tab[group_col or "scene_id"].to_numpy()[ex].astype(str),
+                           "fx_N": tab["fx_N"].to_numpy()[ex],
+                           **{f"pred_{k}": v[ex] for k, v in preds.items()}}
+    metrics = pd.DataFrame(rows)
+    pd.concat(frames_out, ignore_index=True).to_csv(out_dir / "frames.csv", index=False,
+                                                    float_format="%.6g")
+    metrics.to_csv(out_dir / "metrics.csv", index=False, float_format="%.6g")
+    summary = {c: {r["predictor"]: {k: r[k] for k in r if k not in ("condition", "group", "predictor")}
+                   for r in rows if r["condition"] == c and r["group"] == "all"}
+               for c in conditions}
+    (out_dir / "metrics.json").write_text(json.dumps(summary, indent=1))
+    np.savez_compressed(out_dir / "examples.npz", **{f"{c}/{k}": v for c, d in examples.items()
+                                                     for k, v in d.items()})
+    return metrics
+
+
+def load_examples(path) -> dict[str, dict[str, np.ndarray]]:
+    """``examples.npz`` back as ``{condition: {array name: array}}``."""
+    out: dict[str, dict] = {}
+    with np.load(path, allow_pickle=False) as f:
+        for key in f.files:
+            c, k = key.split("/", 1)
+            out.setdefault(c, {})[k] = f[key]
+    return out
+
+
+def usable_range(metrics: pd.DataFrame, predictor: str, threshold_pct: float) -> float | None:
+    """Largest pitch (deg) up to which every pitch's force NRMSE is <= the threshold
+    (None when even pitch 0 is above it). Conditions are named by their pitch."""
+    m = metrics[(metrics["group"] == "all") & (metrics["predictor"] == predictor)].copy()
+    m["pitch"] = m["condition"].astype(float)
+    usable = None
+    for _, r in m.sort_values("pitch").iterrows():
+        if r["nrmse_pct"] > threshold_pct:
+            break
+        usable = float(r["pitch"])
+    return usable
+
+
+def fit_baseline(train_shards, size, out_npz, seed: int = 0) -> dict:
+    """Fit the ridge baseline on the training shards; write it; return the CV record."""
+    from .baseline import fit_ridge, front_edge_profile
+
+    arrays, table = load_test_set(train_shards, size)
+    feats = front_edge_profile(arrays["images"].astype(np.float32) / 255.0)
+    model, info = fit_ridge(feats, table["fx_N"].to_numpy(), table["scene_id"].to_numpy(), seed=seed)
+    model.save(out_npz)
+    train_pred = model.predict(feats)
+    info["train"] = force_metrics(table["fx_N"], train_pred)
+    info["n_features"] = int(feats.shape[1])
+    return info

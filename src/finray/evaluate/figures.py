@@ -1,0 +1,203 @@
+"""Figures of the paper's experiments (PDF + PNG), from an experiment's outputs."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .experiments import load_examples
+
+COLOURS = {"fea": "black", "plain": "tab:blue", "occlusion": "tab:orange", "pitch": "tab:green",
+           "baseline": "tab:gray"}
+LABELS = {"fea": "FEA", "plain": "CNN", "occlusion": "CNN, occlusion-trained",
+          "pitch": "CNN, pitch-augmented", "baseline": "ridge on front edge"}
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(fig, out_pdf, out_png=None):
+    out_pdf = Path(out_pdf)
+    out_pdf.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out_pdf)
+    fig.savefig(out_png or out_pdf.with_suffix(".png"), dpi=150)
+    _plt().close(fig)
+
+
+def _predictors(frames: pd.DataFrame) -> list[str]:
+    return [c[5:] for c in frames.columns if c.startswith("pred_")]
+
+
+def _force_panel(ax, g: pd.DataFrame, predictors, metrics: pd.DataFrame | None = None,
+                 condition=None, group=None):
+    """Force over the frames of a test video (scenes one after another)."""
+    x = np.arange(len(g))
+    ax.plot(x, g["fx_N"], color=COLOURS["fea"], lw=2.0, label=LABELS["fea"])
+    for p in predictors:
+        ax.plot(x, g[f"pred_{p}"], color=COLOURS.get(p, None), lw=1.0,
+                ls="--" if p == "baseline" else "-", label=LABELS.get(p, p))
+    # scene boundaries (the heights)
+    starts = np.flatnonzero(np.r_[True, g["scene_id"].to_numpy()[1:] != g["scene_id"].to_numpy()[:-1]])
+    for s in starts[1:]:
+        ax.axvline(s, color="0.8", lw=0.8)
+    for s, sid in zip(starts, g["scene_id"].to_numpy()[starts]):
+        ax.text(s + 3, ax.get_ylim()[1] * 0.97 if ax.get_ylim()[1] > 0 else 0, f"{g['height_mm'].iloc[s]:g} mm",
+                fontsize=7, va="top", color="0.4")
+    ax.set_xlabel("frame")
+    if metrics is not None:
+        sel = metrics[(metrics["condition"] == condition) & (metrics["group"] == group)]
+        txt = ", ".join(f"{LABELS.get(r.predictor, r.predictor).split(',')[0]} "
+                        f"{r.nrmse_pct:.1f}%" for r in sel.itertuples() if r.predictor in predictors)
+        ax.set_title(f"{group}\nNRMSE {txt}", fontsize=8)
+
+
+def _stress_row(axes, ex: dict, net: str, vmax: float, title_prefix=""):
+    """Input, FEA stress, predicted stress of each example (columns of ``axes``)."""
+    for j, ax_col in enumerate(axes):
+        imgs = [ex["input"][j] / 255.0, ex["stress_true"][j], ex[f"stress_{net}"][j] * ex["mask"][j]]
+        ax_col.imshow(np.concatenate([imgs[0] * vmax, imgs[1], imgs[2]], axis=1), cmap="inferno",
+                      vmin=0, vmax=vmax, interpolation="nearest")
+        ax_col.set_title(f"{title_prefix}{ex['label'][j]}\ninput | FEA | CNN", fontsize=7)
+        ax_col.axis("off")
+
+
+def generalisation_figure(exp_dir, out_pdf, group_col: str, title: str):
+    """Shape generalisation: force over the test frames per group (network, baseline,
+    FEA), and stress maps FEA vs network at the largest force of each group."""
+    plt = _plt()
+    exp_dir = Path(exp_dir)
+    frames = pd.read_csv(exp_dir / "frames.csv")
+    metrics = pd.read_csv(exp_dir / "metrics.csv")
+    ex = load_examples(exp_dir / "examples.npz")["all"]
+    preds = _predictors(frames)
+    groups = sorted(frames[group_col].astype(str).unique())
+    n = len(groups)
+    fig = plt.figure(figsize=(3.4 * n, 6.2))
+    gs = fig.add_gridspec(2, n, height_ratios=[1, 1.3])
+    for i, grp in enumerate(groups):
+        ax = fig.add_subplot(gs[0, i])
+        _force_panel(ax, frames[frames[group_col].astype(str) == grp].reset_index(drop=True), preds,
+                     metrics, "all", grp)
+        if i == 0:
+            ax.set_ylabel("Fx on the finger (N)")
+            ax.legend(fontsize=7, loc="lower right")
+    vmax = float(max(ex["stress_true"].max(), 1e-6))
+    _stress_row([fig.add_subplot(gs[1, i]) for i in range(min(n, len(ex["label"])))], ex, preds[0], vmax)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    _save(fig, out_pdf)
+
+
+def material_figure(exp_dir, out_pdf, fea_seconds: dict[str, float], net_ms: float):
+    """Material generalisation, with the FEA time per material beside the network's."""
+    plt = _plt()
+    exp_dir = Path(exp_dir)
+    frames = pd.read_csv(exp_dir / "frames.csv")
+    metrics = pd.read_csv(exp_dir / "metrics.csv")
+    ex = load_examples(exp_dir / "examples.npz")["all"]
+    preds = _predictors(frames)
+    mats = sorted(frames["material"].unique())
+    fig = plt.figure(figsize=(3.4 * (len(mats) + 1), 6.2))
+    gs = fig.add_gridspec(2, len(mats) + 1, height_ratios=[1, 1.3])
+    for i, m in enumerate(mats):
+        ax = fig.add_subplot(gs[0, i])
+        _force_panel(ax, frames[frames["material"] == m].reset_index(drop=True), preds, metrics, "all", m)
+        if i == 0:
+            ax.set_ylabel("Fx on the finger (N)")
+            ax.legend(fontsize=7, loc="lower right")
+    ax = fig.add_subplot(gs[0, len(mats)])
+    names = mats + ["CNN"]
+    vals = [fea_seconds.get(m, np.nan) for m in mats] + [net_ms / 1e3]
+    ax.bar(names, vals, color=["0.5"] * len(mats) + [COLOURS["plain"]])
+    ax.set_yscale("log")
+    ax.set_ylabel("seconds (FEA: per scene; CNN: per frame)")
+    ax.set_title("time per material", fontsize=8)
+    vmax = float(max(ex["stress_true"].max(), 1e-6))
+    axes = [fig.add_subplot(gs[1, i]) for i in range(min(len(ex["label"]), len(mats) + 1))]
+    _stress_row(axes, ex, preds[0], vmax)
+    fig.suptitle("Material generalisation: ring in steel, NinjaFlex and neoprene (no retraining)",
+                 fontsize=10)
+    fig.tight_layout()
+    _save(fig, out_pdf)
+
+
+def condition_figure(exp_dir, out_pdf, title: str, xlabel: str, threshold_pct: float | None = None,
+                     example_net: str | None = None):
+    """Occlusion or pitch: force NRMSE per condition and predictor, with the inputs
+    and stress maps of each condition."""
+    plt = _plt()
+    exp_dir = Path(exp_dir)
+    metrics = pd.read_csv(exp_dir / "metrics.csv")
+    ex = load_examples(exp_dir / "examples.npz")
+    allm = metrics[metrics["group"] == "all"]
+    conds = list(dict.fromkeys(allm["condition"].astype(str)))
+    preds = list(dict.fromkeys(allm["predictor"]))
+    fig = plt.figure(figsize=(max(8, 1.6 * len(conds)), 6.6))
+    gs = fig.add_gridspec(2, len(conds), height_ratios=[1.2, 1])
+    nets = [p for p in preds if p != "baseline"]
+    net = example_net if example_net in nets else nets[-1]
+    for j, c in enumerate(conds):
+        e = ex[c]
+        k = 0
+        ax = fig.add_subplot(gs[0, j])
+        img = np.concatenate([e["input"][k] / 255.0, e["stress_true"][k] / max(e["stress_true"].max(), 1e-6),
+                              e[f"stress_{net}"][k] * e["mask"][k] / max(e["stress_true"].max(), 1e-6)], 1)
+        ax.imshow(img, cmap="inferno", vmin=0, vmax=1, interpolation="nearest")
+        ax.set_title(f"{c}\ninput | FEA | CNN", fontsize=7)
+        ax.axis("off")
+    ax = fig.add_subplot(gs[1, :])
+    x = np.arange(len(conds))
+    width = 0.8 / len(preds)
+    for i, p in enumerate(preds):
+        v = [float(allm[(allm["condition"].astype(str) == c) & (allm["predictor"] == p)]["nrmse_pct"].iloc[0])
+             for c in conds]
+        ax.bar(x + (i - (len(preds) - 1) / 2) * width, v, width, color=COLOURS.get(p), label=LABELS.get(p, p))
+    if threshold_pct is not None:
+        ax.axhline(threshold_pct, color="k", ls=":", lw=1, label=f"{threshold_pct:g}% (usable)")
+    ax.set_xticks(x, conds)
+    ax.set_yscale("log")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("force NRMSE (% of max force)")
+    ax.legend(fontsize=8)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    _save(fig, out_pdf)
+
+
+def speed_figure(speed: dict, out_pdf):
+    """FEA s/scene vs network ms/frame, and the DAG's CPU time per stage."""
+    plt = _plt()
+    fig, ax = plt.subplots(1, 2, figsize=(9, 3.4))
+    fea = speed["fea_seconds_per_scene"]
+    names = list(fea) + ["CNN (1 thread)"]
+    vals = [fea[k]["median"] for k in fea] + [speed["network_ms_per_frame"] / 1e3]
+    ax[0].bar(names, vals, color=["0.5"] * len(fea) + [COLOURS["plain"]])
+    ax[0].set_yscale("log")
+    ax[0].set_ylabel("s (FEA: median per scene; CNN: per frame)")
+    ax[0].tick_params(axis="x", labelsize=8)
+    st = speed["stages"]
+    ax[1].barh(list(st), [st[k]["cpu_s"] / 60 for k in st], color="tab:blue")
+    ax[1].set_xlabel("CPU minutes (sum over jobs)")
+    ax[1].invert_yaxis()
+    fig.suptitle("Speed: FEA against the network, and the pipeline's stages", fontsize=10)
+    fig.tight_layout()
+    _save(fig, out_pdf)
+
+
+def fea_seconds_by_material(summary_paths) -> dict[str, float]:
+    """Median FEA wall time (s) per material from the scenes' ``summary.json``."""
+    import json
+
+    times: dict[str, list] = {}
+    for p in summary_paths:
+        s = json.loads(Path(p).read_text())
+        mat = Path(p).parent.parent.name  # results/fea/<object>/<material>/h<h>/summary.json
+        times.setdefault(mat, []).append(float(s["wall_time_s"]))
+    return {m: float(np.median(v)) for m, v in sorted(times.items())}

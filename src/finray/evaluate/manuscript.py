@@ -1,0 +1,36 @@
+"""The manuscript: a Jinja2 template (``paper/manuscript.md.j2``) filled from
+``results/summary.json`` (no number is typed by hand), rendered to HTML."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+
+def _fmt(v, digits: int = 2) -> str:
+    if v is None:
+        return "n/a"
+    return f"{v:.{digits}f}"
+
+
+def render_manuscript(template, summary_json, out_md, out_html, extra: dict | None = None) -> str:
+    """Fill the template and write Markdown and a standalone HTML page (figures are
+    referenced relative to the manuscript, as ``figures/<name>.png``)."""
+    import jinja2
+    import markdown
+
+    env = jinja2.Environment(undefined=jinja2.StrictUndefined, keep_trailing_newline=True)
+    env.filters["f"] = _fmt
+    env.filters["pct"] = lambda v, d=1: _fmt(v, d)
+    tpl = env.from_string(Path(template).read_text())
+    summary = json.loads(Path(summary_json).read_text())
+    text = tpl.render(s=summary, **(extra or {}))
+    Path(out_md).write_text(text)
+    body = markdown.markdown(text, extensions=["tables", "toc"])
+    css = ("body{max-width:52em;margin:2em auto;font-family:Georgia,serif;line-height:1.45;"
+           "padding:0 1em}img{max-width:100%}table{border-collapse:collapse;margin:1em 0}"
+           "td,th{border:1px solid #bbb;padding:.25em .6em;text-align:right}"
+           "td:first-child,th:first-child{text-align:left}code{font-size:90%}")
+    Path(out_html).write_text("<!DOCTYPE html>\n<html><head><meta charset='utf-8'>"
+                              f"<title>finray</title><style>{css}</style></head><body>\n"
+                              f"{body}\n</body></html>\n")
+    return text

@@ -1,0 +1,56 @@
+"""Speed: FEA seconds per scene against network milliseconds per frame, and the
+pipeline's time per stage from Snakemake's benchmark files (``benchmark:`` of each rule,
+written under ``results/benchmarks/<stage>/``)."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pandas as pd
+
+
+def fea_seconds(fea_scenes_csv) -> dict[str, dict]:
+    """Wall time of the FEA scenes (one thread each) per material: median, mean, max, n."""
+    df = pd.read_csv(fea_scenes_csv)
+    out = {}
+    for mat, g in df.groupby("material", sort=True):
+        t = g["wall_time_s"]
+        out[str(mat)] = {"median": float(t.median()), "mean": float(t.mean()),
+                         "max": float(t.max()), "n": int(len(t)),
+                         "newton_iterations_median": float(g["newton_iterations"].median())}
+    return out
+
+
+def stage_times(benchmark_dir) -> dict[str, dict]:
+    """Per stage (sub-folder of ``benchmark_dir``): jobs, summed wall s, summed CPU s
+    and the longest job (s), from the ``.tsv`` files Snakemake writes."""
+    out = {}
+    for d in sorted(p for p in Path(benchmark_dir).iterdir() if p.is_dir()):
+        files = sorted(d.glob("*.tsv"))
+        if not files:
+            continue
+        t = pd.concat([pd.read_csv(f, sep="\t") for f in files], ignore_index=True)
+        out[d.name] = {"jobs": len(files), "wall_s": float(t["s"].sum()),
+                       "cpu_s": float(t["cpu_time"].sum()), "longest_job_s": float(t["s"].max())}
+    return out
+
+
+def speed_summary(fea_scenes_csv, latency_json, benchmark_dir) -> dict:
+    lat = json.loads(Path(latency_json).read_text())
+    return {"fea_seconds_per_scene": fea_seconds(fea_scenes_csv),
+            "network_ms_per_frame": float(lat["median_ms"]),
+            "network_latency": lat,
+            "paper_network_ms_per_frame": 8.0,
+            "stages": stage_times(benchmark_dir)}
+
+
+def speed_table(speed: dict) -> str:
+    """Markdown table of the FEA and network times."""
+    rows = ["| what | time | note |", "|---|--:|---|"]
+    for mat, v in speed["fea_seconds_per_scene"].items():
+        rows.append(f"| FEA, {mat} object | {v['median']:.1f} s/scene (median of {v['n']}) | "
+                    f"10 mm push, one thread |")
+    rows.append(f"| CNN, raw frame to force | {speed['network_ms_per_frame']:.2f} ms/frame | "
+                "batch 1, one CPU thread, incl. segmentation and crop |")
+    rows.append(f"| CNN in the paper | {speed['paper_network_ms_per_frame']:.0f} ms/frame | desktop GPU |")
+    return "\n".join(rows)

@@ -1,0 +1,65 @@
+"""``results/summary.json``: the headline numbers of every experiment in one file, so
+that a regression is one diff away; the manuscript's numbers all come from it."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pandas as pd
+
+from .experiments import usable_range
+
+#: The paper's own numbers (Frontiers in Robotics and AI 2021), for the comparison.
+PAPER = {
+    "shape_mse_N2_range": [0.02, 0.09],
+    "material_mse_N2": {"steel": 0.02, "ninjaflex": 0.03, "neoprene": 0.02},
+    "pitch_usable_below_deg": 10.0,
+    "network_ms_per_frame_gpu": 8.0,
+}
+KEEP = ("n", "mse_N2", "rmse_N", "nrmse_pct", "r2", "max_true_N", "stress_mse_log", "ssim")
+
+
+def _clean(d: dict) -> dict:
+    return {k: (None if pd.isna(v) else v) for k, v in d.items() if k in KEEP}
+
+
+def experiment_summary(exp_dir) -> dict:
+    """``{condition: {predictor: {"all": metrics, "groups": {group: metrics}}}}``."""
+    m = pd.read_csv(Path(exp_dir) / "metrics.csv")
+    out: dict = {}
+    for r in m.to_dict("records"):
+        node = out.setdefault(str(r["condition"]), {}).setdefault(r["predictor"], {"groups": {}})
+        if r["group"] == "all":
+            node["all"] = _clean(r)
+        else:
+            node["groups"][str(r["group"])] = _clean(r)
+    return out
+
+
+def build_summary(evaluate_dir, experiments, baseline_fit, speed_json, fea_pareto_csv,
+                  histories: dict[str, str], usable_nrmse_pct: float) -> dict:
+    evaluate_dir = Path(evaluate_dir)
+    s: dict = {"experiments": {e: experiment_summary(evaluate_dir / e) for e in experiments}}
+    if "pitch" in experiments:
+        m = pd.read_csv(evaluate_dir / "pitch" / "metrics.csv")
+        s["pitch_usable_deg"] = {p: usable_range(m, p, usable_nrmse_pct)
+                                 for p in m["predictor"].unique()}
+        s["pitch_usable_nrmse_pct"] = usable_nrmse_pct
+    fit = json.loads(Path(baseline_fit).read_text())
+    s["baseline"] = {"method": "ridge regression on the front-edge profile",
+                     "alpha": fit["alpha"], "n_features": fit["n_features"],
+                     "train_nrmse_pct": fit["train"]["nrmse_pct"]}
+    s["training"] = {}
+    for name, path in histories.items():
+        h = json.loads(Path(path).read_text())
+        s["training"][name] = {"train_seconds": h["train_seconds"], "n_train": h["n_train"],
+                               "n_val": h["n_val"], "epochs": len(h["epoch"]),
+                               "best_val_force_rmse_N": min(h["val_force_rmse_N"]) if h["val_force_rmse_N"] else None}
+    speed = json.loads(Path(speed_json).read_text())
+    s["speed"] = {"fea_seconds_per_scene": speed["fea_seconds_per_scene"],
+                  "network_ms_per_frame": speed["network_ms_per_frame"],
+                  "stages": speed["stages"]}
+    pareto = pd.read_csv(fea_pareto_csv)
+    s["fea_mesh_study"] = pareto.to_dict("records")
+    s["paper"] = PAPER
+    return s

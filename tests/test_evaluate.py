@@ -1,0 +1,77 @@
+"""Evaluation: the baseline's features and fit, occlusion replay, usable pitch range."""
+import numpy as np
+import pandas as pd
+import pytest
+
+from finray.evaluate.baseline import RidgeBaseline, fit_ridge, front_edge_profile
+from finray.evaluate.experiments import usable_range
+from finray.evaluate.predictions import occlude
+
+
+def test_front_edge_profile_is_subpixel_exact():
+    """A row whose finger starts at x = 3.25 px (a quarter-covered pixel) -> 3.25 px
+    of background; rows without finger -> the full width."""
+    img = np.zeros((3, 10), np.float32)
+    img[0, 4:] = 1.0
+    img[0, 3] = 0.75
+    img[1, 6:8] = 1.0
+    img[1, 9] = 0.2  # a speck right of the finger does not move the front edge
+    e = front_edge_profile(img[None])[0]
+    assert e[0] == pytest.approx(3.25)
+    assert e[1] == pytest.approx(6.0)
+    assert e[2] == pytest.approx(10.0)
+
+
+def test_ridge_recovers_a_linear_law_and_round_trips(tmp_path):
+    rng = np.random.default_rng(1)
+    x = rng.normal(size=(400, 5))
+    w = np.array([1.0, -2.0, 0.5, 0.0, 3.0])
+    y = x @ w + 0.7
+    groups = np.repeat(np.arange(20), 20)
+    model, info = fit_ridge(x, y, groups, alphas=(1e-6, 1e-3, 1.0))
+    assert info["alpha"] == pytest.approx(1e-6)
+    assert np.allclose(model.predict(x), y, atol=1e-4)
+    model.save(tmp_path / "r.npz")
+    again = RidgeBaseline.load(tmp_path / "r.npz")
+    assert np.array_equal(again.predict(x), model.predict(x))
+
+
+def test_constant_features_do_not_break_the_fit():
+    x = np.c_[np.linspace(0, 1, 50), np.full(50, 32.0)]
+    y = 2 * x[:, 0]
+    model, _ = fit_ridge(x, y, np.arange(50) // 5, alphas=(1e-8,))
+    assert np.allclose(model.predict(x), y, atol=1e-5)
+
+
+def test_occlusion_is_replayable_and_within_its_level():
+    imgs = np.full((6, 64, 32), 255, np.uint8)
+    tab = pd.DataFrame({"scene_id": ["a"] * 3 + ["b"] * 3, "frame": [0, 1, 2] * 2})
+    a = occlude(imgs, tab, "high", seed=3)
+    b = occlude(imgs, tab, "high", seed=3)
+    assert np.array_equal(a, b)
+    assert not np.array_equal(a, occlude(imgs, tab, "high", seed=4))
+    widths = (a == 0).any(axis=1).sum(axis=1) / 32  # disc diameter / image width
+    assert np.all(widths >= 0.8) and np.all(widths <= 1.0)
+    assert occlude(imgs, tab, "none", seed=3) is imgs
+
+
+def test_usable_range_stops_at_the_first_pitch_above_the_threshold():
+    m = pd.DataFrame({"condition": ["0", "5", "10", "15"], "group": "all", "predictor": "plain",
+                      "nrmse_pct": [1.0, 4.0, 7.0, 3.0]})
+    assert usable_range(m, "plain", 5.0) == 5.0
+    assert usable_range(m, "plain", 0.5) is None
+    assert usable_range(m, "plain", 10.0) == 15.0
+
+
+def test_stage_times_sum_snakemake_benchmark_files(tmp_path):
+    from finray.evaluate.speed import stage_times
+
+    header = "s\th:m:s\tmax_rss\tmax_vms\tmax_uss\tmax_pss\tio_in\tio_out\tmean_load\tcpu_time\n"
+    for stage, runs in {"fea": [(10.0, 9.5), (20.0, 19.0)], "train": [(100.0, 98.0)]}.items():
+        (tmp_path / stage).mkdir()
+        for k, (s, cpu) in enumerate(runs):
+            (tmp_path / stage / f"job{k}.tsv").write_text(header + f"{s}\t0:00:10\t1\t1\t1\t1\t0\t0\t90\t{cpu}\n")
+    (tmp_path / "empty").mkdir()
+    t = stage_times(tmp_path)
+    assert set(t) == {"fea", "train"}
+    assert t["fea"] == {"jobs": 2, "wall_s": 30.0, "cpu_s": 28.5, "longest_job_s": 20.0}

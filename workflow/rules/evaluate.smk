@@ -1,0 +1,54 @@
+# Evaluation: the paper's simulation experiments on the held-out splits, each with the
+# network(s) and the ridge baseline (results/evaluate/<experiment>/).
+
+EVALUATE = f"{RESULTS}/evaluate"
+EXPERIMENTS = ["shape", "material", "occlusion", "pitch"]
+
+
+wildcard_constraints:
+    experiment="|".join(EXPERIMENTS),
+
+
+rule evaluate_baseline:
+    input:
+        shards=shard_files(splits=["train"], pitch=0.0),
+    output:
+        model=f"{EVALUATE}/baseline/ridge.npz",
+        info=f"{EVALUATE}/baseline/fit.json",
+    params:
+        size=config["train"]["input_size"],
+        seed=config["evaluate"]["seed"],
+    log:
+        f"{RESULTS}/logs/evaluate/baseline.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/evaluate/baseline.tsv"
+    threads: 1
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/evaluate_baseline.py"
+
+
+rule evaluate_experiment:
+    input:
+        unpack(experiment_inputs),
+        baseline=f"{EVALUATE}/baseline/ridge.npz",
+    output:
+        metrics=f"{EVALUATE}/{{experiment}}/metrics.csv",
+        summary=f"{EVALUATE}/{{experiment}}/metrics.json",
+        frames=f"{EVALUATE}/{{experiment}}/frames.csv",
+        examples=f"{EVALUATE}/{{experiment}}/examples.npz",
+    params:
+        size=config["train"]["input_size"],
+        setup=experiment_setup,
+        occlusion_levels=config["dataset"]["occlusion_levels"],
+        seed=config["evaluate"]["seed"],
+    log:
+        f"{RESULTS}/logs/evaluate/{{experiment}}.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/evaluate/{{experiment}}.tsv"
+    threads: 1
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/evaluate_experiment.py"

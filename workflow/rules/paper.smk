@@ -1,0 +1,155 @@
+# The paper: figures (paper/figures/<name>.pdf + .png, each buildable on its own), the
+# headline numbers (results/summary.json) and the manuscript filled from them.
+
+PAPER = "paper"
+FIGURES = ["shape_generalisation", "material_generalisation", "occlusion", "viewpoint", "speed"]
+
+
+rule evaluate_speed:
+    input:
+        fea_scenes=f"{RESULTS}/benchmarks/fea_scenes.csv",
+        latency=f"{RESULTS}/benchmarks/inference_latency.json",
+        # every stage has run, so that its benchmark files are complete
+        stages=[f"{DATASET}/manifest.csv", f"{RESULTS}/benchmarks/render_throughput.json"]
+        + expand(f"{TRAIN}/{{model}}/model.ts", model=list(config["train"]["models"]))
+        + expand(f"{EVALUATE}/{{experiment}}/metrics.json", experiment=EXPERIMENTS),
+    output:
+        json=f"{EVALUATE}/speed/speed.json",
+        table=f"{EVALUATE}/speed/speed.md",
+    params:
+        benchmarks=f"{RESULTS}/benchmarks",
+    log:
+        f"{RESULTS}/logs/evaluate/speed.log",
+    threads: 1
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/evaluate_speed.py"
+
+
+rule figure_shape_generalisation:
+    input:
+        metrics=f"{EVALUATE}/shape/metrics.json",
+    output:
+        pdf=report(f"{PAPER}/figures/shape_generalisation.pdf", caption="../report/shape.rst", category="Paper"),
+        png=f"{PAPER}/figures/shape_generalisation.png",
+    log:
+        f"{RESULTS}/logs/paper/shape_generalisation.log",
+    params:
+        figure="shape_generalisation",
+    threads: 1
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/paper_figure.py"
+
+
+rule figure_material_generalisation:
+    input:
+        metrics=f"{EVALUATE}/material/metrics.json",
+        fea_summaries=fea_files("summary.json", splits=["material"]),
+        latency=f"{RESULTS}/benchmarks/inference_latency.json",
+    output:
+        pdf=report(f"{PAPER}/figures/material_generalisation.pdf", caption="../report/material.rst",
+                   category="Paper"),
+        png=f"{PAPER}/figures/material_generalisation.png",
+    log:
+        f"{RESULTS}/logs/paper/material_generalisation.log",
+    params:
+        figure="material_generalisation",
+    threads: 1
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/paper_figure.py"
+
+
+rule figure_occlusion:
+    input:
+        metrics=f"{EVALUATE}/occlusion/metrics.json",
+    output:
+        pdf=report(f"{PAPER}/figures/occlusion.pdf", caption="../report/occlusion.rst", category="Paper"),
+        png=f"{PAPER}/figures/occlusion.png",
+    log:
+        f"{RESULTS}/logs/paper/occlusion.log",
+    params:
+        figure="occlusion",
+    threads: 1
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/paper_figure.py"
+
+
+rule figure_viewpoint:
+    input:
+        metrics=f"{EVALUATE}/pitch/metrics.json",
+    output:
+        pdf=report(f"{PAPER}/figures/viewpoint.pdf", caption="../report/viewpoint.rst", category="Paper"),
+        png=f"{PAPER}/figures/viewpoint.png",
+    log:
+        f"{RESULTS}/logs/paper/viewpoint.log",
+    params:
+        figure="viewpoint",
+        usable_nrmse_pct=config["evaluate"]["usable_nrmse_pct"],
+    threads: 1
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/paper_figure.py"
+
+
+rule figure_speed:
+    input:
+        speed=f"{EVALUATE}/speed/speed.json",
+    output:
+        pdf=report(f"{PAPER}/figures/speed.pdf", caption="../report/speed.rst", category="Paper"),
+        png=f"{PAPER}/figures/speed.png",
+    log:
+        f"{RESULTS}/logs/paper/speed.log",
+    params:
+        figure="speed",
+    threads: 1
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/paper_figure.py"
+
+
+rule summary:
+    input:
+        experiments=expand(f"{EVALUATE}/{{experiment}}/metrics.json", experiment=EXPERIMENTS),
+        baseline=f"{EVALUATE}/baseline/fit.json",
+        speed=f"{EVALUATE}/speed/speed.json",
+        fea_pareto=f"{RESULTS}/benchmarks/fea_pareto.csv",
+        histories=expand(f"{TRAIN}/{{model}}/history.json", model=list(config["train"]["models"])),
+    output:
+        json=f"{RESULTS}/summary.json",
+    params:
+        usable_nrmse_pct=config["evaluate"]["usable_nrmse_pct"],
+        evaluate=EVALUATE,
+    log:
+        f"{RESULTS}/logs/paper/summary.log",
+    threads: 1
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/summary.py"
+
+
+rule manuscript:
+    input:
+        template=os.path.join(workflow.basedir, PAPER, "manuscript.md.j2"),
+        summary=f"{RESULTS}/summary.json",
+        speed_table=f"{EVALUATE}/speed/speed.md",
+        figures=expand(f"{PAPER}/figures/{{name}}.png", name=FIGURES),
+    output:
+        md=f"{PAPER}/manuscript.md",
+        html=report(f"{PAPER}/manuscript.html", caption="../report/manuscript.rst", category="Paper"),
+    log:
+        f"{RESULTS}/logs/paper/manuscript.log",
+    threads: 1
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/manuscript.py"

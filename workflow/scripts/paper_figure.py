@@ -1,0 +1,28 @@
+import json
+from pathlib import Path
+
+from finray.evaluate import figures
+from finray.logs import log_to
+
+name = snakemake.params.figure
+out = snakemake.output.pdf
+with log_to(snakemake.log[0]):
+    if name == "speed":
+        figures.speed_figure(json.loads(Path(snakemake.input.speed).read_text()), out)
+    else:
+        exp_dir = Path(snakemake.input.metrics).parent
+        if name == "shape_generalisation":
+            figures.generalisation_figure(exp_dir, out, "object", "Shape generalisation: held-out shapes")
+        elif name == "material_generalisation":
+            fea = figures.fea_seconds_by_material(snakemake.input.fea_summaries)
+            net_ms = json.loads(Path(snakemake.input.latency).read_text())["median_ms"]
+            figures.material_figure(exp_dir, out, fea, net_ms)
+        elif name == "occlusion":
+            figures.condition_figure(exp_dir, out, "Occlusion of the held-out shapes",
+                                     "occlusion level", example_net="occlusion")
+        elif name == "viewpoint":
+            figures.condition_figure(exp_dir, out, "Camera pitch (held-out test object 1)",
+                                     "camera pitch (deg)", snakemake.params.usable_nrmse_pct,
+                                     example_net="plain")
+        else:
+            raise ValueError(f"unknown figure {name}")

@@ -1,0 +1,14 @@
+import json
+from pathlib import Path
+
+from finray.evaluate.summary import build_summary
+from finray.logs import log_to
+
+with log_to(snakemake.log[0]):
+    experiments = [Path(p).parent.name for p in snakemake.input.experiments]
+    histories = {Path(p).parent.name: p for p in snakemake.input.histories}
+    s = build_summary(snakemake.params.evaluate, experiments, snakemake.input.baseline,
+                      snakemake.input.speed, snakemake.input.fea_pareto, histories,
+                      snakemake.params.usable_nrmse_pct)
+    with open(snakemake.output.json, "w") as f:
+        json.dump(s, f, indent=1)
