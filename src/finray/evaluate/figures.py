@@ -58,14 +58,27 @@ def _force_panel(ax, g: pd.DataFrame, predictors, metrics: pd.DataFrame | None =
         ax.set_title(f"{group}\nNRMSE {txt}", fontsize=8)
 
 
+def _triptych(inp, true, pred, mask, vmax: float) -> np.ndarray:
+    """RGB strip: network input (grey) | FEA log-stress | predicted log-stress (inferno,
+    shown inside the FEA mask), with a 2 px white gap between them."""
+    from matplotlib import colormaps
+
+    cmap = colormaps["inferno"]
+    grey = np.repeat((np.asarray(inp, float) / 255.0)[..., None], 3, axis=2)
+    t = cmap(np.clip(true / vmax, 0, 1))[..., :3]
+    p = cmap(np.clip(pred * mask / vmax, 0, 1))[..., :3]
+    gap = np.ones((grey.shape[0], 2, 3))
+    return np.concatenate([grey, gap, t, gap, p], axis=1)
+
+
 def _stress_row(axes, ex: dict, net: str, vmax: float, title_prefix=""):
-    """Input, FEA stress, predicted stress of each example (columns of ``axes``)."""
-    for j, ax_col in enumerate(axes):
-        imgs = [ex["input"][j] / 255.0, ex["stress_true"][j], ex[f"stress_{net}"][j] * ex["mask"][j]]
-        ax_col.imshow(np.concatenate([imgs[0] * vmax, imgs[1], imgs[2]], axis=1), cmap="inferno",
-                      vmin=0, vmax=vmax, interpolation="nearest")
-        ax_col.set_title(f"{title_prefix}{ex['label'][j]}\ninput | FEA | CNN", fontsize=7)
-        ax_col.axis("off")
+    """Input, FEA stress, predicted stress of each example (one example per axis)."""
+    for j, ax in enumerate(axes):
+        ax.imshow(_triptych(ex["input"][j], ex["stress_true"][j], ex[f"stress_{net}"][j],
+                            ex["mask"][j], vmax), interpolation="nearest")
+        ax.set_title(f"{title_prefix}{ex['label'][j]}: {ex['fx_N'][j]:.2f} N (FEA), "
+                     f"{ex[f'pred_{net}'][j]:.2f} N (CNN)\ninput | FEA stress | CNN stress", fontsize=7)
+        ax.axis("off")
 
 
 def generalisation_figure(exp_dir, out_pdf, group_col: str, title: str):
@@ -115,7 +128,9 @@ def material_figure(exp_dir, out_pdf, fea_seconds: dict[str, float], net_ms: flo
     ax = fig.add_subplot(gs[0, len(mats)])
     names = mats + ["CNN"]
     vals = [fea_seconds.get(m, np.nan) for m in mats] + [net_ms / 1e3]
-    ax.bar(names, vals, color=["0.5"] * len(mats) + [COLOURS["plain"]])
+    bars = ax.bar(names, vals, color=["0.5"] * len(mats) + [COLOURS["plain"]])
+    ax.bar_label(bars, labels=[f"{v:.1f} s" for v in vals[:-1]] + [f"{net_ms:.1f} ms"], fontsize=7)
+    ax.tick_params(axis="x", labelrotation=30, labelsize=8)
     ax.set_yscale("log")
     ax.set_ylabel("seconds (FEA: per scene; CNN: per frame)")
     ax.set_title("time per material", fontsize=8)
@@ -139,18 +154,17 @@ def condition_figure(exp_dir, out_pdf, title: str, xlabel: str, threshold_pct: f
     allm = metrics[metrics["group"] == "all"]
     conds = list(dict.fromkeys(allm["condition"].astype(str)))
     preds = list(dict.fromkeys(allm["predictor"]))
-    fig = plt.figure(figsize=(max(8, 1.6 * len(conds)), 6.6))
-    gs = fig.add_gridspec(2, len(conds), height_ratios=[1.2, 1])
+    fig = plt.figure(figsize=(max(8, 1.9 * len(conds)), 5.8))
+    gs = fig.add_gridspec(2, len(conds), height_ratios=[1.3, 1])
     nets = [p for p in preds if p != "baseline"]
     net = example_net if example_net in nets else nets[-1]
     for j, c in enumerate(conds):
         e = ex[c]
-        k = 0
         ax = fig.add_subplot(gs[0, j])
-        img = np.concatenate([e["input"][k] / 255.0, e["stress_true"][k] / max(e["stress_true"].max(), 1e-6),
-                              e[f"stress_{net}"][k] * e["mask"][k] / max(e["stress_true"].max(), 1e-6)], 1)
-        ax.imshow(img, cmap="inferno", vmin=0, vmax=1, interpolation="nearest")
-        ax.set_title(f"{c}\ninput | FEA | CNN", fontsize=7)
+        ax.imshow(_triptych(e["input"][0], e["stress_true"][0], e[f"stress_{net}"][0], e["mask"][0],
+                            float(max(e["stress_true"].max(), 1e-6))), interpolation="nearest")
+        ax.set_title(f"{c}: {e['fx_N'][0]:.2f} N (FEA), {e[f'pred_{net}'][0]:.2f} N\n"
+                     "input | FEA | CNN stress", fontsize=7)
         ax.axis("off")
     ax = fig.add_subplot(gs[1, :])
     x = np.arange(len(conds))
@@ -158,7 +172,9 @@ def condition_figure(exp_dir, out_pdf, title: str, xlabel: str, threshold_pct: f
     for i, p in enumerate(preds):
         v = [float(allm[(allm["condition"].astype(str) == c) & (allm["predictor"] == p)]["nrmse_pct"].iloc[0])
              for c in conds]
-        ax.bar(x + (i - (len(preds) - 1) / 2) * width, v, width, color=COLOURS.get(p), label=LABELS.get(p, p))
+        bars = ax.bar(x + (i - (len(preds) - 1) / 2) * width, v, width, color=COLOURS.get(p),
+                      label=LABELS.get(p, p))
+        ax.bar_label(bars, fmt="%.1f", fontsize=6)
     if threshold_pct is not None:
         ax.axhline(threshold_pct, color="k", ls=":", lw=1, label=f"{threshold_pct:g}% (usable)")
     ax.set_xticks(x, conds)
