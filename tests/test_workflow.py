@@ -161,3 +161,32 @@ def test_one_figure_builds_only_what_it_needs(tmp_path):
     assert jobs["train_model"] == "1" and jobs["evaluate_experiment"] == "1"
     assert jobs["figure_shape_generalisation"] == "1"
     assert not {"figure_speed", "summary", "manuscript", "fea_pareto"} & set(jobs)
+
+
+def test_pitch_augmentation_matches_the_pitched_renders(smoke_run):
+    """The pitch augmentation applied to the front-view inputs of the pitch scene gives
+    the silhouettes that the 3D renderer draws at that pitch (IoU >= 0.9 per frame;
+    without it the pitch-0 silhouette is far off)."""
+    import torch
+
+    from finray.dataset import load_shard
+    from finray.dataset.viewpoint import pitch_silhouette
+    from finray.train import pitch_geometry
+
+    cfg = yaml.safe_load((ROOT / "config" / "smoke.yaml").read_text())
+    from finray.config import validate_config
+
+    cfg = validate_config(cfg, base_dir=ROOT)
+    series = sorted((smoke_run / "results" / "dataset" / "shards").glob("*/*/*/p30.npz"))
+    assert len(series) == 1
+    d0 = load_shard(series[0].with_name("p0.npz"))
+    x0 = torch.from_numpy(d0["input_128x64"][:, None].astype(np.float32) / 255.0)
+    geo = pitch_geometry(cfg["dataset"], cfg["render"], 128, cfg["finger"]["extrusion_mm"])
+    for pitch in (10, 30):
+        true = load_shard(series[0].with_name(f"p{pitch}.npz"))["input_128x64"] >= 128
+        aug = pitch_silhouette(x0, torch.full((len(x0),), float(pitch)), geo["mm_per_px"],
+                               geo["pitch_centre_row"], geo["extrusion_mm"])[:, 0].numpy() >= 0.5
+        iou = (aug & true).sum((1, 2)) / (aug | true).sum((1, 2))
+        front = d0["input_128x64"] >= 128
+        iou0 = (front & true).sum((1, 2)) / (front | true).sum((1, 2))
+        assert iou.min() >= 0.9 and iou0.mean() < 0.8, (pitch, iou.min(), iou0.mean())

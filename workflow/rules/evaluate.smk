@@ -38,11 +38,14 @@ rule evaluate_experiment:
         summary=f"{EVALUATE}/{{experiment}}/metrics.json",
         frames=f"{EVALUATE}/{{experiment}}/frames.csv",
         examples=f"{EVALUATE}/{{experiment}}/examples.npz",
+        checks=f"{EVALUATE}/{{experiment}}/checks.json",  # pitch: augmentation vs renders
     params:
         size=config["train"]["input_size"],
         setup=experiment_setup,
         occlusion_levels=config["dataset"]["occlusion_levels"],
         seed=config["evaluate"]["seed"],
+        pitch_geometry=pitch_geometry(config["dataset"], config["render"], config["train"]["input_size"][0],
+                                      config["finger"]["extrusion_mm"]),
     log:
         f"{RESULTS}/logs/evaluate/{{experiment}}.log",
     benchmark:

@@ -1,6 +1,8 @@
 from pathlib import Path
 
-from finray.evaluate.experiments import run_experiment
+import json
+
+from finray.evaluate.experiments import pitch_augmentation_iou, run_experiment
 from finray.logs import log_to
 
 setup = snakemake.params.setup
@@ -12,3 +14,11 @@ with log_to(snakemake.log[0]):
         occlusion_levels={k: tuple(v) for k, v in snakemake.params.occlusion_levels.items()},
         seed=snakemake.params.seed)
     print(m[m["group"] == "all"].to_string(index=False))
+    checks = {}
+    if snakemake.wildcards.experiment == "pitch":
+        # how close the training's pitch augmentation is to the pitched renders
+        checks["augmentation_iou"] = pitch_augmentation_iou(
+            snakemake.input.shards, tuple(snakemake.params.size), snakemake.params.pitch_geometry)
+        print(json.dumps(checks, indent=1))
+    with open(snakemake.output.checks, "w") as f:
+        json.dump(checks, f, indent=1)

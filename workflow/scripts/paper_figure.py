@@ -23,6 +23,6 @@ with log_to(snakemake.log[0]):
         elif name == "viewpoint":
             figures.condition_figure(exp_dir, out, "Camera pitch (held-out test object 1)",
                                      "camera pitch (deg)", snakemake.params.usable_nrmse_pct,
-                                     example_net="plain")
+                                     example_net="pitch")
         else:
             raise ValueError(f"unknown figure {name}")

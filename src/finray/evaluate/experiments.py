@@ -139,6 +139,30 @@ def usable_range(metrics: pd.DataFrame, predictor: str, threshold_pct: float) ->
     return usable
 
 
+def pitch_augmentation_iou(shard_paths, size, geometry: dict) -> dict[str, float]:
+    """Mean and minimum IoU, per pitch, between the pitch augmentation applied to the
+    front-view (pitch 0) inputs and the inputs rendered at that pitch (masks at 1/2)."""
+    import torch
+
+    from ..dataset.viewpoint import pitch_silhouette
+
+    arrays, table = load_test_set(shard_paths, size)
+    pitch = table["pitch_deg"].to_numpy()
+    front = arrays["images"][pitch == 0]
+    x0 = torch.from_numpy(front[:, None].astype(np.float32) / 255.0)
+    out = {}
+    for p in sorted(set(pitch.tolist()) - {0.0}):
+        true = arrays["images"][pitch == p] >= 128
+        aug = pitch_silhouette(x0, torch.full((len(x0),), float(p)), geometry["mm_per_px"],
+                               geometry["pitch_centre_row"], geometry["extrusion_mm"])[:, 0].numpy() >= 0.5
+        iou = (aug & true).sum((1, 2)) / np.maximum((aug | true).sum((1, 2)), 1)
+        iou0 = (front >= 128) & true
+        out[f"{p:g}"] = {"iou_mean": float(iou.mean()), "iou_min": float(iou.min()),
+                         "iou_front_view_mean": float((iou0.sum((1, 2)) / np.maximum(
+                             ((front >= 128) | true).sum((1, 2)), 1)).mean())}
+    return out
+
+
 def fit_baseline(train_shards, size, out_npz, seed: int = 0) -> dict:
     """Fit the ridge baseline on the training shards; write it; return the CV record."""
     from .baseline import fit_ridge, front_edge_profile

@@ -179,6 +179,10 @@ def condition_figure(exp_dir, out_pdf, title: str, xlabel: str, threshold_pct: f
         ax.axhline(threshold_pct, color="k", ls=":", lw=1, label=f"{threshold_pct:g}% (usable)")
     ax.set_xticks(x, conds)
     ax.set_yscale("log")
+    from matplotlib.ticker import NullFormatter, ScalarFormatter
+
+    ax.yaxis.set_major_formatter(ScalarFormatter())
+    ax.yaxis.set_minor_formatter(NullFormatter())
     ax.set_xlabel(xlabel)
     ax.set_ylabel("force NRMSE (% of max force)")
     ax.legend(fontsize=8)

@@ -21,11 +21,16 @@ def fea_seconds(fea_scenes_csv) -> dict[str, dict]:
     return out
 
 
+STAGE_ORDER = ["geometry", "fea", "render", "dataset", "train", "evaluate"]
+
+
 def stage_times(benchmark_dir) -> dict[str, dict]:
-    """Per stage (sub-folder of ``benchmark_dir``): jobs, summed wall s, summed CPU s
-    and the longest job (s), from the ``.tsv`` files Snakemake writes."""
+    """Per stage (sub-folder of ``benchmark_dir``, in pipeline order): jobs, summed wall s,
+    summed CPU s and the longest job (s), from the ``.tsv`` files Snakemake writes."""
     out = {}
-    for d in sorted(p for p in Path(benchmark_dir).iterdir() if p.is_dir()):
+    dirs = [p for p in Path(benchmark_dir).iterdir() if p.is_dir()]
+    rank = {n: i for i, n in enumerate(STAGE_ORDER)}
+    for d in sorted(dirs, key=lambda p: (rank.get(p.name, len(rank)), p.name)):
         files = sorted(d.glob("*.tsv"))
         if not files:
             continue
@@ -37,7 +42,10 @@ def stage_times(benchmark_dir) -> dict[str, dict]:
 
 def speed_summary(fea_scenes_csv, latency_json, benchmark_dir) -> dict:
     lat = json.loads(Path(latency_json).read_text())
+    scenes = pd.read_csv(fea_scenes_csv)
     return {"fea_seconds_per_scene": fea_seconds(fea_scenes_csv),
+            "fea_scenes": {"n": int(len(scenes)), "converged": int(scenes["converged"].sum()),
+                           "min_gap_mm": float(scenes["min_gap_mm"].min())},
             "network_ms_per_frame": float(lat["median_ms"]),
             "network_latency": lat,
             "paper_network_ms_per_frame": 8.0,

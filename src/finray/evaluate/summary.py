@@ -45,6 +45,15 @@ def build_summary(evaluate_dir, experiments, baseline_fit, speed_json, fea_paret
         s["pitch_usable_deg"] = {p: usable_range(m, p, usable_nrmse_pct)
                                  for p in m["predictor"].unique()}
         s["pitch_usable_nrmse_pct"] = usable_nrmse_pct
+        allm = m[m["group"] == "all"]
+        s["pitch_within_threshold_deg"] = {
+            p: [float(c) for c in g.loc[g["nrmse_pct"] <= usable_nrmse_pct, "condition"]]
+            for p, g in allm.groupby("predictor")}
+        pitched = allm[allm["condition"].astype(float) > 0]
+        s["pitch_nrmse_range_pct"] = {p: [float(g["nrmse_pct"].min()), float(g["nrmse_pct"].max())]
+                                      for p, g in pitched.groupby("predictor")}
+        checks = json.loads((evaluate_dir / "pitch" / "checks.json").read_text())
+        s["pitch_augmentation_iou"] = checks.get("augmentation_iou", {})
     fit = json.loads(Path(baseline_fit).read_text())
     s["baseline"] = {"method": "ridge regression on the front-edge profile",
                      "alpha": fit["alpha"], "n_features": fit["n_features"],
@@ -56,6 +65,7 @@ def build_summary(evaluate_dir, experiments, baseline_fit, speed_json, fea_paret
                                "n_val": h["n_val"], "epochs": len(h["epoch"]),
                                "best_val_force_rmse_N": min(h["val_force_rmse_N"]) if h["val_force_rmse_N"] else None}
     speed = json.loads(Path(speed_json).read_text())
+    s["fea_scenes"] = speed["fea_scenes"]
     s["speed"] = {"fea_seconds_per_scene": speed["fea_seconds_per_scene"],
                   "network_ms_per_frame": speed["network_ms_per_frame"],
                   "stages": speed["stages"]}
