@@ -17,6 +17,7 @@ include: "workflow/rules/fea_benchmarks.smk"
 include: "workflow/rules/render.smk"
 include: "workflow/rules/dataset.smk"
 include: "workflow/rules/train.smk"
+include: "workflow/rules/train_benchmarks.smk"
 
 
 rule all:

@@ -195,6 +195,32 @@ def latency(predictor: Predictor, frames: list[np.ndarray], n_frames: int = 200,
     return out
 
 
+def latency_report(model_path: str | Path, images, n_frames: int = 200, repeats: int = 3,
+                   backends=("onnx", "torchscript")) -> dict:
+    """Latency (ms) per frame at batch 1 on one thread of the exported model on raw
+    camera images (paths; up to ``n_frames`` distinct ones, evenly picked), per
+    backend (:func:`latency`); the first backend's figures at the top level, the
+    machine's load average before and after (timings on a shared machine are high)."""
+    import os
+
+    import imageio.v3 as iio
+
+    images = list(images)
+    if not images:
+        raise ValueError("no images to time")
+    pick = np.unique(np.linspace(0, len(images) - 1, min(n_frames, len(images))).round().astype(int))
+    frames = [iio.imread(images[k]) for k in pick]
+    load_before = os.getloadavg()
+    runs = {b: latency(Predictor(model_path, threads=1, backend=b), frames, n_frames, repeats)
+            for b in backends}
+    out = dict(runs[backends[0]])
+    out.update({"model": str(model_path), "cpu_count": os.cpu_count(),
+                "load_average_before": list(load_before),
+                "load_average_after": list(os.getloadavg()),
+                "target_ms": 2.0, "by_backend": runs})
+    return out
+
+
 def read_frames(path: str | Path):
     """Yield ``(name, frame)`` from an image, a folder of images or a video file."""
     import imageio.v3 as iio

@@ -157,6 +157,15 @@ def shard_scene_params(wildcards):
     return scene
 
 
+def render_index_files(pitch=None):
+    """index.json of every rendered view (optionally of one pitch only)."""
+    return [
+        f"{RENDER}/{s.object}/{s.material}/h{s.height_mm:g}/p{pitch_label(p)}/index.json"
+        for s, p in rendered_views()
+        if pitch is None or p == pitch
+    ]
+
+
 def all_targets():
     return [
         f"{GEOMETRY}/gallery.pdf",
@@ -168,4 +177,9 @@ def all_targets():
         f"{RESULTS}/benchmarks/render_throughput.json",
         f"{DATASET}/manifest.csv",
         f"{DATASET}/examples.pdf",
+        f"{RESULTS}/benchmarks/train_pareto.csv",
+        f"{RESULTS}/benchmarks/train_pareto.png",
+        f"{RESULTS}/benchmarks/train_pareto.md",
+        f"{RESULTS}/benchmarks/inference_latency.json",
+        f"{RESULTS}/benchmarks/train_time.csv",
     ] + expand(f"{TRAIN}/{{model}}/model.ts", model=list(config["train"]["models"])) + object_geometry_files()
