@@ -68,6 +68,10 @@ BAD = {
     "crop not 2:1": (lambda c: c.setdefault("dataset", {}).update(crop_y_mm=[0.0, 70.0]),
                      "dataset.crop_y_mm"),
     "input size not rendered": (lambda c: c["train"].update(input_size=[96, 48]), "train.input_size"),
+    "study size not rendered": (lambda c: c.setdefault("benchmarks", {}).update(train_sizes=[[96, 48]]),
+                                "benchmarks.train_sizes"),
+    "latency of an unknown model": (lambda c: c.setdefault("benchmarks", {}).update(latency_model="x"),
+                                    "benchmarks.latency_model"),
     "unknown pitch object": (lambda c: c.setdefault("dataset", {}).update(pitch_object="nope"),
                              "dataset.pitch_object"),
 }

@@ -202,6 +202,8 @@ Predict the contact force (N) and the stress map of each frame of an image, a fo
 of images or a video. The finger is segmented and cropped as in the dataset stage,
 anchored on its clamped base, so camera frames of any size work. Writes forces.csv
 and, per frame, <name>_stress.exr (log10(1 + sigma / 1 kPa)) and <name>_stress.png.
+The network runs in ONNX Runtime when model.onnx and model.force.onnx lie beside
+model.ts (faster), else in TorchScript.
 """
 
 
@@ -214,13 +216,19 @@ def _predict_parser(sub) -> None:
     p.add_argument("source", type=Path, help="image, folder of images or video")
     p.add_argument("--out", type=Path, required=True, help="output directory")
     p.add_argument("--threads", type=int, default=1, help="intra-op threads (default 1)")
+    p.add_argument("--backend", choices=["auto", "onnx", "torchscript"], default="auto",
+                   help="network runtime: ONNX Runtime, TorchScript, or auto (ONNX Runtime "
+                        "when model.onnx is there; default)")
+    p.add_argument("--force-only", action="store_true",
+                   help="forces (N) only, no stress maps (skips the stress decoder)")
     p.set_defaults(func=_run_predict)
 
 
 def _run_predict(args) -> int:
     from .predict import predict_files
 
-    rows = predict_files(args.model, args.source, args.out, args.threads)
+    rows = predict_files(args.model, args.source, args.out, args.threads, args.backend,
+                         args.force_only)
     for r in rows:
         print(f"{r['frame']}\t{r['fx_N']:.4f} N")
     return 0

@@ -144,6 +144,15 @@ def _check_stage_sections(cfg: dict) -> None:
             f"{cfg['train']['input_size']} is not one of dataset.sizes {sizes}"))
     if cfg["train"]["input_size"][0] % 16 or cfg["train"]["input_size"][1] % 16:
         raise ConfigError("train.input_size", "height and width must be multiples of 16")
+    b = cfg["benchmarks"]
+    for size in b["train_sizes"]:
+        if list(size) not in sizes:
+            raise ConfigError("benchmarks.train_sizes", f"{size} is not one of dataset.sizes {sizes}")
+        if size[0] % 16 or size[1] % 16:
+            raise ConfigError("benchmarks.train_sizes", f"{size}: height and width must be multiples of 16")
+    if b["latency_model"] not in cfg["train"]["models"]:
+        raise ConfigError("benchmarks.latency_model", (
+            f"'{b['latency_model']}' is not a key of train.models {sorted(cfg['train']['models'])}"))
 
 
 def load_config(path: str | Path) -> dict:

@@ -116,6 +116,12 @@ class FinRayNet(nn.Module):
         stress, f = self.forward_normalised(x)
         return stress, f * self.force_scale_N + self.force_mean_N
 
+    def force(self, x: torch.Tensor) -> torch.Tensor:
+        """Force in N only: the encoder and the force head, without the stress decoder
+        (about 40 % of the full network's cost; for control loops)."""
+        h, _ = self.encode(x)
+        return self.force_head(h) * self.force_scale_N + self.force_mean_N
+
     def set_force_normalisation(self, mean_N, scale_N) -> None:
         self.force_mean_N.copy_(torch.as_tensor(mean_N, dtype=torch.float32).reshape(-1))
         self.force_scale_N.copy_(torch.as_tensor(scale_N, dtype=torch.float32).reshape(-1))

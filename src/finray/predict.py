@@ -3,6 +3,7 @@
     from finray.predict import Predictor
     predict = Predictor("results/train/plain/model.ts")
     force_N, stress_log = predict(frame)        # frame: (H, W, 3) uint8 numpy array
+    force_N = predict.force(frame)              # force only: no stress decoder, faster
 
 Preprocessing is the dataset stage's: segment the finger (threshold + morphology),
 crop, area-resample to the network's input. The crop is anchored on the finger
@@ -10,10 +11,15 @@ itself, so any image size and position works: the lowest row of the mask is the
 clamped base, its width is the finger's base width (``base_width_mm``), which fixes
 the scale (px/mm); the window ``crop_x_mm`` x ``crop_y_mm`` of the training data is
 then cut around it.
+
+The network runs in ONNX Runtime when ``model.onnx`` and ``model.force.onnx`` lie
+beside ``model.ts`` (2-3x faster than TorchScript at batch 1 on one thread), else in
+TorchScript.
 """
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 
 import numpy as np
@@ -21,19 +27,29 @@ import torch
 
 from .dataset.imageops import area_resample, segment
 
+BACKENDS = ("auto", "onnx", "torchscript")
+
+#: The paper's inference time (GPU), for comparison with :func:`latency`.
+PAPER_LATENCY_MS = 8.0
+
 
 class Predictor:
-    """Load an exported model (``model.ts`` + ``model.ts.json``) once; call per frame."""
+    """Load an exported model (``model.ts`` + ``model.ts.json``, and ``model.onnx`` +
+    ``model.force.onnx`` for ONNX Runtime) once; call per frame.
 
-    def __init__(self, model_path: str | Path, threads: int = 1):
+    ``backend``: ``"onnx"`` (ONNX Runtime), ``"torchscript"``, or ``"auto"`` (ONNX
+    Runtime when its files and the package are there). ``threads``: intra-op threads.
+    """
+
+    def __init__(self, model_path: str | Path, threads: int = 1, backend: str = "auto"):
         model_path = Path(model_path)
         meta_path = Path(str(model_path) + ".json")
         if not model_path.is_file():
             raise FileNotFoundError(f"no model at {model_path}")
         if not meta_path.is_file():
             raise FileNotFoundError(f"{meta_path} (the model's preprocessing settings) is missing")
-        torch.set_num_threads(threads)
-        self.model = torch.jit.load(str(model_path), map_location="cpu").eval()
+        if backend not in BACKENDS:
+            raise ValueError(f"backend must be one of {BACKENDS}, not {backend!r}")
         self.meta = json.loads(meta_path.read_text())
         self.size = (self.meta["height"], self.meta["width"])
         pre = self.meta.get("preprocess", {})
@@ -41,6 +57,33 @@ class Predictor:
         self.crop_x_mm = tuple(pre.get("crop_x_mm", (-5.0, 35.0)))
         self.crop_y_mm = tuple(pre.get("crop_y_mm", (0.0, 80.0)))
         self.segment_kw = pre.get("segment", {})
+        onnx_full = model_path.with_suffix(".onnx")
+        onnx_force = model_path.with_suffix(".force.onnx")
+        if backend == "auto":
+            have = onnx_full.is_file() and onnx_force.is_file()
+            try:
+                import onnxruntime  # noqa: F401
+            except ImportError:
+                have = False
+            backend = "onnx" if have else "torchscript"
+        self.backend = backend
+        if backend == "onnx":
+            import onnxruntime as ort
+
+            opts = ort.SessionOptions()
+            opts.intra_op_num_threads = threads
+            opts.inter_op_num_threads = 1
+            opts.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
+            for f in (onnx_full, onnx_force):
+                if not f.is_file():
+                    raise FileNotFoundError(f"no ONNX model at {f}")
+            self._full = ort.InferenceSession(str(onnx_full), opts, providers=["CPUExecutionProvider"])
+            self._force = ort.InferenceSession(str(onnx_force), opts,
+                                               providers=["CPUExecutionProvider"])
+        else:
+            torch.set_num_threads(threads)
+            self.model = torch.jit.load(str(model_path), map_location="cpu").eval()
+            self._has_force = hasattr(self.model, "force")  # exports before the force path
 
     def crop_box(self, mask: np.ndarray) -> tuple[float, float, float, float]:
         """Training window in pixel edges ``(col0, row0, col1, row1)`` from the mask."""
@@ -55,23 +98,127 @@ class Predictor:
         return (left + self.crop_x_mm[0] * ppm, base_edge - self.crop_y_mm[1] * ppm,
                 left + self.crop_x_mm[1] * ppm, base_edge - self.crop_y_mm[0] * ppm)
 
-    def preprocess(self, frame: np.ndarray) -> tuple[torch.Tensor, np.ndarray]:
-        """Network input (1, 1, H, W) in [0, 1] and the full-resolution mask."""
+    def segment(self, frame: np.ndarray) -> np.ndarray:
+        """Finger mask (H, W) bool, as in the dataset stage."""
         frame = np.asarray(frame)
         if frame.ndim not in (2, 3):
             raise ValueError(f"expected an (H, W) or (H, W, 3) image, got shape {frame.shape}")
-        mask = segment(frame, **self.segment_kw)
-        soft = area_resample(mask.astype(np.float64), self.crop_box(mask), self.size)
-        # the training input is the 8-bit soft silhouette
-        x = np.rint(np.clip(soft, 0, 1) * 255.0).astype(np.float32) / 255.0
-        return torch.from_numpy(x)[None, None], mask
+        return segment(frame, **self.segment_kw)
 
-    @torch.no_grad()
+    def network_input(self, mask: np.ndarray) -> np.ndarray:
+        """Network input (1, 1, H, W) float32 in [0, 1] from the mask: the 8-bit soft
+        silhouette of the training window, as in the training data."""
+        soft = area_resample(mask, self.crop_box(mask), self.size, fast=True)
+        x = np.rint(np.clip(soft, 0, 1) * 255.0).astype(np.float32) / 255.0
+        return x[None, None]
+
+    def preprocess(self, frame: np.ndarray) -> tuple[torch.Tensor, np.ndarray]:
+        """Network input (1, 1, H, W) tensor in [0, 1] and the full-resolution mask."""
+        mask = self.segment(frame)
+        return torch.from_numpy(self.network_input(mask)), mask
+
+    def run(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The network on inputs (B, 1, H, W) float32: log-stress maps (B, 1, H, W) and
+        forces (B, n_forces) in N."""
+        x = np.ascontiguousarray(x, dtype=np.float32)
+        if self.backend == "onnx":
+            stress, force = self._full.run(None, {"image": x})
+            return stress, force
+        with torch.inference_mode():
+            stress, force = self.model(torch.from_numpy(x))
+        return stress.numpy(), force.numpy()
+
+    def run_force(self, x: np.ndarray) -> np.ndarray:
+        """Forces (B, n_forces) in N of inputs (B, 1, H, W) float32, without the stress
+        decoder."""
+        x = np.ascontiguousarray(x, dtype=np.float32)
+        if self.backend == "onnx":
+            return self._force.run(None, {"image": x})[0]
+        with torch.inference_mode():
+            xt = torch.from_numpy(x)
+            f = self.model.force(xt) if self._has_force else self.model(xt)[1]
+        return f.numpy()
+
     def __call__(self, frame: np.ndarray) -> tuple[float, np.ndarray]:
         """Force (N, along the push) and the log-stress map (H, W) of one frame."""
-        x, _ = self.preprocess(frame)
-        stress, force = self.model(x)
-        return float(force[0, 0]), stress[0, 0].numpy()
+        stress, force = self.run(self.network_input(self.segment(frame)))
+        return float(force[0, 0]), stress[0, 0]
+
+    def force(self, frame: np.ndarray) -> float:
+        """Force (N, along the push) of one frame, without the stress map (faster)."""
+        return float(self.run_force(self.network_input(self.segment(frame)))[0, 0])
+
+
+def latency(predictor: Predictor, frames: list[np.ndarray], n_frames: int = 200,
+            repeats: int = 3) -> dict:
+    """Per-frame latency (ms) at batch 1 of ``predictor`` from raw images: medians over
+    ``repeats`` x ``n_frames`` calls (frames cycled), end to end (``force``: force only;
+    ``full``: force and stress map) and per stage (segmentation, crop + resample,
+    network full / force only). Timings, not correctness: run on a quiet machine."""
+    if not frames:
+        raise ValueError("no frames to time")
+    stages = {k: [] for k in ("segment_ms", "resample_ms", "network_full_ms",
+                              "network_force_ms", "force_ms", "full_ms")}
+    clock = time.perf_counter
+    for f in frames[:10]:  # warm-up (allocators, ONNX Runtime's first runs)
+        predictor(f)
+        predictor.force(f)
+    for _ in range(repeats):
+        for k in range(n_frames):
+            f = frames[k % len(frames)]
+            t0 = clock()
+            mask = predictor.segment(f)
+            t1 = clock()
+            x = predictor.network_input(mask)
+            t2 = clock()
+            predictor.run(x)
+            t3 = clock()
+            predictor.run_force(x)
+            t4 = clock()
+            predictor.force(f)
+            t5 = clock()
+            predictor(f)
+            t6 = clock()
+            for key, dt in zip(stages, (t1 - t0, t2 - t1, t3 - t2, t4 - t3, t5 - t4, t6 - t5)):
+                stages[key].append(dt * 1e3)
+    out = {"backend": predictor.backend, "input_size": list(predictor.size),
+           "base_channels": predictor.meta.get("base_channels"),
+           "frame_shape": list(np.asarray(frames[0]).shape), "n_calls": repeats * n_frames,
+           "n_distinct_frames": min(len(frames), n_frames)}
+    for key, v in stages.items():
+        out[key] = float(np.median(v))
+        out[key.replace("_ms", "_p90_ms")] = float(np.percentile(v, 90))
+    out["median_of_repeats_force_ms"] = [float(np.median(stages["force_ms"][r * n_frames:(r + 1) * n_frames]))
+                                         for r in range(repeats)]
+    out["paper_ms"] = PAPER_LATENCY_MS
+    out["paper_note"] = "the paper's inference time per image, on a GPU"
+    return out
+
+
+def latency_report(model_path: str | Path, images, n_frames: int = 200, repeats: int = 3,
+                   backends=("onnx", "torchscript")) -> dict:
+    """Latency (ms) per frame at batch 1 on one thread of the exported model on raw
+    camera images (paths; up to ``n_frames`` distinct ones, evenly picked), per
+    backend (:func:`latency`); the first backend's figures at the top level, the
+    machine's load average before and after (timings on a shared machine are high)."""
+    import os
+
+    import imageio.v3 as iio
+
+    images = list(images)
+    if not images:
+        raise ValueError("no images to time")
+    pick = np.unique(np.linspace(0, len(images) - 1, min(n_frames, len(images))).round().astype(int))
+    frames = [iio.imread(images[k]) for k in pick]
+    load_before = os.getloadavg()
+    runs = {b: latency(Predictor(model_path, threads=1, backend=b), frames, n_frames, repeats)
+            for b in backends}
+    out = dict(runs[backends[0]])
+    out.update({"model": str(model_path), "cpu_count": os.cpu_count(),
+                "load_average_before": list(load_before),
+                "load_average_after": list(os.getloadavg()),
+                "target_ms": 2.0, "by_backend": runs})
+    return out
 
 
 def read_frames(path: str | Path):
@@ -99,9 +246,10 @@ def read_frames(path: str | Path):
         raise FileNotFoundError(f"{path} does not exist")
 
 
-def predict_files(model_path, source, out_dir, threads: int = 1) -> list[dict]:
-    """Predict every frame of ``source``; write ``forces.csv`` and, per frame, the
-    stress map as EXR and as a coloured PNG into ``out_dir``."""
+def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = "auto",
+                  force_only: bool = False) -> list[dict]:
+    """Predict every frame of ``source``; write ``forces.csv`` and, per frame unless
+    ``force_only``, the stress map as EXR and as a coloured PNG into ``out_dir``."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -111,9 +259,12 @@ def predict_files(model_path, source, out_dir, threads: int = 1) -> list[dict]:
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    p = Predictor(model_path, threads)
+    p = Predictor(model_path, threads, backend)
     rows = []
     for name, frame in read_frames(source):
+        if force_only:
+            rows.append({"frame": name, "fx_N": p.force(frame)})
+            continue
         force, stress = p(frame)
         stem = Path(name).stem
         write_exr(out_dir / f"{stem}_stress.exr", {"stress": stress.astype(np.float32)},

@@ -193,6 +193,13 @@ def experiment_setup(wildcards):
 def experiment_inputs(wildcards):
     setup = experiment_setup(wildcards)
     return {"shards": setup["shards"], "models": list(setup["models"].values())}
+def render_index_files(pitch=None):
+    """index.json of every rendered view (optionally of one pitch only)."""
+    return [
+        f"{RENDER}/{s.object}/{s.material}/h{s.height_mm:g}/p{pitch_label(p)}/index.json"
+        for s, p in rendered_views()
+        if pitch is None or p == pitch
+    ]
 
 
 def all_targets():
@@ -208,4 +215,11 @@ def all_targets():
         f"{DATASET}/examples.pdf",
         f"{RESULTS}/summary.json",
         "paper/manuscript.html",
-    ] + expand("paper/figures/{name}.pdf", name=FIGURES) + expand(f"{TRAIN}/{{model}}/model.ts", model=list(config["train"]["models"])) + object_geometry_files()
+        f"{RESULTS}/benchmarks/train_pareto.csv",
+        f"{RESULTS}/benchmarks/train_pareto.png",
+        f"{RESULTS}/benchmarks/train_pareto.md",
+        f"{RESULTS}/benchmarks/inference_latency.json",
+        f"{RESULTS}/benchmarks/train_time.csv",
+    ] + expand("paper/figures/{name}.pdf", name=FIGURES) + expand(
+        f"{TRAIN}/{{model}}/model.ts", model=list(config["train"]["models"])
+    ) + object_geometry_files()

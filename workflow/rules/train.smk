@@ -7,6 +7,8 @@ rule train_model:
     output:
         model=f"{TRAIN}/{{model}}/model.pt",
         torchscript=f"{TRAIN}/{{model}}/model.ts",
+        onnx=f"{TRAIN}/{{model}}/model.onnx",
+        onnx_force=f"{TRAIN}/{{model}}/model.force.onnx",
         history=f"{TRAIN}/{{model}}/history.json",
         curves=report(
             f"{TRAIN}/{{model}}/curves.png",

@@ -15,7 +15,7 @@ with log_to(snakemake.log[0]):
             figures.generalisation_figure(exp_dir, out, "object", "Shape generalisation: held-out shapes")
         elif name == "material_generalisation":
             fea = figures.fea_seconds_by_material(snakemake.input.fea_summaries)
-            net_ms = json.loads(Path(snakemake.input.latency).read_text())["median_ms"]
+            net_ms = json.loads(Path(snakemake.input.latency).read_text())["full_ms"]
             figures.material_figure(exp_dir, out, fea, net_ms)
         elif name == "occlusion":
             figures.condition_figure(exp_dir, out, "Occlusion of the held-out shapes",

@@ -6,6 +6,7 @@ Nothing here knows about the mesh: the finger mask comes from the image alone
 """
 from __future__ import annotations
 
+import numba as nb
 import numpy as np
 
 
@@ -22,33 +23,110 @@ def to_gray(image: np.ndarray) -> np.ndarray:
 
 THRESHOLDS = ("isodata", "otsu")
 
+_LUMA = np.array([0.2125, 0.7154, 0.0721])
+
+
+@nb.njit(cache=True)
+def _histogram(g: np.ndarray, lo: float, scale: float, nbins: int) -> np.ndarray:
+    """Counts of ``min(int((g - lo) * scale), nbins - 1)`` (``np.bincount``'s, 5x faster)."""
+    counts = np.zeros(nbins, np.int64)
+    for v in g.ravel():
+        k = int((np.float64(v) - lo) * scale)
+        counts[min(k, nbins - 1)] += 1
+    return counts
+
+
+@nb.njit(cache=True)
+def _label_sizes(lab: np.ndarray, n: int) -> np.ndarray:
+    """Pixels per label 0..n (``np.bincount``'s, 5x faster)."""
+    counts = np.zeros(n + 1, np.int64)
+    for v in lab.ravel():
+        counts[v] += 1
+    return counts
+
+
+def threshold_isodata(g: np.ndarray, nbins: int = 256) -> float:
+    """Ridler-Calvard (isodata) grey level of ``g``, computed as
+    :func:`skimage.filters.threshold_isodata` does on a float image (``nbins`` equal
+    bins between the minimum and the maximum, the lowest bin centre ``t`` with
+    ``0 <= (mean below + mean above) / 2 - t < bin width``), from one ``bincount``."""
+    g = np.ascontiguousarray(g)
+    if g.dtype not in (np.float32, np.float64):
+        g = g.astype(np.float64)
+    lo, hi = float(g.min()), float(g.max())
+    if lo == hi:
+        return lo
+    counts = _histogram(g, lo, nbins / (hi - lo), nbins).astype(np.float64)
+    centres = lo + (np.arange(nbins) + 0.5) * ((hi - lo) / nbins)
+    below = np.cumsum(counts)
+    cum = np.cumsum(counts * centres)
+    with np.errstate(invalid="ignore", divide="ignore"):  # empty sides: NaN, never chosen
+        mean_low = cum[:-1] / below[:-1]
+        mean_high = (cum[-1] - cum[:-1]) / (below[-1] - below[:-1])
+    d = (mean_low + mean_high) / 2.0 - centres[:-1]
+    ok = np.flatnonzero((d >= 0) & (d < centres[1] - centres[0]))
+    return float(centres[ok[0]])
+
+
+def _drop_small(mask: np.ndarray, max_size: int, value: bool, structure: np.ndarray) -> int:
+    """Set the connected components of ``mask == (not value)`` with at most ``max_size``
+    pixels to ``value``, in place (:func:`skimage.morphology.remove_small_objects` /
+    ``remove_small_holes`` with ``max_size``); returns how many components are left."""
+    from scipy import ndimage as ndi
+
+    lab, n = ndi.label(mask if not value else ~mask, structure)
+    if n == 0 or max_size <= 0:
+        return n
+    small = _label_sizes(lab, n) <= max_size
+    small[0] = False
+    if small.any():
+        mask[small[lab]] = value
+    return n - int(small.sum())
+
 
 def segment(image: np.ndarray, threshold: str | float = "isodata", foreground: str = "bright",
             min_object_frac: float = 1e-3, max_hole_frac: float = 2e-4,
-            keep_largest: bool = True) -> np.ndarray:
+            keep_largest: bool = True, hist_stride: int = 1) -> np.ndarray:
     """Finger mask (H, W) bool of a camera image.
 
     1. grey level (BT.709 luma), 2. global threshold: Ridler-Calvard's
     (``"isodata"``: midway between the two classes' means, which on an
     anti-aliased image cuts at half coverage), Otsu's (``"otsu"``) or a fixed grey
     level in [0, 1]; ``foreground`` says whether the finger is brighter or darker
-    than the background, 3. morphology: drop bright specks smaller than
-    ``min_object_frac`` of the image, fill holes smaller than ``max_hole_frac``
-    (the finger's cavities are much larger and stay open), keep the largest
-    connected component (the finger) if ``keep_largest``.
-    """
-    from skimage import filters, measure, morphology
+    than the background. The threshold's histogram may be taken on every
+    ``hist_stride``-th row and column only (2 halves its cost; on front-view renders
+    it gives the same masks, on shaded pitched ones it moves a few edge pixels), 3. morphology:
+    drop specks (4-connected) of at most ``min_object_frac`` of the image, fill
+    holes (4-connected) of at most ``max_hole_frac`` (the finger's cavities are much
+    larger and stay open), keep the largest 8-connected component (the finger) if
+    ``keep_largest``.
 
-    g = to_gray(image)
+    The morphology runs inside the foreground's bounding box plus a margin wide
+    enough that any background touching the margin is larger than a hole: the
+    result is that of the whole image (skimage's ``remove_small_objects``,
+    ``remove_small_holes`` and ``label``), at a fraction of the cost.
+    """
+    from scipy import ndimage as ndi
+
+    img = np.asarray(image)
+    if img.dtype == np.uint8 and img.ndim == 3:
+        # 8-bit colour (cameras, renders): luma in float32 (4x faster than to_gray; the
+        # rounding, ~1e-7, never moves a pixel across a threshold between 8-bit levels)
+        g = img[..., :3].astype(np.float32) @ (_LUMA / 255.0).astype(np.float32)
+    else:
+        g = to_gray(img)
     if isinstance(threshold, str):
         if threshold not in THRESHOLDS:
             raise ValueError(f"threshold must be one of {THRESHOLDS} or a number, not {threshold!r}")
+        sub = g[::hist_stride, ::hist_stride]
         if g.min() == g.max():
             t = g.min()
         elif threshold == "isodata":
-            t = filters.threshold_isodata(g)
+            t = threshold_isodata(sub)
         else:
-            t = filters.threshold_otsu(g)
+            from skimage import filters
+
+            t = filters.threshold_otsu(sub)
     else:
         t = float(threshold)
     if foreground == "bright":
@@ -57,44 +135,77 @@ def segment(image: np.ndarray, threshold: str | float = "isodata", foreground: s
         mask = g < t
     else:
         raise ValueError(f"foreground must be 'bright' or 'dark', not {foreground!r}")
+    rows = np.flatnonzero(mask.any(axis=1))
+    if len(rows) == 0:
+        return mask
+    cols = np.flatnonzero(mask.any(axis=0))
     n = mask.size
     min_obj = int(round(min_object_frac * n))
-    if min_obj > 0:
-        mask = morphology.remove_small_objects(mask, max_size=min_obj)
     max_hole = int(round(max_hole_frac * n))
+    # margin: a background component reaching outside the box holds a whole margin
+    # strip (>= margin x the box's shorter side pixels), so it is no hole
+    side = min(rows[-1] - rows[0] + 1, cols[-1] - cols[0] + 1)
+    m = max(1, -(-(max_hole + 1) // side))
+    r0, r1 = max(rows[0] - m, 0), min(rows[-1] + 1 + m, mask.shape[0])
+    c0, c1 = max(cols[0] - m, 0), min(cols[-1] + 1 + m, mask.shape[1])
+    box = mask[r0:r1, c0:c1]  # a view: edits land in mask
+    four = ndi.generate_binary_structure(2, 1)
+    n_parts = _drop_small(box, min_obj, False, four)
     if max_hole > 0:
-        mask = morphology.remove_small_holes(mask, max_size=max_hole)
-    if keep_largest and mask.any():
-        lab = measure.label(mask, connectivity=2)
-        counts = np.bincount(lab.ravel())
+        _drop_small(box, max_hole, True, four)
+    # one 4-connected part left: filled holes touch it, it is the largest component
+    if keep_largest and n_parts > 1:
+        lab, n8 = ndi.label(box, ndi.generate_binary_structure(2, 2))
+        counts = _label_sizes(lab, n8)
         counts[0] = 0
-        mask = lab == int(np.argmax(counts))
+        box[...] = lab == int(np.argmax(counts))
     return mask
 
 
 def _axis_weights(n_src: int, lo: float, hi: float, n_dst: int) -> np.ndarray:
     """(n_dst, n_src) weights: fraction of each destination cell (on [lo, hi] split in
     n_dst) covered by source pixel i (on [i, i + 1]); parts outside the source are
-    dropped (they count as 0)."""
+    dropped (they count as 0). Only the few pixels under each cell are evaluated."""
     edges = lo + (hi - lo) * np.arange(n_dst + 1) / n_dst
-    a = np.maximum(edges[:-1, None], np.arange(n_src)[None, :])
-    b = np.minimum(edges[1:, None], np.arange(1, n_src + 1)[None, :])
-    return np.clip(b - a, 0.0, None) / ((hi - lo) / n_dst)
+    first = np.floor(edges[:-1]).astype(np.intp)
+    span = int(np.max(np.ceil(edges[1:]).astype(np.intp) - first))
+    idx = first[:, None] + np.arange(max(span, 1))[None, :]  # pixels under each cell
+    a = np.maximum(edges[:-1, None], idx)
+    b = np.minimum(edges[1:, None], idx + 1)
+    w = np.clip(b - a, 0.0, None) / ((hi - lo) / n_dst)
+    inside = (idx >= 0) & (idx < n_src)
+    out = np.zeros((n_dst, n_src))
+    out[np.nonzero(inside)[0], idx[inside]] = w[inside]
+    return out
 
 
 def area_resample(image: np.ndarray, box_px: tuple[float, float, float, float],
-                  out_shape: tuple[int, int]) -> np.ndarray:
+                  out_shape: tuple[int, int], fast: bool = False) -> np.ndarray:
     """Crop ``box_px = (col0, row0, col1, row1)`` (pixel edges, floats allowed) and
     resize to ``out_shape = (H, W)`` by exact area averaging (each output pixel is
     the mean of the input over its footprint; outside the image counts as 0).
 
-    Works on (H, W) and (H, W, C) arrays; returns float64. Area averages compose:
-    resampling twice over nested grids equals resampling once.
+    Works on (H, W) and (H, W, C) arrays; returns float64. ``fast`` (2-D only; the
+    predictor): only the source pixels under the box, columns first (the cheaper
+    order), in float32: the same averages up to ~1e-6, ~4x faster; the dataset
+    stage keeps the float64 products. Area averages compose: resampling twice over
+    nested grids equals resampling once.
     """
-    img = np.asarray(image, dtype=np.float64)
+    img = np.asarray(image)
     c0, r0, c1, r1 = box_px
     if not (c1 > c0 and r1 > r0):
         raise ValueError(f"empty crop box {box_px}")
+    if fast and img.ndim == 2:
+        # only the source pixels under the box; columns first (the smaller product)
+        i0, i1 = max(int(np.floor(r0)), 0), min(int(np.ceil(r1)), img.shape[0])
+        j0, j1 = max(int(np.floor(c0)), 0), min(int(np.ceil(c1)), img.shape[1])
+        if i1 <= i0 or j1 <= j0:
+            return np.zeros(out_shape)
+        sub = img[i0:i1, j0:j1].astype(np.float32)
+        wy = _axis_weights(i1 - i0, r0 - i0, r1 - i0, out_shape[0]).astype(np.float32)
+        wx = _axis_weights(j1 - j0, c0 - j0, c1 - j0, out_shape[1]).astype(np.float32)
+        return (wy @ (sub @ wx.T)).astype(np.float64)
+    img = img.astype(np.float64, copy=False)
     wy = _axis_weights(img.shape[0], r0, r1, out_shape[0])
     wx = _axis_weights(img.shape[1], c0, c1, out_shape[1])
     if img.ndim == 2:

@@ -68,6 +68,7 @@ def build_summary(evaluate_dir, experiments, baseline_fit, speed_json, fea_paret
     s["fea_scenes"] = speed["fea_scenes"]
     s["speed"] = {"fea_seconds_per_scene": speed["fea_seconds_per_scene"],
                   "network_ms_per_frame": speed["network_ms_per_frame"],
+                  "network_force_only_ms_per_frame": speed["network_force_only_ms_per_frame"],
                   "stages": speed["stages"]}
     pareto = pd.read_csv(fea_pareto_csv)
     s["fea_mesh_study"] = pareto.to_dict("records")

@@ -1,0 +1,72 @@
+# Network benchmarks: run time against error (input size x width), inference latency
+# of the trained default model on rendered camera frames, training time of the full
+# config. Sized by the config's benchmarks section.
+
+
+rule train_pareto:
+    input:
+        shards=shard_files(splits=["train"], pitch=0.0),
+    output:
+        table=f"{RESULTS}/benchmarks/train_pareto.csv",
+        figure=report(
+            f"{RESULTS}/benchmarks/train_pareto.png",
+            caption="../report/train_pareto.rst",
+            category="Training",
+        ),
+        summary=f"{RESULTS}/benchmarks/train_pareto.md",
+    params:
+        benchmarks=config["benchmarks"],
+        train=config["train"],
+    log:
+        f"{RESULTS}/logs/train/benchmark_pareto.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/train/benchmark_pareto.tsv"
+    threads: 1
+    resources:
+        runtime=30,
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/train_pareto.py"
+
+
+rule inference_latency:
+    input:
+        model=f"{TRAIN}/{config['benchmarks']['latency_model']}/model.ts",
+        onnx=f"{TRAIN}/{config['benchmarks']['latency_model']}/model.onnx",
+        onnx_force=f"{TRAIN}/{config['benchmarks']['latency_model']}/model.force.onnx",
+        renders=render_index_files(pitch=0.0),
+    output:
+        json=f"{RESULTS}/benchmarks/inference_latency.json",
+    params:
+        benchmarks=config["benchmarks"],
+    log:
+        f"{RESULTS}/logs/train/benchmark_latency.log",
+    threads: 1
+    resources:
+        runtime=10,
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/inference_latency.py"
+
+
+rule train_time:
+    input:
+        histories=expand(f"{TRAIN}/{{model}}/history.json", model=list(config["train"]["models"])),
+        benchmarks=expand(
+            f"{RESULTS}/benchmarks/train/{{model}}.tsv", model=list(config["train"]["models"])
+        ),
+    output:
+        table=f"{RESULTS}/benchmarks/train_time.csv",
+    params:
+        models=list(config["train"]["models"]),
+    log:
+        f"{RESULTS}/logs/train/benchmark_train_time.log",
+    threads: 1
+    resources:
+        runtime=5,
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/train_time.py"

@@ -1,0 +1,14 @@
+import json
+
+from finray.logs import log_to
+from finray.predict import latency_report
+from finray.render.scene import load_render_index
+
+b = snakemake.params.benchmarks
+with log_to(snakemake.log[0]):
+    images = [f"{idx.rsplit('/', 1)[0]}/{fr['image']}" for idx in snakemake.input.renders
+              for fr in load_render_index(idx.rsplit("/", 1)[0])["frames"]]
+    out = latency_report(snakemake.input.model, images, b["latency_frames"], b["latency_repeats"])
+    print(json.dumps({k: v for k, v in out.items() if k != "by_backend"}, indent=1))
+    with open(snakemake.output.json, "w") as f:
+        json.dump(out, f, indent=1)
