@@ -1,6 +1,8 @@
 # Evaluation: the paper's simulation experiments on the held-out splits, each with the
 # network(s) and the ridge baseline (results/evaluate/<experiment>/).
 
+from finray.train import pitch_geometry
+
 EVALUATE = f"{RESULTS}/evaluate"
 EXPERIMENTS = ["shape", "material", "occlusion", "pitch"]
 

@@ -17,7 +17,7 @@ rule evaluate_speed:
         json=f"{EVALUATE}/speed/speed.json",
         table=f"{EVALUATE}/speed/speed.md",
     params:
-        benchmarks=f"{RESULTS}/benchmarks",
+        benchmarks=lambda w, input: os.path.dirname(input.fea_scenes),
     log:
         f"{RESULTS}/logs/evaluate/speed.log",
     threads: 1
@@ -127,7 +127,7 @@ rule summary:
         json=f"{RESULTS}/summary.json",
     params:
         usable_nrmse_pct=config["evaluate"]["usable_nrmse_pct"],
-        evaluate=EVALUATE,
+        evaluate=lambda w, input: os.path.dirname(os.path.dirname(input.experiments[0])),
     log:
         f"{RESULTS}/logs/paper/summary.log",
     threads: 1
