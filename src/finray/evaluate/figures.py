@@ -198,12 +198,15 @@ def speed_figure(speed: dict, out_pdf):
     fea = speed["fea_seconds_per_scene"]
     names = list(fea) + ["CNN (1 thread)"]
     vals = [fea[k]["median"] for k in fea] + [speed["network_ms_per_frame"] / 1e3]
-    ax[0].bar(names, vals, color=["0.5"] * len(fea) + [COLOURS["plain"]])
+    bars = ax[0].bar(names, vals, color=["0.5"] * len(fea) + [COLOURS["plain"]])
+    ax[0].bar_label(bars, labels=[f"{v:.1f} s" for v in vals[:-1]] + [f"{vals[-1] * 1e3:.1f} ms"],
+                    fontsize=7)
     ax[0].set_yscale("log")
     ax[0].set_ylabel("s (FEA: median per scene; CNN: per frame)")
     ax[0].tick_params(axis="x", labelsize=8)
     st = speed["stages"]
-    ax[1].barh(list(st), [st[k]["cpu_s"] / 60 for k in st], color="tab:blue")
+    bars = ax[1].barh(list(st), [st[k]["cpu_s"] / 60 for k in st], color="tab:blue")
+    ax[1].bar_label(bars, fmt="%.1f", fontsize=7)
     ax[1].set_xlabel("CPU minutes (sum over jobs)")
     ax[1].invert_yaxis()
     fig.suptitle("Speed: FEA against the network, and the pipeline's stages", fontsize=10)
