@@ -53,10 +53,14 @@ def test_deformable_ring_push_equilibrium(finger):
     r = simulate(finger, obj, FINGER, SimulationOptions(push_mm=4.0, frame_step_mm=1.0))
     check_frames(r)
     assert r.object_von_mises_MPa is not None and np.nanmax(r.object_von_mises_MPa[-1]) > 0
-    # the ring deforms (a little: the finger is far more compliant than the ring)
+    # the back half of the bore is driven: it follows the push
     u = r.object_displacement_mm[-1][:, 0]
-    assert u.max() - u.min() > 1e-3
-    assert abs(u.max() - 4.0) < 0.01  # the inner loop follows the push
+    p = mesh.points - c
+    bore = np.hypot(p[:, 0], p[:, 1]) < 5.5 + 1e-6
+    assert np.allclose(u[bore & (p[:, 0] <= 1e-9)], 4.0, atol=0.01)
+    # the ring's front, against the finger, lags behind: the ring is squeezed
+    front = np.argmax(p[:, 0])
+    assert u[front] < 4.0 - 1e-3
 
 
 def test_failure_names_the_step_and_cause(finger):
