@@ -431,7 +431,7 @@ def _pareto_figure(df: pd.DataFrame, out_png, conv: dict, height_mm, push_mm) ->
     ax.set_title(f"FEA cost vs accuracy: steel Ø20 mm at {height_mm:g} mm "
                  f"(converged Fx = {conv['fx_N']:.4f} N)", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, loc="lower left")
+    ax.legend(fontsize=7, loc="upper right")
     fig.tight_layout()
     Path(out_png).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out_png, dpi=150)
