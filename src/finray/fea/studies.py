@@ -406,7 +406,7 @@ def _pareto_figure(df: pd.DataFrame, out_png, conv: dict, height_mm, push_mm) ->
     colors = {"default": "k", "mesh": "tab:blue", "load step": "tab:orange", "dhat": "tab:green",
               "object facets": "tab:purple", "arc chord": "tab:brown", "reference": "gray",
               "previous default": "tab:red"}
-    fig, ax = plt.subplots(figsize=(6.4, 4.6))
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(10.4, 4.6), width_ratios=[1.6, 1])
     t = "cpu_time_s"
     for factor, g in d[~d["is_default"]].groupby("factor"):
         ax.scatter(g[t], g["abs_err"], c=colors.get(factor, "gray"), s=30,
@@ -432,6 +432,33 @@ def _pareto_figure(df: pd.DataFrame, out_png, conv: dict, height_mm, push_mm) ->
                  f"(converged Fx = {conv['fx_N']:.4f} N)", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7, loc="upper right")
+    # mesh convergence: Fx against the element size, P2 at the default fillet chord
+    dd = d[d["is_default"]].iloc[0]
+    p2 = d[d["factor"].isin(["default", "mesh", "reference"]) & (d["order"] == 2)
+           & np.isclose(d["arc_chord_mm"], dd["arc_chord_mm"])].sort_values("mesh_size_mm")
+    fc = conv["fx_N"]
+    ax2.axhspan(0.98 * fc, 1.02 * fc, color="tab:green", alpha=0.12, label="converged ± 2 %")
+    ax2.axhline(fc, color="tab:green", lw=1)
+    ax2.axhline(conv["fx_mesh_N"], color="gray", ls=":", lw=1,
+                label=f"mesh limit at {dd['arc_chord_mm']:g} mm chords")
+    ax2.plot(p2["mesh_size_mm"], p2["fx_10mm_N"], "o-", c="tab:blue",
+             label=f"P2, {dd['arc_chord_mm']:g} mm chords")
+    ax2.plot(dd["mesh_size_mm"], dd["fx_10mm_N"], "o", ms=13, mfc="none", mec="red", mew=2,
+             label="default")
+    for _, r in d[d["factor"].isin(["arc chord", "previous default"])].iterrows():
+        ax2.plot(r["mesh_size_mm"], r["fx_10mm_N"], "s", c=colors[r["factor"]], ms=5)
+        ax2.annotate(r["variant"] if r["factor"] == "previous default" else
+                     f"chord {r['arc_chord_mm']:g}", (r["mesh_size_mm"], r["fx_10mm_N"]),
+                     textcoords="offset points", xytext=(4, 3), fontsize=7)
+    ax2.set_xscale("log")
+    ticks = sorted(set(p2["mesh_size_mm"]) | set(d["mesh_size_mm"]))
+    ax2.set_xticks(ticks, [f"{v:g}" for v in ticks])
+    ax2.minorticks_off()
+    ax2.set_xlabel("element size (mm)")
+    ax2.set_ylabel(f"Fx at {push_mm:g} mm (N)")
+    ax2.set_title("mesh convergence", fontsize=9)
+    ax2.grid(True, which="both", alpha=0.3)
+    ax2.legend(fontsize=7, loc="lower left")
     fig.tight_layout()
     Path(out_png).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out_png, dpi=150)
