@@ -18,7 +18,7 @@ P = FingerParams()
 
 @pytest.fixture(scope="module")
 def poly():
-    return finger_polygon(P, 0.5)
+    return finger_polygon(P)
 
 
 @pytest.fixture(scope="module")
@@ -92,7 +92,7 @@ def test_cavity_fillet_radii():
     of radius r, while an opening with 1.5 r cuts the corners (checked on arcs drawn
     with 0.025 mm chords, so that polygonisation stays below 1 um)."""
     r = P.fillet_radius_mm
-    poly = finger_polygon(P, 0.05)
+    poly = finger_polygon(P, 0.025)
     assert len(poly.interiors) == P.ribs.count + 1
     for ring in poly.interiors:
         cav = Polygon(ring)
@@ -261,3 +261,18 @@ def test_signed_areas_orientation():
     pts = np.array([[0, 0], [1, 0], [0, 1]], float)
     assert signed_areas(pts, np.array([[0, 1, 2]]))[0] == pytest.approx(0.5)
     assert signed_areas(pts, np.array([[0, 2, 1]]))[0] == pytest.approx(-0.5)
+
+
+def test_fillet_chords_follow_arc_chord_not_mesh_size():
+    """Arcs are drawn with chords <= mesh.arc_chord_mm whatever the element size, and the
+    polygonal (inscribed) fillets converge to the round ones from the material side."""
+    from finray.geometry.finger import _arc_segments
+
+    r = P.fillet_radius_mm
+    for chord in (0.25, 0.1, 0.05):
+        assert 0.5 * np.pi * r / _arc_segments(r, chord) <= chord + 1e-12
+    areas = [finger_polygon(P, c).area for c in (0.25, 0.1, 0.05)]
+    assert areas[0] > areas[1] > areas[2]  # less material as the fillets get rounder
+    m1, m2 = mesh_finger(P, 1.0, arc_chord_mm=0.1), mesh_finger(P, 0.5, arc_chord_mm=0.1)
+    assert m1.meta["area_mm2"] == pytest.approx(m2.meta["area_mm2"], rel=1e-12)
+    assert m1.meta["arc_chord_mm"] == 0.1

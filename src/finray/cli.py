@@ -182,7 +182,8 @@ def _run_simulate(args) -> int:
         raw.setdefault("mesh", {})["size_mm"] = args.mesh_size_mm
     cfg = validate_config(raw, base_dir=Path.cwd())
     m = cfg["mesh"]
-    finger = mesh_finger(finger_from_config(cfg), m["size_mm"], m["min_angle_deg"], m["order"])
+    finger = mesh_finger(finger_from_config(cfg), m["size_mm"], m["min_angle_deg"], m["order"],
+                         m["arc_chord_mm"])
     obj = object_geometry(name, cfg["objects"][name], finger_from_config(cfg), args.height_mm,
                           m["size_mm"], object_is_meshed(cfg, name), cfg["placement"]["gap_mm"],
                           m["min_angle_deg"])

@@ -93,7 +93,7 @@ def validate_config(config: dict, base_dir: str | Path = ".") -> dict:
         raise ConfigError("finger.base_thickness_mm", "the base plate fills half the finger")
     try:
         check_ribs(finger)
-        finger_polygon(finger, cfg["mesh"]["size_mm"])
+        finger_polygon(finger, cfg["mesh"]["arc_chord_mm"])
     except GeometryError as exc:
         raise ConfigError(exc.key, str(exc).split(": ", 1)[1]) from None
     _check_stage_sections(cfg)

@@ -39,8 +39,8 @@ class ContactParams:
     """Contact constants.
 
     dhat : barrier activation distance (mm); must be below the smallest rest
-        distance between non-adjacent boundary segments (0.088 mm at the
-        finger's fillets).
+        distance between non-adjacent boundary segments (at the finger's fillets:
+        0.037 mm with 0.1 mm arc chords, 0.021 mm with 0.05 mm chords).
     kappa : barrier stiffness (MPa, physical barrier); the contact pressure is
         ~4.3 kappa at a gap of dhat/2 and ~21 kappa at dhat/10 (mesh independent).
         The default suits the finger's contact pressures (0.05-1 MPa): the force

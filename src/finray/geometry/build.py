@@ -40,7 +40,7 @@ def build_finger(cfg: dict, outdir: str | Path) -> dict:
     outdir.mkdir(parents=True, exist_ok=True)
     p = finger_from_config(cfg)
     m = cfg["mesh"]
-    mesh = mesh_finger(p, m["size_mm"], m["min_angle_deg"], m["order"])
+    mesh = mesh_finger(p, m["size_mm"], m["min_angle_deg"], m["order"], m["arc_chord_mm"])
     write_mesh(mesh, outdir / "finger.npz")
     surf = extrude(mesh, p.extrusion_mm)
     topo = check_watertight(surf)

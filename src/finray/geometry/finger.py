@@ -96,15 +96,21 @@ def front_face_x(p: FingerParams, y_mm):
     return np.asarray(y_mm) * p.base_width_mm / p.apex_height_mm
 
 
-#: Longest chord of a fillet or tip arc (mm), whatever the element size: a coarse
-#: polygonal fillet, not the element size, was the main mesh error of the force.
-ARC_CHORD_MM = 0.25
+#: Default longest chord of a fillet or tip arc (mm), independent of the element size
+#: (config ``mesh.arc_chord_mm``). The polygonal fillets of the cavities are inscribed
+#: in the round ones, so they add material at the rib joints, where the finger bends:
+#: Fx at 10 mm is ~2 % too high with 0.25 mm chords (two per quarter of a 0.3 mm
+#: fillet), 0.3 % with 0.1 mm, and the error falls as chord^2 (results/benchmarks/
+#: fea_pareto.md). The short chords also grade the mesh: Triangle puts small
+#: elements at the joints and large ones elsewhere.
+ARC_CHORD_MM = 0.1
 
 
-def _arc_segments(radius: float, size_mm: float) -> int:
-    """Segments per quarter circle: chords of at most ``min(size / 2, ARC_CHORD_MM)``."""
-    chord = min(0.5 * size_mm, ARC_CHORD_MM)
-    return max(2, int(np.ceil(0.5 * np.pi * radius / chord)))
+def _arc_segments(radius: float, chord_mm: float = ARC_CHORD_MM) -> int:
+    """Segments per quarter circle of ``radius`` (mm): chords of at most ``chord_mm``."""
+    if not chord_mm > 0:
+        raise GeometryError("mesh.arc_chord_mm", f"must be > 0, got {chord_mm}")
+    return max(2, int(np.ceil(0.5 * np.pi * radius / chord_mm)))
 
 
 def rib_centrelines(p: FingerParams) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -172,18 +178,19 @@ def _inner_tip_height(p: FingerParams) -> float:
     return float((t - n[0] * (W - t)) / n[1])
 
 
-def outer_polygon(p: FingerParams, size_mm: float = 0.5) -> Polygon:
-    """Finger outline with a rounded tip and square base corners."""
+def outer_polygon(p: FingerParams, arc_chord_mm: float = ARC_CHORD_MM) -> Polygon:
+    """Finger outline with a rounded tip (chords <= ``arc_chord_mm``) and square base
+    corners."""
     W, H = p.base_width_mm, p.apex_height_mm
     tri = Polygon([(0, 0), (W, 0), (W, H)])
-    q = _arc_segments(p.tip_radius_mm, size_mm)
+    q = _arc_segments(p.tip_radius_mm, arc_chord_mm)
     rounded = tri.buffer(-p.tip_radius_mm, quad_segs=q).buffer(p.tip_radius_mm, quad_segs=q)
     base = tri.intersection(box(-1, -1, W + 1, p.base_thickness_mm))
     return rounded.union(base)
 
 
-def cavities(p: FingerParams, size_mm: float = 0.5) -> list[Polygon]:
-    """The hollow cells between ribs, with filleted corners."""
+def cavities(p: FingerParams, arc_chord_mm: float = ARC_CHORD_MM) -> list[Polygon]:
+    """The hollow cells between ribs, with filleted corners (chords <= ``arc_chord_mm``)."""
     W, H, t = p.base_width_mm, p.apex_height_mm, p.wall_thickness_mm
     tri = Polygon([(0, 0), (W, 0), (W, H)])
     hollow = tri.buffer(-t, join_style="mitre").intersection(
@@ -200,7 +207,7 @@ def cavities(p: FingerParams, size_mm: float = 0.5) -> list[Polygon]:
             f"the ribs split the cavity into {len(parts)} cells, expected "
             f"{p.ribs.count + 1}; check spacing_mm and the angles"))
     r = p.fillet_radius_mm
-    q = _arc_segments(r, size_mm)
+    q = _arc_segments(r, arc_chord_mm)
     out = []
     for i, c in enumerate(sorted(parts, key=lambda c: c.centroid.y)):
         rc = c.buffer(-r, quad_segs=q).buffer(r, quad_segs=q) if r > 0 else c
@@ -212,10 +219,12 @@ def cavities(p: FingerParams, size_mm: float = 0.5) -> list[Polygon]:
     return out
 
 
-def finger_polygon(p: FingerParams, size_mm: float = 0.5) -> Polygon:
-    """Material region of the finger profile."""
+def finger_polygon(p: FingerParams, arc_chord_mm: float = ARC_CHORD_MM) -> Polygon:
+    """Material region of the finger profile; arcs drawn with chords <= ``arc_chord_mm``
+    (mm), whatever the element size."""
     check_ribs(p)
-    poly = outer_polygon(p, size_mm).difference(shapely.union_all(cavities(p, size_mm)))
+    poly = outer_polygon(p, arc_chord_mm).difference(
+        shapely.union_all(cavities(p, arc_chord_mm)))
     poly = poly.simplify(1e-4)  # drop collinear points left by the boolean operations
     if not isinstance(poly, Polygon) or not poly.is_valid:
         raise GeometryError("finger", "the finger profile is not a single valid polygon")
@@ -240,13 +249,18 @@ def tag_finger_boundary(mesh: TriMesh, poly: Polygon, p: FingerParams) -> None:
 
 
 def mesh_finger(p: FingerParams, size_mm: float = 0.5, min_angle_deg: float = 25.0,
-                order: int = 2) -> TriMesh:
-    """Quadratic triangle mesh of the finger with tagged boundaries."""
-    poly = finger_polygon(p, size_mm)
+                order: int = 2, arc_chord_mm: float = ARC_CHORD_MM) -> TriMesh:
+    """Quadratic triangle mesh of the finger with tagged boundaries.
+
+    ``size_mm``: element edge length (mm) away from the arcs; ``arc_chord_mm``: longest
+    chord of the fillet and tip arcs (mm), which also sets the element size there.
+    """
+    poly = finger_polygon(p, arc_chord_mm)
     mesh, _ = triangulate_polygon(poly, size_mm, min_angle_deg, order)
     tag_finger_boundary(mesh, poly, p)
     mesh.meta.update({
         "kind": "finger", "size_mm": size_mm, "min_angle_deg": min_angle_deg,
+        "arc_chord_mm": arc_chord_mm,
         "front_angle_deg": p.front_angle_deg,
         "rib_angles_deg": p.rib_angles_deg().tolist(),
         "rib_back_heights_mm": p.rib_back_heights_mm().tolist(),

@@ -1,0 +1,54 @@
+"""The convergence helpers of the FEA cost/accuracy study (finray.fea.studies)."""
+import numpy as np
+import pandas as pd
+import pytest
+
+from finray.fea.studies import converged_estimate, pareto_front, richardson, write_pareto
+
+
+@pytest.mark.parametrize("p", [1.0, 2.0, 3.5])
+def test_richardson_recovers_limit_and_order(p):
+    h = np.array([1.0, 0.5, 0.35])
+    f = 8.0 + 0.3 * h**p
+    f0, order = richardson(h, f)
+    assert f0 == pytest.approx(8.0, abs=1e-9)
+    assert order == pytest.approx(p, abs=1e-6)
+
+
+def test_richardson_refuses_non_monotone_data():
+    f0, order = richardson([1.0, 0.5, 0.25], [8.1, 8.0, 8.05])
+    assert f0 == 8.05 and np.isnan(order)
+
+
+def _study_rows():
+    # Fx = 8 + 0.2 h^2 + 4 c^2 (mesh h, chord c): the converged value is 8
+    rows = [("default", 1.0, 0.1), ("mesh", 0.5, 0.1), ("mesh", 0.35, 0.1),
+            ("reference", 0.25, 0.1), ("arc chord", 1.0, 0.25), ("arc chord", 1.0, 0.05)]
+    return pd.DataFrame([{"variant": f"{f} {h} {c}" if f != "default" else f, "factor": f,
+                          "mesh_size_mm": h, "arc_chord_mm": c, "order": 2, "n_nodes": 1,
+                          "wall_time_s": 1 / h**2, "cpu_time_s": 1 / h**2,
+                          "newton_iterations": 1, "fx_10mm_N": 8.0 + 0.2 * h**2 + 4.0 * c**2}
+                         for f, h, c in rows])
+
+
+def test_converged_estimate_adds_chord_correction():
+    df = _study_rows()
+    est = converged_estimate(df, 1.0, 0.1)
+    assert est["sizes_mm"] == [0.25, 0.35, 0.5]
+    assert est["order"] == pytest.approx(2.0, abs=1e-6)
+    assert est["fx_N"] == pytest.approx(8.0, abs=1e-9)
+
+
+def test_pareto_front():
+    assert pareto_front([1, 2, 3, 4], [5, 6, 1, 0.5]).tolist() == [0, 2, 3]
+
+
+def test_write_pareto_outputs(tmp_path):
+    cfg = {"mesh": {"size_mm": 1.0, "arc_chord_mm": 0.1, "order": 2},
+           "fea": {"max_step_mm": 0.5, "dhat_mm": 0.02}}
+    df = write_pareto(_study_rows(), cfg, tmp_path / "p.csv", tmp_path / "p.png")
+    assert (tmp_path / "p.png").stat().st_size > 0
+    err = df.set_index("variant")["rel_error_pct"]
+    assert err["default"] == pytest.approx(100 * (0.2 + 0.04) / 8.0)
+    md = (tmp_path / "p.md").read_text()
+    assert "Converged value** 8.0000 N" in md and "How the default was chosen" in md
