@@ -244,9 +244,22 @@ def _write_shard(out_npz, index: dict, arrays: dict[str, np.ndarray], scene: dic
         fy_N=np.array([f["fy_N"] for f in fr], dtype=np.float64),
         meta=np.array(json.dumps(meta)),
     )
-    Path(out_npz).parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(out_npz, **out)
+    save_npz(out_npz, out)
     return meta
+
+
+def save_npz(path: str | Path, arrays: dict[str, np.ndarray], level: int = 1) -> None:
+    """``np.savez_compressed`` at zlib level ``level`` (1: twice as fast as numpy's
+    default, files ~15 % larger); read with ``np.load`` as usual."""
+    import zipfile
+
+    from numpy.lib import format as npformat
+
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=level) as zf:
+        for name, arr in arrays.items():
+            with zf.open(f"{name}.npy", "w", force_zip64=True) as f:
+                npformat.write_array(f, np.asanyarray(arr), allow_pickle=False)
 
 
 def build_shard(render_dir: str | Path, out_npz: str | Path, scene: dict | None = None,
