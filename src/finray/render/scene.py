@@ -111,9 +111,10 @@ def render_scene(result_npz: str | Path, out_dir: str | Path, pitch_deg: float =
 
     ``params.frames_per_scene`` frames are taken evenly in displacement (fields
     interpolated between solver frames), or the solver's frames if it is None.
-    The PNG + EXR files are written for ``params.written_frames`` (all by default);
-    ``on_frame(k, rgb, maps)``, if given, receives every frame in memory (the
-    arguments of :meth:`SceneRenderer.frame`'s result), in order.
+    The PNG + EXR files are written for ``params.written_frames`` (all by default;
+    frame files of an earlier render in ``out_dir`` are removed first);
+    ``on_frame(k, rgb, maps)``, if given, receives every frame in memory, in order
+    (``rgb, maps`` as :meth:`SceneRenderer.frame` returns them).
     ``scene`` (object, material, height_mm, split, ...) is copied into the index.
     ``draw_object`` draws the pushing object (figures only; never for training).
     """
@@ -121,6 +122,8 @@ def render_scene(result_npz: str | Path, out_dir: str | Path, pitch_deg: float =
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     (out_dir / INDEX_FILE).unlink(missing_ok=True)
+    for stale in [*out_dir.glob("image_*.png"), *out_dir.glob("stress_*.exr")]:
+        stale.unlink()
     res = resample_frames(load_fea_result(result_npz), params.frames_per_scene)
     t0 = time.perf_counter()
     frames = []
