@@ -21,7 +21,6 @@ import os
 
 os.environ.setdefault("LP_NUM_THREADS", "1")
 
-import numba as nb  # noqa: E402
 import numpy as np  # noqa: E402
 
 from ..geometry.mesh import TriMesh  # noqa: E402
@@ -139,22 +138,18 @@ class PyVistaRenderer:
 
 
 def block_mean_u8(img: np.ndarray, k: int) -> np.ndarray:
-    """:func:`block_mean` of an (H*k, W*k, C) uint8 image, exactly (integer sums,
-    one division), ~15x faster than the float reduction."""
+    """:func:`block_mean` of an (H*k, W*k, C) uint8 image, exactly (uint16 sums of
+    strided rows, then columns -- no overflow for k <= 16 -- and one division),
+    ~8x faster than the float reduction."""
     h, w = img.shape[0] // k, img.shape[1] // k
-    out = np.zeros((h, w, img.shape[2]), dtype=np.int64)
-    _block_sum_kernel(np.ascontiguousarray(img), k, out)
+    rows = img[0:h * k:k, :w * k].astype(np.uint16)
+    for i in range(1, k):
+        rows += img[i:h * k:k, :w * k]
+    rows = rows.reshape(h, w, k, *img.shape[2:])
+    out = rows[:, :, 0].copy()
+    for i in range(1, k):
+        out += rows[:, :, i]
     return out / float(k * k)
-
-
-@nb.njit(cache=True)
-def _block_sum_kernel(img, k, out):
-    for r in range(out.shape[0] * k):
-        ro = r // k
-        for c in range(out.shape[1] * k):
-            co = c // k
-            for ch in range(out.shape[2]):
-                out[ro, co, ch] += img[r, c, ch]
 
 
 def block_mean(img: np.ndarray, k: int) -> np.ndarray:
