@@ -190,12 +190,15 @@ def test_render_shard_equals_build_shard_of_all_files(renders, tmp_path):
                             pitch, render_params=rp, scene=dict(scene, splits=["pitch"]))
         assert meta["scene"]["scene_id"] == f"ellipse_16x9_steel_h30_p{pitch:g}"
         assert meta["scene"]["splits"] == ["pitch"]
+        if pitch == 0.0:  # every frame's image and stress support are pixel-aligned
+            assert meta["support_iou_min"] >= 0.98
         build_shard(renders[pitch], tmp_path / f"b{pitch:g}.npz", {"splits": ["pitch"]})
         a, b = load_shard(tmp_path / f"s{pitch:g}.npz"), load_shard(tmp_path / f"b{pitch:g}.npz")
         assert sorted(a) == sorted(b)
         for key in a:
             if key != "meta":
                 np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+        assert a["meta"]["support_iou_min"] == b["meta"]["support_iou_min"]
         # files only for the first and the last frame; the index lists every frame
         index = load_render_index(tmp_path / f"r{pitch:g}")
         assert index["n_frames"] == 3 and index["n_files"] == 2

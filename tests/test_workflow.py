@@ -114,6 +114,8 @@ def test_smoke_renders_are_pixel_aligned(smoke_run):
     for d in dirs:
         index = load_render_index(d)
         for k in range(index["n_frames"]):
+            if index["frames"][k]["image"] is None:  # no files (render.files_per_scene)
+                continue
             rgb, maps = read_render_frame(d, k, index)
             mask = segment(rgb)
             support = maps["coverage"] >= 0.5
@@ -121,3 +123,10 @@ def test_smoke_renders_are_pixel_aligned(smoke_run):
             iou = (mask & support).sum() / (mask | support).sum()
             worst = min(worst, iou)
     assert worst >= 0.98, worst
+    # every frame, with or without files: the shards record the lowest IoU
+    from finray.dataset import load_shard
+
+    shards = sorted((smoke_run / "results" / "dataset" / "shards").glob("*/*/*/p0.npz"))
+    assert len(shards) == len(dirs)
+    for s in shards:
+        assert load_shard(s)["meta"]["support_iou_min"] >= 0.98, s
