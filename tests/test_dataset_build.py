@@ -5,9 +5,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from finray.dataset import (MANIFEST_COLUMNS, DatasetParams, area_resample, build_shard,
-                            example_figure, load_shard, pitch_object, scene_splits, segment,
-                            write_manifest)
+from finray.dataset import (MANIFEST_COLUMNS, DatasetParams, FramePreparer, area_resample,
+                            build_shard, example_figure, load_shard, pitch_object, render_shard,
+                            scene_splits, segment, write_manifest)
 from finray.render import RenderParams, load_render_index, read_render_frame, render_scene
 
 from test_render_fixture import write_synthetic_fea_result
@@ -151,3 +151,72 @@ def test_params_from_config():
 def test_example_figure(renders, tmp_path):
     out = example_figure(renders[0.0], tmp_path / "fig.png", pitch_dirs=renders)
     assert out.stat().st_size > 10_000
+
+
+def test_frame_preparer_is_the_exact_area_average(renders):
+    """The banded weights give area_resample's values; masks and stress support use
+    ">= half" robustly (exact half-covered pixels count as covered)."""
+    params = DatasetParams(sizes=((128, 64), (64, 32), (50, 25)))
+    index = load_render_index(renders[0.0])
+    rgb, maps = read_render_frame(renders[0.0], 2, index)
+    rp = RenderParams.from_config(index["params"])
+    for box in (rp.box_px(params.crop_x_mm, params.crop_y_mm), (-3.3, 2.7, 150.1, 302.3)):
+        out = FramePreparer(rp.shape, box, params).prepare(rgb, maps)
+        sil = params.segment(rgb).astype(float)
+        for size in params.sizes:
+            k = f"{size[0]}x{size[1]}"
+            soft = area_resample(sil, box, size)
+            np.testing.assert_array_equal(out[f"input_{k}"], np.rint(soft * 255).astype(np.uint8))
+            np.testing.assert_array_equal(out[f"mask_{k}"], soft >= 0.5 - 1e-9)
+            cov = area_resample(maps["coverage"], box, size)
+            area = area_resample(maps["stress_area"], box, size)
+            ref = np.where(cov >= 0.5 - 1e-9, area / np.maximum(cov, 1e-300), 0.0)
+            np.testing.assert_allclose(out[f"stress_{k}"], ref, rtol=1e-6, atol=1e-7)
+    # a half-covered pixel is a mask pixel whatever the rounding of the sums
+    half = np.zeros((8, 4, 3), np.uint8)
+    half[:, :2] = 255
+    one = FramePreparer((8, 4), (0, 0, 4, 8), DatasetParams(sizes=((2, 1),), threshold=0.5,
+                                                             min_object_frac=0, max_hole_frac=0))
+    assert one.prepare(half)["mask_2x1"].tolist() == [[1], [1]]
+
+
+def test_render_shard_equals_build_shard_of_all_files(renders, tmp_path):
+    """One pass (frames in memory, a few files) gives the shard that rendering every
+    frame to files and reading them back gives."""
+    scene = {"object": "ellipse_16x9", "material": "steel", "height_mm": 30.0, "split": "shape"}
+    for pitch in (0.0, 20.0):
+        rp = RenderParams(frames_per_scene=3, files_per_scene=2)
+        meta = render_shard(renders[0.0].parent / "result.npz", tmp_path / f"r{pitch:g}", tmp_path / f"s{pitch:g}.npz",
+                            pitch, render_params=rp, scene=dict(scene, splits=["pitch"]))
+        assert meta["scene"]["scene_id"] == f"ellipse_16x9_steel_h30_p{pitch:g}"
+        assert meta["scene"]["splits"] == ["pitch"]
+        if pitch == 0.0:  # every frame's image and stress support are pixel-aligned
+            assert meta["support_iou_min"] >= 0.98
+        build_shard(renders[pitch], tmp_path / f"b{pitch:g}.npz", {"splits": ["pitch"]})
+        a, b = load_shard(tmp_path / f"s{pitch:g}.npz"), load_shard(tmp_path / f"b{pitch:g}.npz")
+        assert sorted(a) == sorted(b)
+        for key in a:
+            if key != "meta":
+                np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+        assert a["meta"]["support_iou_min"] == b["meta"]["support_iou_min"]
+        # files only for the first and the last frame; the index lists every frame
+        index = load_render_index(tmp_path / f"r{pitch:g}")
+        assert index["n_frames"] == 3 and index["n_files"] == 2
+        assert [f["image"] is not None for f in index["frames"]] == [True, False, True]
+        assert sorted(p.name for p in (tmp_path / f"r{pitch:g}").iterdir()) == [
+            "image_0000.png", "image_0002.png", "index.json", "stress_0000.exr", "stress_0002.exr"]
+        rgb, _ = read_render_frame(tmp_path / f"r{pitch:g}", 2, index)
+        np.testing.assert_array_equal(rgb, read_render_frame(renders[pitch], 2)[0])
+        with pytest.raises(FileNotFoundError, match="files_per_scene"):
+            read_render_frame(tmp_path / f"r{pitch:g}", 1, index)
+    # the example figure needs only the last frame's files
+    dirs = {0.0: tmp_path / "r0", 20.0: tmp_path / "r20"}
+    assert example_figure(dirs[0.0], tmp_path / "fig.png", pitch_dirs=dirs).stat().st_size > 10_000
+
+
+def test_written_frames():
+    assert RenderParams().written_frames(4).tolist() == [0, 1, 2, 3]
+    assert RenderParams(files_per_scene=5).written_frames(444).tolist() == [0, 111, 222, 332, 443]
+    assert RenderParams(files_per_scene=1).written_frames(444).tolist() == [443]
+    assert RenderParams(files_per_scene=0).written_frames(444).tolist() == []
+    assert RenderParams(files_per_scene=9).written_frames(3).tolist() == [0, 1, 2]

@@ -252,3 +252,11 @@ def test_benchmark_reports_both_paths(result_path):
     for key in ("raster_ms", "raster_io_ms", "pyvista_front_ms", "pyvista_pitch_ms"):
         assert b[key] > 0 and b[key.replace("_ms", "_fps_per_core")] == pytest.approx(1000 / b[key])
     assert b["image_px"] == [336, 160] and b["LP_NUM_THREADS"] == "1"
+
+
+def test_integer_block_mean_is_exact():
+    from finray.render.pvrender import block_mean, block_mean_u8
+
+    img = np.random.default_rng(3).integers(0, 256, (12, 9, 3), dtype=np.uint8)
+    for k in (1, 3):
+        np.testing.assert_array_equal(block_mean_u8(img, k), block_mean(img, k))

@@ -114,6 +114,8 @@ def test_smoke_renders_are_pixel_aligned(smoke_run):
     for d in dirs:
         index = load_render_index(d)
         for k in range(index["n_frames"]):
+            if index["frames"][k]["image"] is None:  # no files (render.files_per_scene)
+                continue
             rgb, maps = read_render_frame(d, k, index)
             mask = segment(rgb)
             support = maps["coverage"] >= 0.5
@@ -121,6 +123,13 @@ def test_smoke_renders_are_pixel_aligned(smoke_run):
             iou = (mask & support).sum() / (mask | support).sum()
             worst = min(worst, iou)
     assert worst >= 0.98, worst
+    # every frame, with or without files: the shards record the lowest IoU
+    from finray.dataset import load_shard
+
+    shards = sorted((smoke_run / "results" / "dataset" / "shards").glob("*/*/*/p0.npz"))
+    assert len(shards) == len(dirs)
+    for s in shards:
+        assert load_shard(s)["meta"]["support_iou_min"] >= 0.98, s
 
 
 def test_smoke_evaluation_summary_and_paper(smoke_run):
@@ -140,7 +149,7 @@ def test_smoke_evaluation_summary_and_paper(smoke_run):
     assert set(exps["occlusion"]["high"]) == {"plain", "occlusion", "baseline"}
     assert [float(p) for p in exps["pitch"]] == [0, 5, 10, 15, 20, 25, 30]
     assert set(exps["material"]["all"]["plain"]["groups"]) == {"steel", "neoprene"}
-    assert set(s["speed"]["stages"]) >= {"geometry", "fea", "render", "dataset", "train"}
+    assert set(s["speed"]["stages"]) >= {"geometry", "fea", "render", "train", "evaluate"}
     for name in ("shape_generalisation", "material_generalisation", "occlusion", "viewpoint", "speed"):
         for ext in ("pdf", "png"):
             assert (smoke_run / "paper" / "figures" / f"{name}.{ext}").stat().st_size > 1000

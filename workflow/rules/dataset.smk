@@ -1,23 +1,6 @@
-# Dataset stage: crop, downsample, segment; one shard per rendered scene and a manifest.
-
-
-rule dataset_shard:
-    input:
-        index=f"{RENDER}/{{object}}/{{material}}/h{{height}}/p{{pitch}}/index.json",
-    output:
-        shard=f"{DATASET}/shards/{{object}}/{{material}}/h{{height}}/p{{pitch}}.npz",
-    params:
-        dataset=config["dataset"],
-        scene=shard_scene_params,
-    log:
-        f"{RESULTS}/logs/dataset/{{object}}_{{material}}_h{{height}}_p{{pitch}}.log",
-    benchmark:
-        f"{RESULTS}/benchmarks/dataset/{{object}}_{{material}}_h{{height}}_p{{pitch}}.tsv"
-    threads: 1
-    conda:
-        "../../envs/finray.yaml"
-    script:
-        "../scripts/dataset_shard.py"
+# Dataset stage: the manifest of all shards and the example figure. The shards
+# themselves (crop, downsample, segment) are written by render_scene (render.smk),
+# in the same pass as the frames they come from.
 
 
 rule dataset_manifest:

@@ -1,4 +1,7 @@
-# Render stage: camera images and log-stress maps of every FEA frame.
+# Render + dataset stage: one job per rendered view renders every FEA frame (camera
+# image + log-stress maps), segments the camera image and writes the view's shard
+# in the same pass; only render.files_per_scene frames are also written as PNG + EXR
+# (figures, inspection) next to index.json.
 
 
 rule render_scene:
@@ -6,9 +9,11 @@ rule render_scene:
         result=f"{FEA}/{{object}}/{{material}}/h{{height}}/result.npz",
     output:
         index=f"{RENDER}/{{object}}/{{material}}/h{{height}}/p{{pitch}}/index.json",
+        shard=f"{DATASET}/shards/{{object}}/{{material}}/h{{height}}/p{{pitch}}.npz",
     params:
         render=config["render"],
-        scene=render_scene_params,
+        dataset=config["dataset"],
+        scene=shard_scene_params,
     log:
         f"{RESULTS}/logs/render/{{object}}_{{material}}_h{{height}}_p{{pitch}}.log",
     benchmark:
@@ -25,6 +30,8 @@ rule render_benchmark:
         result=render_benchmark_input,
     output:
         json=f"{RESULTS}/benchmarks/render_throughput.json",
+    params:
+        dataset=config["dataset"],
     log:
         f"{RESULTS}/logs/render/benchmark.log",
     threads: 1

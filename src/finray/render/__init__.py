@@ -4,10 +4,11 @@ Public API (see each module's docstring):
 
 - :func:`load_fea_result`, :func:`resample_frames` -- the solver's ``result.npz``
 - :class:`RenderParams` -- window, resolution, colours, stress transform (config ``render``)
-- :func:`render_scene` -- all frames of a scene into a directory (+ ``index.json``)
+- :func:`render_scene` -- all frames of a scene: files (all, or ``files_per_scene`` of
+  them) + ``index.json`` in a directory, every frame to an ``on_frame`` consumer
 - :class:`Rasterizer` (front view, numba) and :class:`~finray.render.pvrender.PyVistaRenderer`
   (any pitch)
-- :func:`benchmark` -- ms/frame of both paths
+- :func:`benchmark` -- ms/frame of both paths and of the whole per-frame pipeline
 """
 from .bench import benchmark
 from .imageio import read_exr, read_png, write_exr, write_png

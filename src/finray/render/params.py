@@ -71,6 +71,11 @@ class RenderParams:
     #: Frames per scene, evenly spaced in displacement and interpolated between
     #: the solver's frames; None takes the solver's frames as they are.
     frames_per_scene: int | None = None
+    #: How many of the frames are also written as PNG + EXR files (evenly spaced,
+    #: first and last included; see :func:`written_frames`); None writes all.
+    #: Frames not written still reach a consumer of :func:`~finray.render.scene.render_scene`
+    #: (the dataset shard) in memory.
+    files_per_scene: int | None = None
 
     def __post_init__(self):
         for key in ("window_x_mm", "window_y_mm"):
@@ -92,6 +97,8 @@ class RenderParams:
             raise ValueError("render.stress_ref_MPa must be > 0")
         if self.frames_per_scene is not None and self.frames_per_scene < 1:
             raise ValueError("render.frames_per_scene must be >= 1 or null")
+        if self.files_per_scene is not None and self.files_per_scene < 0:
+            raise ValueError("render.files_per_scene must be >= 0 or null")
 
     @classmethod
     def from_config(cls, section: dict | None) -> "RenderParams":
@@ -146,6 +153,18 @@ class RenderParams:
                 (self.window_y_mm[1] - y_mm[1]) * self.px_per_mm,
                 (x_mm[1] - self.window_x_mm[0]) * self.px_per_mm,
                 (self.window_y_mm[1] - y_mm[0]) * self.px_per_mm)
+
+    def written_frames(self, n_frames: int) -> np.ndarray:
+        """Indices (sorted, unique) of the frames of an ``n_frames`` scene written as
+        files: all if ``files_per_scene`` is None, else that many evenly spaced ones
+        (first and last included, so a figure's last frame always has its files)."""
+        if self.files_per_scene is None or self.files_per_scene >= n_frames:
+            return np.arange(n_frames)
+        if self.files_per_scene == 0:
+            return np.zeros(0, dtype=int)
+        if self.files_per_scene == 1:
+            return np.array([n_frames - 1])
+        return np.unique(np.rint(np.linspace(0, n_frames - 1, self.files_per_scene)).astype(int))
 
     def to_dict(self) -> dict:
         out = {}

@@ -22,6 +22,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+import numba as nb
 import numpy as np
 
 from ..geometry.mesh import TriMesh
@@ -150,6 +151,10 @@ def resample_frames(res: FEAResult, n_frames: int | None) -> FEAResult:
     w = np.clip(w, 0.0, 1.0)
 
     def lerp(a):
+        if a.dtype == np.float32 and a.ndim > 1:  # the big nodal fields: one pass
+            out = np.empty((len(i),) + a.shape[1:], dtype=np.float32)
+            _lerp_f32(a.reshape(len(a), -1), i, w, out.reshape(len(i), -1))
+            return out
         wa = w.reshape((-1,) + (1,) * (a.ndim - 1))
         out = (1 - wa) * a[i].astype(np.float64) + wa * a[i + 1].astype(np.float64)
         return out.astype(a.dtype)
@@ -158,3 +163,14 @@ def resample_frames(res: FEAResult, n_frames: int | None) -> FEAResult:
                    von_mises_MPa=lerp(res.von_mises_MPa), fx_N=lerp(res.fx_N), fy_N=lerp(res.fy_N),
                    object_points_mm=lerp(res.object_points_mm),
                    fea_frame=(1 - w) * res.fea_frame[i] + w * res.fea_frame[i + 1])
+
+
+@nb.njit(cache=True)
+def _lerp_f32(a, i, w, out):
+    """out[k] = (1 - w[k]) a[i[k]] + w[k] a[i[k] + 1], evaluated in float64 and rounded
+    to float32 (the same operations, in the same order, as the numpy expression)."""
+    for k in range(out.shape[0]):
+        wk = w[k]
+        vk = 1.0 - wk
+        for j in range(out.shape[1]):
+            out[k, j] = np.float32(vk * np.float64(a[i[k], j]) + wk * np.float64(a[i[k] + 1, j]))

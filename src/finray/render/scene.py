@@ -1,6 +1,9 @@
 """Render every frame of one FEA scene into one pixel frame: RGB PNG + stress EXR.
 
-Output directory of :func:`render_scene`::
+Output directory of :func:`render_scene` (files for the frames that
+``RenderParams.files_per_scene`` selects -- all by default; the workflow writes a
+few and hands every frame in memory to the dataset shard, see
+:func:`finray.dataset.render_shard`)::
 
     image_0000.png    camera image (H, W, 3) uint8: the finger seen at the job's pitch
     stress_0000.exr   float32 channels, always in the front (pitch 0) pixel frame:
@@ -11,7 +14,8 @@ Output directory of :func:`render_scene`::
                       0 (= stress x coverage where coverage >= 0.5; exact to downsample)
     ...
     index.json        written last: frames (index, solver frame, displacement, forces,
-                      file names), the render parameters, pitch, renderer, scene
+                      file names, null for frames without files), the render
+                      parameters, pitch, renderer, scene
 
 At pitch 0 the image comes from the 2D rasteriser (the same pixels pyvista's
 front view gives, to within anti-aliasing); at any other pitch (or with
@@ -23,6 +27,7 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -100,11 +105,16 @@ class SceneRenderer:
 def render_scene(result_npz: str | Path, out_dir: str | Path, pitch_deg: float = 0.0, *,
                  params: RenderParams | None = None, extrusion_mm: float = 20.0,
                  backend: str = "auto", draw_object: bool = False,
-                 scene: dict | None = None) -> dict:
+                 scene: dict | None = None,
+                 on_frame: Callable[[int, np.ndarray, dict], None] | None = None) -> dict:
     """Render all frames of a solver result into ``out_dir``; returns the index.
 
     ``params.frames_per_scene`` frames are taken evenly in displacement (fields
     interpolated between solver frames), or the solver's frames if it is None.
+    The PNG + EXR files are written for ``params.written_frames`` (all by default;
+    frame files of an earlier render in ``out_dir`` are removed first);
+    ``on_frame(k, rgb, maps)``, if given, receives every frame in memory, in order
+    (``rgb, maps`` as :meth:`SceneRenderer.frame` returns them).
     ``scene`` (object, material, height_mm, split, ...) is copied into the index.
     ``draw_object`` draws the pushing object (figures only; never for training).
     """
@@ -112,30 +122,40 @@ def render_scene(result_npz: str | Path, out_dir: str | Path, pitch_deg: float =
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     (out_dir / INDEX_FILE).unlink(missing_ok=True)
+    for stale in [*out_dir.glob("image_*.png"), *out_dir.glob("stress_*.exr")]:
+        stale.unlink()
     res = resample_frames(load_fea_result(result_npz), params.frames_per_scene)
     t0 = time.perf_counter()
     frames = []
     exr_meta = {"stress_transform": STRESS_TRANSFORM, "stress_ref_MPa": params.stress_ref_MPa,
                 "window_x_mm": list(params.window_x_mm), "window_y_mm": list(params.window_y_mm),
                 "px_per_mm": params.px_per_mm}
+    written = np.zeros(res.n_frames, dtype=bool)
+    written[params.written_frames(res.n_frames)] = True
+    max_vm = res.von_mises_MPa.max(axis=1)
     with SceneRenderer(res, params, pitch_deg, extrusion_mm, backend, draw_object) as r:
         for k in range(res.n_frames):
             rgb, maps = r.frame(k)
-            write_png(out_dir / _image_name(k), rgb)
-            write_exr(out_dir / _stress_name(k), maps, dict(exr_meta, frame=k))
+            if written[k]:
+                write_png(out_dir / _image_name(k), rgb)
+                write_exr(out_dir / _stress_name(k), maps, dict(exr_meta, frame=k))
+            if on_frame is not None:
+                on_frame(k, rgb, maps)
             frames.append({
                 "frame": k, "fea_frame": float(res.fea_frame[k]),
                 "displacement_mm": float(res.displacement_mm[k]),
                 "fx_N": float(res.fx_N[k]), "fy_N": float(res.fy_N[k]),
-                "max_von_mises_MPa": float(res.von_mises_MPa[k].max()),
-                "image": _image_name(k), "stress": _stress_name(k),
+                "max_von_mises_MPa": float(max_vm[k]),
+                "image": _image_name(k) if written[k] else None,
+                "stress": _stress_name(k) if written[k] else None,
             })
         backend_used = r.backend
     index = {
         "result": str(result_npz), "pitch_deg": float(pitch_deg), "renderer": backend_used,
         "draw_object": bool(draw_object), "extrusion_mm": float(extrusion_mm),
         "stress_transform": STRESS_TRANSFORM, "params": params.to_dict(),
-        "scene": dict(scene or {}), "n_frames": res.n_frames, "frames": frames,
+        "scene": dict(scene or {}), "n_frames": res.n_frames,
+        "n_files": int(written.sum()), "frames": frames,
         "seconds": time.perf_counter() - t0,
     }
     (out_dir / INDEX_FILE).write_text(json.dumps(index, indent=1))
@@ -153,6 +173,10 @@ def read_render_frame(render_dir: str | Path, k: int, index: dict | None = None
     of frame k."""
     index = index or load_render_index(render_dir)
     fr = index["frames"][k]
+    if fr.get("image") is None:
+        written = [f["frame"] for f in index["frames"] if f.get("image") is not None]
+        raise FileNotFoundError(f"{render_dir}: frame {k} was not written to files "
+                                f"(render.files_per_scene); frames with files: {written}")
     rgb = read_png(Path(render_dir) / fr["image"])
     chans, _ = read_exr(Path(render_dir) / fr["stress"])
     return rgb, chans
