@@ -30,7 +30,8 @@ def test_summary_names_the_chosen_and_the_configured_variant():
         h, w = map(int, size.split("x"))
         rows.append({"input": size, "height": h, "width": w, "base_channels": base, "parameters": 1,
                      "n_train": 100, "n_val": 10, "epochs": 3, "train_s_per_epoch": 1.0,
-                     "train_ms_per_frame": 10.0, "infer_force_ms": ms, "infer_full_ms": 2 * ms,
+                     "train_ms_per_frame": 10.0, "train_cpu_s_per_epoch": 1.0, "infer_force_ms": ms,
+                     "infer_full_ms": 2 * ms, "infer_force_cpu_ms": ms, "infer_full_cpu_ms": 2 * ms,
                      "val_force_rmse_N": rmse, "val_force_nrmse": rmse / 8, "val_stress_mse": 0.1})
     t = pd.DataFrame(rows)
     t["pareto"] = pareto_front(t["infer_force_ms"], t["val_force_rmse_N"])

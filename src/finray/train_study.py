@@ -24,8 +24,9 @@ from pathlib import Path
 import numpy as np
 
 COLUMNS = ["input", "height", "width", "base_channels", "parameters", "n_train", "n_val",
-           "epochs", "train_s_per_epoch", "train_ms_per_frame", "infer_force_ms",
-           "infer_full_ms", "val_force_rmse_N", "val_force_nrmse", "val_stress_mse",
+           "epochs", "train_s_per_epoch", "train_ms_per_frame", "train_cpu_s_per_epoch",
+           "infer_force_ms", "infer_full_ms", "infer_force_cpu_ms", "infer_full_cpu_ms",
+           "val_force_rmse_N", "val_force_nrmse", "val_stress_mse",
            "pareto", "chosen", "configured"]
 
 
@@ -62,7 +63,9 @@ def subsample_shards(shards, size: tuple[int, int], every: int) -> dict[str, np.
 
 def network_latency(model, n_calls: int = 200, repeats: int = 3) -> dict:
     """Median latency (ms) of the network alone at batch 1, one thread, ONNX Runtime:
-    ``force`` (encoder + force head) and ``full`` (with the stress decoder)."""
+    ``force`` (encoder + force head) and ``full`` (with the stress decoder), wall time,
+    and ``force_cpu``, ``full_cpu``: the calling thread's CPU time (ONNX Runtime runs a
+    one-thread session in it), which a machine shared with other jobs inflates less."""
     import onnxruntime as ort
 
     from .train import export_onnx, force_onnx_path
@@ -80,12 +83,14 @@ def network_latency(model, n_calls: int = 200, repeats: int = 3) -> dict:
             sess = ort.InferenceSession(str(f), opts, providers=["CPUExecutionProvider"])
             for _ in range(20):
                 sess.run(None, {"image": x})
-            ts = []
+            ts, cs = [], []
             for _ in range(repeats * n_calls):
-                t0 = time.perf_counter()
+                t0, c0 = time.perf_counter(), time.thread_time()
                 sess.run(None, {"image": x})
                 ts.append(time.perf_counter() - t0)
+                cs.append(time.thread_time() - c0)
             out[key] = float(np.median(ts) * 1e3)
+            out[f"{key}_cpu"] = float(np.median(cs) * 1e3)
     return out
 
 
@@ -139,8 +144,10 @@ def run_time_vs_error(shards, out_csv, out_png, out_md, sizes, bases, configured
             log(f"{v.label}: {len(tr['images'])} training frames, {len(va['images'])} validation")
             net = NetConfig(in_channels=1, base_channels=base, height=h, width=w)
             # best epoch by validation loss, as in the real training
+            c0 = time.thread_time()
             model, hist = train(tr["images"], tr["stress"], tr["fx_N"],
                                 (va["images"], va["stress"], va["fx_N"]), net, cfg, log=log)
+            cpu_seconds = time.thread_time() - c0  # with the validation passes
             seconds = hist.wall_time_s[-1]  # the loop, before the last validation pass
             ev = evaluate(model, torch.as_tensor(va["images"]), torch.as_tensor(va["stress"]),
                           torch.as_tensor(va["fx_N"]), cfg)
@@ -151,13 +158,15 @@ def run_time_vs_error(shards, out_csv, out_png, out_md, sizes, bases, configured
                          "n_val": len(va["images"]), "epochs": epochs,
                          "train_s_per_epoch": seconds / epochs,
                          "train_ms_per_frame": 1e3 * seconds / (epochs * len(tr["images"])),
+                         "train_cpu_s_per_epoch": cpu_seconds / epochs,
                          "infer_force_ms": lat["force"], "infer_full_ms": lat["full"],
+                         "infer_force_cpu_ms": lat["force_cpu"], "infer_full_cpu_ms": lat["full_cpu"],
                          "val_force_rmse_N": ev["force_rmse_N"],
                          "val_force_nrmse": ev["force_rmse_N"] / max(f_range, 1e-12),
                          "val_stress_mse": ev["stress_mse"]})
             log(f"{v.label}: {rows[-1]}")
     table = pd.DataFrame(rows)
-    cost, err = table["infer_force_ms"].to_numpy(), table["val_force_rmse_N"].to_numpy()
+    cost, err = table["infer_force_cpu_ms"].to_numpy(), table["val_force_rmse_N"].to_numpy()
     table["pareto"] = pareto_front(cost, err)
     chosen = choose_default(cost, err, tolerance)
     table["chosen"] = np.arange(len(table)) == chosen
@@ -179,8 +188,8 @@ def pareto_figure(table, path) -> None:
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(1, 2, figsize=(9, 3.6))
-    for a, col, title in ((ax[0], "infer_force_ms", "force only"),
-                          (ax[1], "infer_full_ms", "force + stress map")):
+    for a, col, title in ((ax[0], "infer_force_cpu_ms", "force only"),
+                          (ax[1], "infer_full_cpu_ms", "force + stress map")):
         a.plot(table[col], table["val_force_rmse_N"], "o", color="0.5")
         front = table[table["pareto"]].sort_values(col)
         a.plot(front[col], front["val_force_rmse_N"], "-", color="C0", label="Pareto front (force path)")
@@ -192,7 +201,7 @@ def pareto_figure(table, path) -> None:
         cf = table[table["configured"]]
         a.plot(cf[col], cf["val_force_rmse_N"], "s", ms=10, mfc="none", color="k",
                label="configured default")
-        a.set_xlabel(f"network latency, batch 1, 1 thread, ONNX Runtime ({title}) (ms)")
+        a.set_xlabel(f"network CPU time per frame, batch 1, 1 thread, ONNX Runtime\n({title}) (ms)")
         a.set_ylabel("validation force RMSE (N)")
         a.set_xscale("log")
     ax[0].legend(fontsize=7)
@@ -213,8 +222,10 @@ def summary_markdown(table, tolerance: float, configured) -> str:
         f"Each variant trained {epochs} epoch(s) on the same {n_train} training frames "
         "(a subset of the training shards, no augmentation, same seed), scored on "
         f"{int(table['n_val'].iloc[0])} frames of held-out scenes. Latencies: the network "
-        "alone at batch 1, one thread, ONNX Runtime, median (preprocessing adds the same "
-        "for every variant, see inference_latency.json). Training: s per epoch, one thread. "
+        "alone at batch 1, one thread, ONNX Runtime, median wall and CPU time (`_cpu_`: the "
+        "cost axis, less inflated by other jobs on a shared machine); preprocessing adds "
+        "the same for every variant, see inference_latency.json. Training: s per epoch, one "
+        "thread. "
         "One seed and a short schedule: the costs are firm, small error differences "
         "(tens of %) are within the run-to-run variation of such a training.",
         "",
@@ -224,7 +235,7 @@ def summary_markdown(table, tolerance: float, configured) -> str:
         f"({best['val_force_rmse_N']:.4g} N).",
         "",
         f"**Chosen default: {ch['input']} base {int(ch['base_channels'])}** -- the fastest "
-        f"variant (force path {ch['infer_force_ms']:.3g} ms) whose force RMSE "
+        f"variant (force path {ch['infer_force_cpu_ms']:.3g} ms CPU) whose force RMSE "
         f"({ch['val_force_rmse_N']:.4g} N) is within {100 * tolerance:g} % of the best.",
     ]
     h, w, b = configured
@@ -235,7 +246,7 @@ def summary_markdown(table, tolerance: float, configured) -> str:
         lines.append(
             f"Configured default (train.input_size {h}x{w}, base_channels {b}): "
             + ("the chosen variant." if same else
-               f"force RMSE {c['val_force_rmse_N']:.4g} N at {c['infer_force_ms']:.3g} ms, "
+               f"force RMSE {c['val_force_rmse_N']:.4g} N at {c['infer_force_cpu_ms']:.3g} ms CPU, "
                f"{'on' if c['pareto'] else 'off'} the Pareto front; the study would choose "
                f"{ch['input']} base {int(ch['base_channels'])}."))
     else:
