@@ -21,6 +21,9 @@ def test_choose_default_is_the_cheapest_within_tolerance():
     assert choose_default(cost, err, 0.1) == 1  # 0.25 <= 1.1 x 0.24; 0.30 is not
     assert choose_default(cost, err, 0.3) == 0
     assert choose_default(cost, err, 0.0) == 3
+    assert choose_default(cost, err, 0.1, budget=1.45) == 1  # 1.5 and 4.6 ms do not fit
+    assert choose_default(cost, err, 0.1, budget=1.0) == 0
+    assert choose_default(cost, err, 0.1, budget=0.1) == 1  # none fits: all compete
 
 
 def test_summary_names_the_chosen_and_the_configured_variant():
@@ -37,7 +40,7 @@ def test_summary_names_the_chosen_and_the_configured_variant():
     t["pareto"] = pareto_front(t["infer_force_ms"], t["val_force_rmse_N"])
     t["chosen"] = np.arange(4) == choose_default(t["infer_force_ms"], t["val_force_rmse_N"], 0.1)
     t["configured"] = np.arange(4) == 0
-    md = summary_markdown(t[COLUMNS], 0.1, (64, 32, 16))
+    md = summary_markdown(t[COLUMNS], 0.1, (64, 32, 16), 2.0)
     assert "Chosen default: 64x32 base 32" in md
     assert "on the Pareto front; the study would choose 64x32 base 32" in md
 
