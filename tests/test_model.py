@@ -62,3 +62,12 @@ def test_force_in_newtons():
 def test_bad_input_size():
     with pytest.raises(ValueError, match="divisible by 16"):
         NetConfig(height=60, width=30)
+
+
+def test_force_path_skips_only_the_decoder():
+    torch.manual_seed(0)
+    net = FinRayNet(NetConfig(base_channels=4)).eval()
+    net.set_force_normalisation([1.5], [3.0])
+    x = torch.rand(4, 3, 64, 32)
+    with torch.no_grad():
+        torch.testing.assert_close(net.force(x), net(x)[1])

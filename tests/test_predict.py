@@ -118,7 +118,7 @@ def test_latency_report_fields(exported, render_png):
     frame = np.asarray(Image.open(render_png).convert("RGB"))
     out = latency(Predictor(d / "model.ts"), [frame], n_frames=3, repeats=1)
     for key in ("segment_ms", "resample_ms", "network_full_ms", "network_force_ms", "force_ms",
-                "full_ms", "paper_ms"):
+                "full_ms", "force_cpu_ms", "full_cpu_ms", "paper_ms"):
         assert out[key] > 0
     assert out["n_calls"] == 3 and out["paper_ms"] == 8.0
 

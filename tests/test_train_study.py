@@ -21,6 +21,9 @@ def test_choose_default_is_the_cheapest_within_tolerance():
     assert choose_default(cost, err, 0.1) == 1  # 0.25 <= 1.1 x 0.24; 0.30 is not
     assert choose_default(cost, err, 0.3) == 0
     assert choose_default(cost, err, 0.0) == 3
+    assert choose_default(cost, err, 0.1, budget=1.45) == 1  # 1.5 and 4.6 ms do not fit
+    assert choose_default(cost, err, 0.1, budget=1.0) == 0
+    assert choose_default(cost, err, 0.1, budget=0.1) == 1  # none fits: all compete
 
 
 def test_summary_names_the_chosen_and_the_configured_variant():
@@ -30,13 +33,14 @@ def test_summary_names_the_chosen_and_the_configured_variant():
         h, w = map(int, size.split("x"))
         rows.append({"input": size, "height": h, "width": w, "base_channels": base, "parameters": 1,
                      "n_train": 100, "n_val": 10, "epochs": 3, "train_s_per_epoch": 1.0,
-                     "train_ms_per_frame": 10.0, "infer_force_ms": ms, "infer_full_ms": 2 * ms,
+                     "train_ms_per_frame": 10.0, "train_cpu_s_per_epoch": 1.0, "infer_force_ms": ms,
+                     "infer_full_ms": 2 * ms, "infer_force_cpu_ms": ms, "infer_full_cpu_ms": 2 * ms,
                      "val_force_rmse_N": rmse, "val_force_nrmse": rmse / 8, "val_stress_mse": 0.1})
     t = pd.DataFrame(rows)
     t["pareto"] = pareto_front(t["infer_force_ms"], t["val_force_rmse_N"])
     t["chosen"] = np.arange(4) == choose_default(t["infer_force_ms"], t["val_force_rmse_N"], 0.1)
     t["configured"] = np.arange(4) == 0
-    md = summary_markdown(t[COLUMNS], 0.1, (64, 32, 16))
+    md = summary_markdown(t[COLUMNS], 0.1, (64, 32, 16), 2.0)
     assert "Chosen default: 64x32 base 32" in md
     assert "on the Pareto front; the study would choose 64x32 base 32" in md
 

@@ -154,41 +154,51 @@ def latency(predictor: Predictor, frames: list[np.ndarray], n_frames: int = 200,
     """Per-frame latency (ms) at batch 1 of ``predictor`` from raw images: medians over
     ``repeats`` x ``n_frames`` calls (frames cycled), end to end (``force``: force only;
     ``full``: force and stress map) and per stage (segmentation, crop + resample,
-    network full / force only). Timings, not correctness: run on a quiet machine."""
+    network full / force only). Wall time (``*_ms``) and the calling thread's CPU time
+    (``*_cpu_ms``: on a machine shared with other jobs, the wall time also counts the
+    time the thread waited for a core; one-thread runtimes compute in the calling
+    thread). Timings, not correctness: run on a quiet machine."""
     if not frames:
         raise ValueError("no frames to time")
-    stages = {k: [] for k in ("segment_ms", "resample_ms", "network_full_ms",
-                              "network_force_ms", "force_ms", "full_ms")}
-    clock = time.perf_counter
+    names = ("segment", "resample", "network_full", "network_force", "force", "full")
+    wall = {k: [] for k in names}
+    cpu = {k: [] for k in names}
     for f in frames[:10]:  # warm-up (allocators, ONNX Runtime's first runs)
         predictor(f)
         predictor.force(f)
     for _ in range(repeats):
         for k in range(n_frames):
             f = frames[k % len(frames)]
-            t0 = clock()
+            t, c = [time.perf_counter()], [time.thread_time()]
+
+            def tick():
+                t.append(time.perf_counter())
+                c.append(time.thread_time())
+
             mask = predictor.segment(f)
-            t1 = clock()
+            tick()
             x = predictor.network_input(mask)
-            t2 = clock()
+            tick()
             predictor.run(x)
-            t3 = clock()
+            tick()
             predictor.run_force(x)
-            t4 = clock()
+            tick()
             predictor.force(f)
-            t5 = clock()
+            tick()
             predictor(f)
-            t6 = clock()
-            for key, dt in zip(stages, (t1 - t0, t2 - t1, t3 - t2, t4 - t3, t5 - t4, t6 - t5)):
-                stages[key].append(dt * 1e3)
+            tick()
+            for j, key in enumerate(names):
+                wall[key].append((t[j + 1] - t[j]) * 1e3)
+                cpu[key].append((c[j + 1] - c[j]) * 1e3)
     out = {"backend": predictor.backend, "input_size": list(predictor.size),
            "base_channels": predictor.meta.get("base_channels"),
            "frame_shape": list(np.asarray(frames[0]).shape), "n_calls": repeats * n_frames,
            "n_distinct_frames": min(len(frames), n_frames)}
-    for key, v in stages.items():
-        out[key] = float(np.median(v))
-        out[key.replace("_ms", "_p90_ms")] = float(np.percentile(v, 90))
-    out["median_of_repeats_force_ms"] = [float(np.median(stages["force_ms"][r * n_frames:(r + 1) * n_frames]))
+    for key in names:
+        out[f"{key}_ms"] = float(np.median(wall[key]))
+        out[f"{key}_p90_ms"] = float(np.percentile(wall[key], 90))
+        out[f"{key}_cpu_ms"] = float(np.median(cpu[key]))
+    out["median_of_repeats_force_ms"] = [float(np.median(wall["force"][r * n_frames:(r + 1) * n_frames]))
                                          for r in range(repeats)]
     out["paper_ms"] = PAPER_LATENCY_MS
     out["paper_note"] = "the paper's inference time per image, on a GPU"

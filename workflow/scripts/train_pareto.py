@@ -7,7 +7,8 @@ with log_to(snakemake.log[0]):
         snakemake.input.shards, snakemake.output.table, snakemake.output.figure,
         snakemake.output.summary, sizes=b["train_sizes"], bases=b["train_base_channels"],
         configured=(*t["input_size"], t["base_channels"]), epochs=b["train_epochs"],
-        every=b["train_every"], tolerance=b["train_tolerance"], lr=b["train_lr"],
+        every=b["train_every"], tolerance=b["train_tolerance"], budget_ms=b["train_budget_ms"],
+        lr=b["train_lr"],
         latency_calls=b["latency_frames"], val_fraction=t["val_fraction"],
         batch_size=t["batch_size"], seed=t["seed"], bf16=t["bf16"], channels_last=t["channels_last"])
     print(table.to_string())
