@@ -106,7 +106,7 @@ def run_experiment(out_dir, shard_paths, size, models: dict[str, str], baseline_
     metrics = pd.DataFrame(rows)
     pd.concat(frames_out, ignore_index=True).to_csv(out_dir / "frames.csv", index=False,
                                                     float_format="%.6g")
-    metrics.to_csv(out_dir / "metrics.csv", index=False, float_format="%.6g")
+    metrics.to_csv(out_dir / "metrics.csv", index=False, float_format="%.10g")
     summary = {c: {r["predictor"]: {k: r[k] for k in r if k not in ("condition", "group", "predictor")}
                    for r in rows if r["condition"] == c and r["group"] == "all"}
                for c in conditions}
