@@ -36,10 +36,24 @@ def experiment_summary(exp_dir) -> dict:
     return out
 
 
+def setup_summary(cfg: dict) -> dict:
+    """The set-up constants the manuscript quotes, from the config that ran."""
+    f, fea = cfg["finger"], cfg["fea"]
+    mat = cfg["materials"][f["material"]]
+    return {"extrusion_mm": f["extrusion_mm"], "rib_angle_step_deg": f["ribs"]["angle_step_deg"],
+            "n_ribs": f["ribs"]["count"], "finger_material": f["material"],
+            "finger_E_MPa": mat.get("youngs_modulus_MPa"), "friction": fea["friction"],
+            "push_mm": fea["push_mm"], "heights_mm": list(cfg["heights_mm"]),
+            "mesh_size_mm": cfg["mesh"]["size_mm"], "input_size": list(cfg["train"]["input_size"]),
+            "base_channels": cfg["train"]["base_channels"]}
+
+
 def build_summary(evaluate_dir, experiments, baseline_fit, speed_json, fea_pareto_csv,
-                  histories: dict[str, str], usable_nrmse_pct: float) -> dict:
+                  histories: dict[str, str], usable_nrmse_pct: float, config: dict | None = None) -> dict:
     evaluate_dir = Path(evaluate_dir)
     s: dict = {"experiments": {e: experiment_summary(evaluate_dir / e) for e in experiments}}
+    if config is not None:
+        s["setup"] = setup_summary(config)
     if "pitch" in experiments:
         m = pd.read_csv(evaluate_dir / "pitch" / "metrics.csv")
         s["pitch_usable_deg"] = {p: usable_range(m, p, usable_nrmse_pct)
@@ -61,7 +75,8 @@ def build_summary(evaluate_dir, experiments, baseline_fit, speed_json, fea_paret
     s["training"] = {}
     for name, path in histories.items():
         h = json.loads(Path(path).read_text())
-        s["training"][name] = {"train_seconds": h["train_seconds"], "n_train": h["n_train"],
+        s["training"][name] = {"augment": h.get("augment"),
+                               "train_seconds": h["train_seconds"], "n_train": h["n_train"],
                                "n_val": h["n_val"], "epochs": len(h["epoch"]),
                                "best_val_force_rmse_N": min(h["val_force_rmse_N"]) if h["val_force_rmse_N"] else None}
     speed = json.loads(Path(speed_json).read_text())
