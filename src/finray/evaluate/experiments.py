@@ -10,7 +10,9 @@ Every experiment writes into one directory:
   one row per object (or material, height...) otherwise; stress metrics (log-stress
   MSE inside the FEA mask, SSIM) for the networks;
 - ``metrics.json``: ``{condition: {predictor: metrics of "all"}}`` for the summary;
-- ``examples.npz``: a few frames (input, FEA and predicted stress) for the figures.
+- ``examples.npz``: a few frames (input, FEA and predicted stress) for the figures;
+- ``checks.json`` (written by the rule's script): experiment-specific checks, e.g. for
+  the pitch study the IoU of the pitch augmentation against the pitched renders.
 """
 from __future__ import annotations
 
@@ -23,9 +25,6 @@ import pandas as pd
 from .baseline import RidgeBaseline
 from .metrics import force_metrics, stress_metrics
 from .predictions import ExportedModel, load_test_set, occlude
-
-METRIC_COLUMNS = ["mse_N2", "rmse_N", "nrmse_pct", "r2", "max_abs_error_N", "max_true_N", "n"]
-
 
 def _predict_all(images_u8, models: dict[str, ExportedModel], baseline: RidgeBaseline | None):
     preds, maps = {}, {}
