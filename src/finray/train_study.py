@@ -43,26 +43,6 @@ class Variant:
         return f"{self.height}x{self.width} b{self.base_channels}"
 
 
-def subsample_shards(shards, size: tuple[int, int], every: int) -> dict[str, np.ndarray]:
-    """:func:`finray.train.load_split` keeping every ``every``-th frame of each shard
-    (evenly over the push), without stacking the full set in memory."""
-    from .dataset import load_shard, size_key
-
-    k = size_key(size)
-    parts: dict[str, list] = {n: [] for n in ("images", "stress", "fx_N", "scene_id")}
-    for path in shards:
-        d = load_shard(path)
-        sel = slice(0, None, max(1, int(every)))
-        x = d[f"input_{k}"][sel]
-        parts["images"].append(x[:, None].astype(np.float32) / 255.0)
-        parts["stress"].append(d[f"stress_{k}"][sel][:, None].astype(np.float32))
-        parts["fx_N"].append(d["fx_N"][sel][:, None].astype(np.float32))
-        parts["scene_id"].append(np.full(len(x), d["meta"]["scene"]["scene_id"]))
-    if not parts["images"]:
-        raise ValueError("no shards given")
-    return {n: np.concatenate(v) for n, v in parts.items()}
-
-
 def network_latency(model, n_calls: int = 200, repeats: int = 3) -> dict:
     """Median latency (ms) of the network alone at batch 1, one thread, ONNX Runtime:
     ``force`` (encoder + force head) and ``full`` (with the stress decoder), wall time,
@@ -133,14 +113,14 @@ def run_time_vs_error(shards, out_csv, out_png, out_md, sizes, bases, configured
     import torch
 
     from .model import NetConfig, count_parameters
-    from .train import TrainConfig, evaluate, train, validation_scenes
+    from .train import TrainConfig, evaluate, load_split, train, validation_scenes
 
     torch.set_num_threads(1)
     rows = []
     cfg = TrainConfig(epochs=epochs, batch_size=batch_size, lr=lr, seed=seed, threads=1,
                       bf16=bf16, channels_last=channels_last, progress=False)
     for h, w in sizes:
-        data = subsample_shards(shards, (h, w), every)
+        data = load_split(shards, (h, w), every)
         val_ids = validation_scenes(data["scene_id"], val_fraction, seed)
         is_val = np.isin(data["scene_id"], list(val_ids))
         if not is_val.any() or is_val.all():

@@ -101,10 +101,8 @@ def rendered_views():
     pobj, pmat, ph = pitch_scene()
     views = []
     for s in scenes(config):
-        pitches = {0.0}
-        if (s.object, s.material, f"{s.height_mm:g}") == (pobj, pmat, ph):
-            pitches |= {float(p) for p in config["render"]["pitches_deg"]}
-        views += [(s, p) for p in sorted(pitches)]
+        is_pitch_scene = (s.object, s.material, f"{s.height_mm:g}") == (pobj, pmat, ph)
+        views += [(s, p) for p in (series_pitches() if is_pitch_scene else [0.0])]
     return views
 
 
@@ -128,11 +126,15 @@ def pitch_scene():
     return pobj, config["objects"][pobj]["materials"][0], f"{heights[len(heights) // 2]:g}"
 
 
+def series_pitches():
+    """Pitches of the viewpoint series (deg): 0 and every one of render.pitches_deg."""
+    return sorted({0.0} | {float(p) for p in config["render"]["pitches_deg"]})
+
+
 def pitch_series_indices():
     """Render indices of the pitch scene at every pitch (the figure's series)."""
     obj, mat, h = pitch_scene()
-    pitches = sorted({0.0} | {float(p) for p in config["render"]["pitches_deg"]})
-    return [f"{RENDER}/{obj}/{mat}/h{h}/p{pitch_label(p)}/index.json" for p in pitches]
+    return [f"{RENDER}/{obj}/{mat}/h{h}/p{pitch_label(p)}/index.json" for p in series_pitches()]
 
 
 def render_benchmark_input(wildcards):
@@ -168,26 +170,24 @@ def eval_models(*names):
 
 def pitch_series_shards():
     obj, mat, h = pitch_scene()
-    pitches = sorted({0.0} | {float(p) for p in config["render"]["pitches_deg"]})
-    return [f"{DATASET}/shards/{obj}/{mat}/h{h}/p{pitch_label(p)}.npz" for p in pitches]
+    return [f"{DATASET}/shards/{obj}/{mat}/h{h}/p{pitch_label(p)}.npz" for p in series_pitches()]
 
 
 def experiment_setup(wildcards):
     """Test shards, models and conditions of an experiment (see finray.evaluate)."""
     e = wildcards.experiment
-    occ = [lvl for lvl in config["dataset"]["occlusion_levels"]]
-    pitches = sorted({0.0} | {float(p) for p in config["render"]["pitches_deg"]})
-    return {
-        "shape": {"shards": shard_files(splits=["shape"], pitch=0.0), "models": eval_models("plain"),
-                  "group_col": "object", "conditions": None},
-        "material": {"shards": shard_files(splits=["material"], pitch=0.0),
-                     "models": eval_models("plain"), "group_col": "material", "conditions": None},
-        "occlusion": {"shards": shard_files(splits=["shape"], pitch=0.0),
-                      "models": eval_models("plain", "occlusion"), "group_col": "object",
-                      "conditions": {lvl: {"occlusion": lvl} for lvl in occ}},
-        "pitch": {"shards": pitch_series_shards(), "models": eval_models("plain", "pitch"),
-                  "group_col": None, "conditions": {f"{p:g}": {"pitch_deg": p} for p in pitches}},
-    }[e]
+    if e == "shape":
+        return {"shards": shard_files(splits=["shape"], pitch=0.0), "models": eval_models("plain"),
+                "group_col": "object", "conditions": None}
+    if e == "material":
+        return {"shards": shard_files(splits=["material"], pitch=0.0),
+                "models": eval_models("plain"), "group_col": "material", "conditions": None}
+    if e == "occlusion":
+        return {"shards": shard_files(splits=["shape"], pitch=0.0),
+                "models": eval_models("plain", "occlusion"), "group_col": "object",
+                "conditions": {lvl: {"occlusion": lvl} for lvl in config["dataset"]["occlusion_levels"]}}
+    return {"shards": pitch_series_shards(), "models": eval_models("plain", "pitch"), "group_col": None,
+            "conditions": {f"{p:g}": {"pitch_deg": p} for p in series_pitches()}}
 
 
 def experiment_inputs(wildcards):

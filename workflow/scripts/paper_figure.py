@@ -2,6 +2,7 @@ import json
 from pathlib import Path
 
 from finray.evaluate import figures
+from finray.evaluate.speed import fea_seconds_by_material
 from finray.logs import log_to
 
 name = snakemake.params.figure
@@ -14,7 +15,7 @@ with log_to(snakemake.log[0]):
         if name == "shape_generalisation":
             figures.generalisation_figure(exp_dir, out, "object", "Shape generalisation: held-out shapes")
         elif name == "material_generalisation":
-            fea = figures.fea_seconds_by_material(snakemake.input.fea_summaries)
+            fea = fea_seconds_by_material(snakemake.input.fea_summaries)
             net_ms = json.loads(Path(snakemake.input.latency).read_text())["full_ms"]
             figures.material_figure(exp_dir, out, fea, net_ms)
         elif name == "occlusion":

@@ -24,12 +24,13 @@ import pandas as pd
 
 from .baseline import RidgeBaseline
 from .metrics import force_metrics, stress_metrics
-from .predictions import ExportedModel, load_test_set, occlude
+from ..predict import Predictor
+from .predictions import load_test_set, occlude, predict_images
 
-def _predict_all(images_u8, models: dict[str, ExportedModel], baseline: RidgeBaseline | None):
+def _predict_all(images_u8, models: dict[str, Predictor], baseline: RidgeBaseline | None):
     preds, maps = {}, {}
     for name, m in models.items():
-        preds[name], maps[name] = m.predict(images_u8)
+        preds[name], maps[name] = predict_images(m, images_u8)
     if baseline is not None:
         preds["baseline"] = baseline.predict_images(images_u8.astype(np.float32) / 255.0)
     return preds, maps
@@ -73,7 +74,8 @@ def run_experiment(out_dir, shard_paths, size, models: dict[str, str], baseline_
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     arrays, table = load_test_set(shard_paths, size)
-    nets = {name: ExportedModel(path) for name, path in models.items()}
+    # TorchScript: batched, and the same runtime as the training's export
+    nets = {name: Predictor(path, threads=1, backend="torchscript") for name, path in models.items()}
     base = RidgeBaseline.load(baseline_path) if baseline_path else None
     predictors = list(nets) + (["baseline"] if base is not None else [])
     conditions = conditions or {"all": {}}

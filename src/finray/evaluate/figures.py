@@ -81,9 +81,10 @@ def _stress_row(axes, ex: dict, net: str, vmax: float, title_prefix=""):
         ax.axis("off")
 
 
-def generalisation_figure(exp_dir, out_pdf, group_col: str, title: str):
-    """Shape generalisation: force over the test frames per group (network, baseline,
-    FEA), and stress maps FEA vs network at the largest force of each group."""
+def _force_and_stress_grid(exp_dir, group_col: str, extra_cols: int = 0):
+    """Figure of an experiment with one condition: force over the test frames per group
+    (top row) and FEA vs network stress maps at the largest force (bottom row), plus
+    ``extra_cols`` empty columns; returns ``(fig, gridspec, groups)``."""
     plt = _plt()
     exp_dir = Path(exp_dir)
     frames = pd.read_csv(exp_dir / "frames.csv")
@@ -92,8 +93,8 @@ def generalisation_figure(exp_dir, out_pdf, group_col: str, title: str):
     preds = _predictors(frames)
     groups = sorted(frames[group_col].astype(str).unique())
     n = len(groups)
-    fig = plt.figure(figsize=(3.4 * n, 6.2))
-    gs = fig.add_gridspec(2, n, height_ratios=[1, 1.3])
+    fig = plt.figure(figsize=(3.4 * (n + extra_cols), 6.2))
+    gs = fig.add_gridspec(2, n + extra_cols, height_ratios=[1, 1.3])
     for i, grp in enumerate(groups):
         ax = fig.add_subplot(gs[0, i])
         _force_panel(ax, frames[frames[group_col].astype(str) == grp].reset_index(drop=True), preds,
@@ -103,6 +104,13 @@ def generalisation_figure(exp_dir, out_pdf, group_col: str, title: str):
             ax.legend(fontsize=7, loc="lower right")
     vmax = float(max(ex["stress_true"].max(), 1e-6))
     _stress_row([fig.add_subplot(gs[1, i]) for i in range(min(n, len(ex["label"])))], ex, preds[0], vmax)
+    return fig, gs, groups
+
+
+def generalisation_figure(exp_dir, out_pdf, group_col: str, title: str):
+    """Shape generalisation: force over the test frames per group (network, baseline,
+    FEA), and stress maps FEA vs network at the largest force of each group."""
+    fig, _, _ = _force_and_stress_grid(exp_dir, group_col)
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     _save(fig, out_pdf)
@@ -110,21 +118,7 @@ def generalisation_figure(exp_dir, out_pdf, group_col: str, title: str):
 
 def material_figure(exp_dir, out_pdf, fea_seconds: dict[str, float], net_ms: float):
     """Material generalisation, with the FEA time per material beside the network's."""
-    plt = _plt()
-    exp_dir = Path(exp_dir)
-    frames = pd.read_csv(exp_dir / "frames.csv")
-    metrics = pd.read_csv(exp_dir / "metrics.csv")
-    ex = load_examples(exp_dir / "examples.npz")["all"]
-    preds = _predictors(frames)
-    mats = sorted(frames["material"].unique())
-    fig = plt.figure(figsize=(3.4 * (len(mats) + 1), 6.2))
-    gs = fig.add_gridspec(2, len(mats) + 1, height_ratios=[1, 1.3])
-    for i, m in enumerate(mats):
-        ax = fig.add_subplot(gs[0, i])
-        _force_panel(ax, frames[frames["material"] == m].reset_index(drop=True), preds, metrics, "all", m)
-        if i == 0:
-            ax.set_ylabel("Fx on the finger (N)")
-            ax.legend(fontsize=7, loc="lower right")
+    fig, gs, mats = _force_and_stress_grid(exp_dir, "material", extra_cols=1)
     ax = fig.add_subplot(gs[0, len(mats)])
     names = mats + ["CNN"]
     vals = [fea_seconds.get(m, np.nan) for m in mats] + [net_ms / 1e3]
@@ -134,9 +128,6 @@ def material_figure(exp_dir, out_pdf, fea_seconds: dict[str, float], net_ms: flo
     ax.set_yscale("log")
     ax.set_ylabel("seconds (FEA: per scene; CNN: per frame)")
     ax.set_title("time per material", fontsize=8)
-    vmax = float(max(ex["stress_true"].max(), 1e-6))
-    axes = [fig.add_subplot(gs[1, i]) for i in range(min(len(ex["label"]), len(mats) + 1))]
-    _stress_row(axes, ex, preds[0], vmax)
     fig.suptitle("Material generalisation: ring in steel, NinjaFlex and neoprene (no retraining)",
                  fontsize=10)
     fig.tight_layout()
@@ -213,15 +204,3 @@ def speed_figure(speed: dict, out_pdf):
     fig.suptitle("Speed: FEA against the network, and the pipeline's stages", fontsize=10)
     fig.tight_layout()
     _save(fig, out_pdf)
-
-
-def fea_seconds_by_material(summary_paths) -> dict[str, float]:
-    """Median FEA wall time (s) per material from the scenes' ``summary.json``."""
-    import json
-
-    times: dict[str, list] = {}
-    for p in summary_paths:
-        s = json.loads(Path(p).read_text())
-        mat = Path(p).parent.parent.name  # results/fea/<object>/<material>/h<h>/summary.json
-        times.setdefault(mat, []).append(float(s["wall_time_s"]))
-    return {m: float(np.median(v)) for m, v in sorted(times.items())}

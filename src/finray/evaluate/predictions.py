@@ -1,11 +1,8 @@
 """Test sets from dataset shards and batched predictions of an exported model."""
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pandas as pd
-import torch
 
 from ..dataset import apply_augment, augment_seed, load_shard, sample_augment, size_key
 
@@ -51,23 +48,14 @@ def occlude(images: np.ndarray, table: pd.DataFrame, level: str, seed: int,
     return out
 
 
-class ExportedModel:
-    """A TorchScript model of the training stage; inputs (N, H, W) uint8 or [0, 1] floats."""
-
-    def __init__(self, path: str | Path, threads: int = 1):
-        torch.set_num_threads(threads)
-        self.path = Path(path)
-        self.model = torch.jit.load(str(path), map_location="cpu").eval()
-
-    @torch.inference_mode()
-    def predict(self, images: np.ndarray, batch: int = 256) -> tuple[np.ndarray, np.ndarray]:
-        """Force (N,) in N and log-stress maps (N, H, W)."""
-        x = np.asarray(images)
-        scale = 255.0 if x.dtype == np.uint8 else 1.0
-        forces, maps = [], []
-        for i in range(0, len(x), batch):
-            xb = torch.from_numpy(x[i:i + batch].astype(np.float32) / scale)[:, None]
-            s, f = self.model(xb)
-            forces.append(f[:, 0].numpy())
-            maps.append(s[:, 0].numpy())
-        return np.concatenate(forces), np.concatenate(maps)
+def predict_images(predictor, images: np.ndarray, batch: int = 256) -> tuple[np.ndarray, np.ndarray]:
+    """Force (N,) in N and log-stress maps (N, H, W) of network inputs (N, H, W), uint8
+    or [0, 1] floats, through :meth:`finray.predict.Predictor.run` in batches."""
+    x = np.asarray(images)
+    scale = 255.0 if x.dtype == np.uint8 else 1.0
+    forces, maps = [], []
+    for i in range(0, len(x), batch):
+        stress, force = predictor.run(x[i:i + batch, None].astype(np.float32) / scale)
+        forces.append(force[:, 0])
+        maps.append(stress[:, 0])
+    return np.concatenate(forces), np.concatenate(maps)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 
@@ -19,6 +20,17 @@ def fea_seconds(fea_scenes_csv) -> dict[str, dict]:
                          "max": float(t.max()), "n": int(len(t)),
                          "newton_iterations_median": float(g["newton_iterations"].median())}
     return out
+
+
+def fea_seconds_by_material(summary_paths) -> dict[str, float]:
+    """Median FEA wall time (s) per material from the scenes' ``summary.json``
+    (``results/fea/<object>/<material>/h<h>/summary.json``): the material figure needs
+    the ring's scenes only, not the whole batch's ``fea_scenes.csv``."""
+    times: dict[str, list] = {}
+    for p in summary_paths:
+        s = json.loads(Path(p).read_text())
+        times.setdefault(Path(p).parent.parent.name, []).append(float(s["wall_time_s"]))
+    return {m: float(np.median(v)) for m, v in sorted(times.items())}
 
 
 STAGE_ORDER = ["geometry", "fea", "render", "dataset", "train", "evaluate"]
