@@ -5,8 +5,10 @@ the force normalised by the training set's mean and standard deviation (stored i
 model, so that its outputs are in N). Adam, seeded and deterministic: two runs with
 the same data and seed give identical losses.
 
-Speed on the CPU: ``channels_last`` memory and ``bfloat16`` autocast (about 2x), one
-intra-op thread per job when other jobs share the machine.
+Speed on the CPU: ``channels_last`` memory, one intra-op thread per job when other jobs
+share the machine, and ``bfloat16`` autocast only where the CPU runs it natively
+(``bf16="auto"``, :mod:`finray.precision`); the choice and the measured step time go to
+the log and to ``history.json``.
 """
 from __future__ import annotations
 
@@ -15,7 +17,7 @@ import copy
 import json
 import math
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Callable
 
@@ -24,6 +26,7 @@ import torch
 from torch import nn
 
 from .model import FinRayNet, NetConfig
+from .precision import cpu_name, resolve_bf16
 
 
 @dataclass
@@ -35,9 +38,10 @@ class TrainConfig:
     alpha_force: float = 10.0
     seed: int = 0
     threads: int = 1
-    bf16: bool = True
+    bf16: bool | str = "auto"  # "auto": bfloat16 autocast where the CPU runs it natively
     channels_last: bool = True
-    progress: bool = True
+    progress: bool = True  # a tqdm bar (interactive use); the log gets lines either way
+    log_every_s: float = 60.0  # a progress line in the log at most this often (s)
 
 
 @dataclass
@@ -49,6 +53,10 @@ class History:
     val_loss: list = field(default_factory=list)
     val_force_rmse_N: list = field(default_factory=list)
     wall_time_s: list = field(default_factory=list)
+    epoch_time_s: list = field(default_factory=list)  # training loop + validation (s)
+    precision: str = ""  # "bfloat16" or "float32", as resolved from TrainConfig.bf16
+    precision_reason: str = ""
+    step_ms: float = float("nan")  # median training step (batch, augmentation included)
 
 
 @dataclass
@@ -142,6 +150,10 @@ def seed_everything(seed: int) -> torch.Generator:
     return g
 
 
+def _use_bf16(cfg: TrainConfig) -> bool:
+    return resolve_bf16(cfg.bf16)[0] if isinstance(cfg.bf16, str) else bool(cfg.bf16)
+
+
 def _autocast(enabled: bool):
     if enabled:
         return torch.autocast("cpu", dtype=torch.bfloat16)
@@ -158,7 +170,7 @@ def evaluate(model: FinRayNet, images: torch.Tensor, stress: torch.Tensor, force
     model.eval()
     n = len(images)
     s_se, f_se, f_pred = 0.0, 0.0, []
-    with torch.no_grad(), _autocast(cfg.bf16):
+    with torch.no_grad(), _autocast(_use_bf16(cfg)):
         for i in range(0, n, batch_size):
             x = _prep(images[i:i + batch_size], cfg.channels_last)
             s, f = model.forward_normalised(x)
@@ -189,6 +201,9 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
     """
     torch.set_num_threads(cfg.threads)
     gen = seed_everything(cfg.seed)
+    bf16, why = resolve_bf16(cfg.bf16)
+    cfg = replace(cfg, bf16=bf16)
+    log(f"precision: {why}")
     x_all = torch.as_tensor(images, dtype=torch.float32)
     s_all = torch.as_tensor(stress, dtype=torch.float32)
     f_all = torch.as_tensor(force_N, dtype=torch.float32).reshape(len(x_all), -1)
@@ -205,10 +220,13 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
     if val is not None:
         vx, vs, vf = (torch.as_tensor(a, dtype=torch.float32) for a in val)
         vf = vf.reshape(len(vx), -1)
-    hist = History()
+    hist = History(precision="bfloat16" if bf16 else "float32", precision_reason=why)
     best, best_loss = None, math.inf
     n = len(x_all)
     n_batches = max(1, n // cfg.batch_size)  # drop the last partial batch (batch-norm)
+    log(f"{cfg.epochs} epochs of {n_batches} batches of {cfg.batch_size} "
+        f"({n} frames), {cfg.threads} thread(s)")
+    step_s: list[float] = []  # first epoch's step times, for the measured step time
     t0 = time.perf_counter()
     try:
         from tqdm import tqdm
@@ -221,13 +239,15 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
         it = range(n_batches)
         bar = tqdm(it, desc=f"epoch {epoch}/{cfg.epochs}", leave=False,
                    disable=not cfg.progress) if tqdm else it
+        te = t_log = time.perf_counter()
         for b in bar:
+            tb = time.perf_counter()
             idx = perm[b * cfg.batch_size:(b + 1) * cfg.batch_size]
             x, s, f = x_all[idx], s_all[idx], f_all[idx]
             if augment is not None:
                 x, s = augment(x, s, gen)
             x = _prep(x, cfg.channels_last)
-            with _autocast(cfg.bf16):
+            with _autocast(bf16):
                 s_pred, f_pred = model.forward_normalised(x)
             ls = mse(s_pred.float(), s)
             lf = mse(f_pred.float(), model.normalise_force(f))
@@ -240,14 +260,28 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
             tot["loss"] += float(loss.detach())
             tot["s"] += float(ls.detach())
             tot["f"] += float(lf.detach())
+            now = time.perf_counter()
+            if epoch == 1:
+                step_s.append(now - tb)
+                if len(step_s) == min(n_batches, 25):  # past the first steps' warm-up
+                    hist.step_ms = 1e3 * float(np.median(step_s[len(step_s) // 5:]))
+                    log(f"step time {hist.step_ms:.1f} ms ({hist.precision}, batch "
+                        f"{cfg.batch_size}): about {hist.step_ms * n_batches / 1e3:.0f} s "
+                        "per epoch")
+            if now - t_log >= cfg.log_every_s:
+                t_log = now
+                log(f"epoch {epoch}/{cfg.epochs}: batch {b + 1}/{n_batches}, train loss "
+                    f"{tot['loss'] / (b + 1):.5f}, {now - te:.0f} s")
             if tqdm and cfg.progress:
                 bar.set_postfix(loss=f"{tot['loss'] / (b + 1):.4f}")
+        if step_s:
+            hist.step_ms = 1e3 * float(np.median(step_s[len(step_s) // 5:]))
         hist.epoch.append(epoch)
         hist.train_loss.append(tot["loss"] / n_batches)
         hist.train_stress_mse.append(tot["s"] / n_batches)
         hist.train_force_mse.append(tot["f"] / n_batches)
         hist.wall_time_s.append(time.perf_counter() - t0)
-        msg = f"epoch {epoch}: train loss {hist.train_loss[-1]:.5f}"
+        msg = f"epoch {epoch}/{cfg.epochs}: train loss {hist.train_loss[-1]:.5f}"
         if val is not None:
             ev = evaluate(model, vx, vs, vf, cfg)
             hist.val_loss.append(ev["loss"])
@@ -256,6 +290,8 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
             score = ev["loss"]
         else:
             score = hist.train_loss[-1]
+        hist.epoch_time_s.append(time.perf_counter() - te)
+        msg += f", {hist.epoch_time_s[-1]:.0f} s"
         if score < best_loss:
             best_loss, best = score, copy.deepcopy(model.state_dict())
             msg += " (best)"
@@ -394,6 +430,7 @@ def train_from_shards(shards, out_dir: str | Path, net_cfg: NetConfig, cfg: Trai
                         net_cfg, cfg, aug, log=log)
     seconds = time.perf_counter() - t0
     extra = {"train_config": asdict(cfg), "augment": asdict(augment) if augment else None,
+             "cpu": cpu_name(), "torch_threads": torch.get_num_threads(),
              "validation_scenes": sorted(val_ids), "n_train": int(len(tr["images"])),
              "n_val": int(len(va["images"])), "train_seconds": seconds}
     save_checkpoint(model, hist, out_dir / "model.pt", extra)

@@ -102,7 +102,7 @@ def run_time_vs_error(shards, out_csv, out_png, out_md, sizes, bases, configured
                       epochs: int = 3, every: int = 6, tolerance: float = 0.1,
                       budget_ms: float = 1.0,
                       latency_calls: int = 200, val_fraction: float = 0.1, batch_size: int = 16,
-                      lr: float = 1e-4, seed: int = 0, bf16: bool = True,
+                      lr: float = 1e-4, seed: int = 0, bf16: bool | str = "auto",
                       channels_last: bool = True, log=print):
     """Train and time every ``sizes x bases`` variant; write the table (CSV), the
     Pareto figure (PNG) and a summary (Markdown); returns the table (DataFrame).
@@ -260,7 +260,8 @@ def summary_markdown(table, tolerance: float, configured, budget_ms: float = np.
 
 def train_time_table(models, histories, benchmarks):
     """Training time of each model of the full config: from its ``history.json``
-    (epochs, frames, seconds in the training loop, best validation force RMSE) and
+    (epochs, frames, seconds in the training loop, numeric type, measured step time,
+    CPU, best validation force RMSE) and
     Snakemake's benchmark ``.tsv`` of the job (wall and CPU seconds, peak RSS MB)."""
     import json
 
@@ -279,6 +280,8 @@ def train_time_table(models, histories, benchmarks):
                "s_per_epoch": h.get("train_seconds", float("nan")) / max(epochs, 1),
                "job_wall_s": float(b["s"]), "job_cpu_s": float(b["cpu_time"]),
                "max_rss_MB": float(b["max_rss"]),
+               "precision": h.get("precision", ""), "step_ms": h.get("step_ms"),
+               "cpu": h.get("cpu", ""),
                "best_val_force_rmse_N": min(h["val_force_rmse_N"]) if h.get("val_force_rmse_N") else None}
         row["ms_per_frame"] = 1e3 * row["s_per_epoch"] / max(row["n_train"] or 1, 1)
         rows.append(row)
