@@ -17,12 +17,14 @@ the finger. At equilibrium they are equal (the finger's free-body balance).
 """
 from __future__ import annotations
 
+import logging
 import time
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
 from ..geometry.mesh import BOUNDARY_TAGS, TriMesh
+from ..logs import Progress
 from .assembly import ElementBlock
 from .contact import ContactModel, ContactParams, split_p2_edges
 from .material import NeoHookean
@@ -30,6 +32,8 @@ from .solver import Model, NewtonOptions, SimulationError, StepOptions, march
 
 __all__ = ["RigidObject", "DeformableObject", "SimulationOptions", "SimulationResult",
            "simulate", "SimulationError", "boundary_loops"]
+
+log = logging.getLogger(__name__)
 
 
 @dataclass
@@ -82,6 +86,8 @@ class SimulationOptions:
     linear_solver : "auto", "cholmod", "cholespy" or "splu".
     psd : "auto" (exact Hessian, projected when not positive definite), True, False.
     stress : compute nodal von Mises stresses.
+    log_every_s : a progress line (frame k/n, travel mm, load steps, elapsed s) in the
+        ``finray.fea`` log at most this often (s), and at the last frame.
     """
 
     push_mm: float = 10.0
@@ -101,6 +107,7 @@ class SimulationOptions:
     linear_solver: str = "auto"
     psd: object = "auto"
     stress: bool = True
+    log_every_s: float = 30.0
 
 
 @dataclass
@@ -279,13 +286,21 @@ def simulate(finger_mesh: TriMesh, obj: RigidObject | DeformableObject, material
     q0 = np.zeros(model.n)
     model.U_step_start = model.U(q0)
     record(0, 0.0, q0, {})
+    what = f"FEA {getattr(obj, 'name', 'object')}"
+    log.info(f"{what}: push {push:g} mm in {n_frames} frames, {model.n} DOFs")
+    progress = Progress(log, what, n_frames, opts.log_every_s)
+
+    def on_frame(k, s, q, info):
+        record(k + 1, s, q, info)
+        progress(k + 1, f"travel {rec['displacement_mm'][-1]:.2f}/{push:g} mm, "
+                        f"{info.get('steps', 0)} load steps")
     L = push
     so = StepOptions(initial_step=opts.initial_step_mm / L, max_step=opts.max_step_mm / L,
                      min_step=opts.min_step_mm / L, max_retries=opts.max_retries,
                      friction_lag_iterations=opts.friction_lag_iterations)
     try:
         march(model, q0, lambda s: s * push * direction, frames_s[1:], so, opts.newton,
-              on_frame=lambda k, s, q, info: record(k + 1, s, q, info),
+              on_frame=on_frame,
               friction=opts.contact.mu > 0)
     except SimulationError as e:
         e.args = (f"{e.args[0]} at object displacement {e.load * push:.4f} mm "
