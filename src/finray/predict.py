@@ -280,11 +280,14 @@ def read_frames(path: str | Path):
 
 def _read_image(path: Path) -> np.ndarray | FrameError:
     """The image (H, W[, C]) of a file, or the :class:`FrameError` saying why not."""
-    import imageio.v3 as iio
+    from PIL import Image
 
     try:
-        img = iio.imread(path)
-    except Exception as exc:  # any reader's error on a bad file is this frame's, not the run's
+        with Image.open(path) as im:
+            if im.mode not in ("L", "LA", "RGB", "RGBA", "I", "I;16", "F"):
+                im = im.convert("RGB")  # palette, bilevel, CMYK, ...
+            img = np.asarray(im)
+    except Exception as exc:  # any decoder's error on a bad file is this frame's, not the run's
         return FrameError(f"not a readable image ({_one_line(exc)})")
     if img.ndim == 3 and img.shape[-1] in (1, 2):  # grey (+ alpha)
         img = img[..., 0]
@@ -297,8 +300,11 @@ def _read_image(path: Path) -> np.ndarray | FrameError:
 
 def _video_frames(path: Path):
     """``(name, rgb (H, W, 3) uint8 | FrameError)`` of each frame of a video; names
-    ``<stem>_<k:05d>`` with k the frame's rank. A packet that does not decode is
-    reported as a FrameError and skipped."""
+    ``<stem>_<k:05d>``, k the frame's rank in the stream (from its time stamp, so that
+    a lost frame leaves its rank out). A packet that does not decode comes as a
+    FrameError; a stream that cannot be read on ends the video with one; frames the
+    container counts that never came out of the decoder (a lost reference frame) come
+    as FrameErrors at the end."""
     import av
 
     try:
@@ -308,23 +314,43 @@ def _video_frames(path: Path):
     if not container.streams.video:
         container.close()
         raise InputError(f"{path} has no video stream")
+    stream = container.streams.video[0]
+    rate = stream.average_rate or stream.guessed_rate
+    start = stream.start_time or 0
+    count = iter(range(1 << 62))  # ranks by order where a time stamp is missing
+    seen: set[str] = set()
+
+    def name(pts, time_base) -> str:
+        if pts is None or not rate or not time_base:
+            n = f"{path.stem}_{next(count):05d}"
+        else:
+            n = f"{path.stem}_{round((pts - start) * time_base * rate):05d}"
+        seen.add(n)
+        return n
 
     def frames():
-        k = 0
         with container:
-            stream = container.streams.video[0]
-            for packet in container.demux(stream):
+            packets = container.demux(stream)
+            while True:
+                try:
+                    packet = next(packets)
+                except StopIteration:
+                    break
+                except av.FFmpegError as exc:
+                    yield (f"{path.stem} (rest)",
+                           FrameError(f"the video cannot be read on ({_one_line(exc)})"))
+                    return
                 try:
                     decoded = packet.decode()
                 except av.FFmpegError as exc:
-                    at = (f"{float(packet.pts * packet.time_base):.3f} s"
-                          if packet.pts is not None and packet.time_base else "unknown time")
-                    yield (f"{path.stem}_{k:05d}",
-                           FrameError(f"packet at {at} does not decode ({_one_line(exc)})"))
+                    yield (name(packet.pts, packet.time_base),
+                           FrameError(f"the frame does not decode ({_one_line(exc)})"))
                     continue
                 for fr in decoded:
-                    yield f"{path.stem}_{k:05d}", fr.to_ndarray(format="rgb24")
-                    k += 1
+                    yield name(fr.pts, fr.time_base), fr.to_ndarray(format="rgb24")
+        lost = [n for n in (f"{path.stem}_{k:05d}" for k in range(stream.frames)) if n not in seen]
+        for n in lost:
+            yield n, FrameError("the frame was not decoded (a frame it depends on was lost)")
 
     return frames()
 
@@ -340,8 +366,8 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
     ``on_skip(name, message)`` is called and the run goes on. ``on_frame(row)`` gets
     each row ``{"frame", "fx_N"}`` as it completes. Returns ``{"rows": [...],
     "skipped": [(name, message), ...]}``. Raises :class:`InputError` for a missing
-    model or source, and when no frame at all could be predicted (a single image:
-    its own message).
+    model or source, for a single image that cannot be predicted, and when no frame
+    at all could be.
     """
     import matplotlib
 
@@ -351,6 +377,7 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
     from .render.imageio import write_exr, write_png
 
     frames = read_frames(source)  # checks the source before the model loads
+    one_image = Path(source).is_file() and Path(source).suffix.lower() not in VIDEO_SUFFIXES
     p = Predictor(model_path, threads, backend)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -368,6 +395,8 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
                     force, stress = p(frame)
             except FrameError as exc:
                 msg = f"{name}: {exc}"
+                if one_image:
+                    raise InputError(msg) from None
                 skipped.append((name, msg))
                 if on_skip is not None:
                     on_skip(name, msg)
@@ -388,7 +417,5 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
     if not rows:
         if not skipped:
             raise InputError(f"{source} has no frames")
-        if len(skipped) == 1:
-            raise InputError(skipped[0][1])
         raise InputError(f"no frame of {source} could be predicted ({len(skipped)} skipped)")
     return {"rows": rows, "skipped": skipped}
