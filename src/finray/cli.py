@@ -219,9 +219,12 @@ def _run_simulate(args) -> int:
 
 PREDICT_HELP = """\
 Predict the contact force (N) and the stress map of each frame of an image, a folder
-of images or a video. The finger is segmented and cropped as in the dataset stage,
-anchored on its clamped base, so camera frames of any size work. Writes forces.csv
-and, per frame, <name>_stress.exr (log10(1 + sigma / 1 kPa)) and <name>_stress.png.
+of images or a video (PyAV). The finger is segmented and cropped as in the dataset
+stage, anchored on its clamped base, so camera frames of any size work. Writes
+forces.csv (frame,fx_N; a row as each frame completes) and, per frame,
+<name>_stress.exr (log10(1 + sigma / 1 kPa)) and <name>_stress.png. A frame that
+cannot be predicted (corrupt, no finger) is reported on stderr and skipped, the
+others are written (exit code 1); bad input stops with one line (exit code 2).
 The network runs in ONNX Runtime when model.onnx and model.force.onnx lie beside
 model.ts (faster), else in TorchScript.
 """
