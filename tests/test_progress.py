@@ -40,10 +40,10 @@ def test_progress_lines_are_periodic_and_end_at_the_last_frame(monkeypatch, capl
 
 
 def test_render_logs_frame_travel_and_time(tmp_path):
-    (tmp_path / "c10_steel_h30").mkdir()
-    res = write_synthetic_fea_result(tmp_path / "c10_steel_h30" / "result.npz", n_frames=4)
-    with log_to(tmp_path / "render.log"):
+    res = write_synthetic_fea_result(tmp_path / "result.npz", n_frames=4)
+    with log_to(tmp_path / "render.log"):  # as the workflow's render job runs it
         index = render_scene(res, tmp_path / "p0", 0.0, params=RenderParams(frames_per_scene=3),
+                             scene={"object": "c10", "material": "steel", "height_mm": 30},
                              log_every_s=0)
     lines = (tmp_path / "render.log").read_text().splitlines()
     assert lines[0] == "render c10_steel_h30: 3 frames at pitch 0 deg (raster)"

@@ -141,7 +141,9 @@ def render_scene(result_npz: str | Path, out_dir: str | Path, pitch_deg: float =
     written[params.written_frames(res.n_frames)] = True
     max_vm = res.von_mises_MPa.max(axis=1)
     with SceneRenderer(res, params, pitch_deg, extrusion_mm, backend, draw_object) as r:
-        what = f"render {Path(result_npz).parent.name}"  # the FEA scene's directory
+        sc = scene or {}
+        what = (f"render {sc['object']}_{sc.get('material')}_h{float(sc.get('height_mm', 0)):g}"
+                if "object" in sc else f"render {Path(result_npz).parent}")
         log.info(f"{what}: {res.n_frames} frames at pitch {pitch_deg:g} deg ({r.backend})")
         progress = Progress(log, what, res.n_frames, log_every_s)
         for k in range(res.n_frames):
