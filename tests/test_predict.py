@@ -180,17 +180,19 @@ def test_cli_predict_bad_input_is_one_line(exported, render_png, tmp_path, capsy
                  "--out", out]) == 2
     assert f"no model at {tmp_path / 'none.ts'}" in one_line_error(capsys, "finray predict: ")
     assert main(["predict", "--model", model, str(tmp_path / "nothing.png"), "--out", out]) == 2
-    assert f"{tmp_path / 'nothing.png'} does not exist" in one_line_error(capsys, "finray predict: ")
+    msg = one_line_error(capsys, "finray predict: ")
+    assert f"{tmp_path / 'nothing.png'} does not exist" in msg
     notes = tmp_path / "notes.png"
     notes.write_text("not an image\n")
     assert main(["predict", "--model", model, str(notes), "--out", out]) == 2
     assert "notes.png: not a readable image (" in one_line_error(capsys, "finray predict: ")
-    assert main(["predict", "--model", model, str(blank(tmp_path / "blank.png")), "--out", out]) == 2
+    no_finger = blank(tmp_path / "blank.png")
+    assert main(["predict", "--model", model, str(no_finger), "--out", out]) == 2
     assert "blank.png: no finger found in the image" in one_line_error(capsys, "finray predict: ")
     empty = tmp_path / "empty"
     empty.mkdir()
     assert main(["predict", "--model", model, str(empty), "--out", out]) == 2
-    assert f"no images (.png" in one_line_error(capsys, "finray predict: ")
+    assert "no images (.png" in one_line_error(capsys, "finray predict: ")
     bad_ts = tmp_path / "bad.ts"
     bad_ts.write_bytes(b"not a model")
     (tmp_path / "bad.ts.json").write_text((d / "model.ts.json").read_text())
