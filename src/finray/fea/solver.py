@@ -474,8 +474,9 @@ class NewtonOptions:
 @dataclass
 class NewtonResult:
     """``residual``: :meth:`Model.residual_norm` at the last assembled state (before
-    the final step of size < tol_dx, which only reduces it); ``note``: why a
-    converged solve is unusual (e.g. the line search stalled at round-off)."""
+    the final step of size < tol_dx, which in Newton's quadratic regime reduces it
+    further; no assembly is spent to measure it again); ``note``: why a converged
+    solve is unusual (e.g. the line search stalled at round-off)."""
 
     q: np.ndarray
     converged: bool
