@@ -12,6 +12,8 @@ rule fea_scene:
     params:
         fea=config["fea"],
         material=material_params,
+        # not an output: Snakemake deletes a failed job's outputs, this report stays
+        failure_report=f"{FEA}/failed/{{object}}_{{material}}_h{{height}}.json",
     log:
         f"{RESULTS}/logs/fea/{{object}}_{{material}}_h{{height}}.log",
     benchmark:

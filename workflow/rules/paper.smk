@@ -122,6 +122,7 @@ rule summary:
         baseline=f"{EVALUATE}/baseline/fit.json",
         speed=f"{EVALUATE}/speed/speed.json",
         fea_pareto=f"{RESULTS}/benchmarks/fea_pareto.csv",
+        fea_scenes=f"{RESULTS}/benchmarks/fea_scenes.csv",
         histories=expand(f"{TRAIN}/{{model}}/history.json", model=list(config["train"]["models"])),
     output:
         json=f"{RESULTS}/summary.json",
