@@ -135,9 +135,9 @@ def finger_fea_params():
     return canonical({k: config["finger"][k] for k in ("material", "extrusion_mm")})
 
 
-def study_materials():
-    """Materials of the FEA studies: steel, the finger's and neoprene (when configured)."""
-    names = {"steel", "neoprene", config["finger"]["material"]} & set(config["materials"])
+def study_materials(*extra):
+    """Materials of an FEA study: steel, the finger's and ``extra`` (those configured)."""
+    names = {"steel", config["finger"]["material"], *extra} & set(config["materials"])
     return canonical({n: material_constants(n) for n in names})
 
 

@@ -43,7 +43,7 @@ rule fea_stability:
         fea=section("fea"),
         mesh=section("mesh"),
         finger=section("finger"),
-        materials=study_materials(),
+        materials=study_materials("neoprene"),  # a case of the suite
         placement=section("placement"),
         sizes=section("benchmarks", keys=FEA_STUDY_KEYS),
     log:
