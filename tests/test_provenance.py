@@ -1,27 +1,33 @@
 """Provenance: a changed config value re-plans exactly the jobs that read it.
 
 How the plan is obtained (Snakemake's own, without running a job): the module fixture
-fakes a completed smoke run in a temporary working directory. Snakemake builds the
-smoke config's DAG, every output (and benchmark file) is touched in topological order,
-and Snakemake's persistence records each job's metadata as after a real run
-(``Persistence.finished``: params, set of input files, code, software stack). Then, for
-every leaf key of the schema (for ``objects``, ``materials`` and ``train.models``: the
-entries of config/smoke.yaml), a copy of the smoke config with that one value changed
-is planned: the DAG that ``snakemake -n`` builds, with all rerun triggers. The jobs it
-re-plans for a reason of their own (params changed, set of input files changed, output
-missing: a job the change adds) are the value's first readers; jobs re-planned only
-because an upstream job reruns are downstream and not counted.
+fakes a finished smoke run in a temporary working directory. Snakemake builds the smoke
+config's DAG, every output (and benchmark file) is touched in topological order, and
+Snakemake's persistence records each job's metadata as after a real run
+(``Persistence.finished``: params, set of input files, code, software stack); the smoke
+config then plans nothing. For every leaf key of the schema (for ``objects``,
+``materials`` and ``train.models``: the entries of config/smoke.yaml), a copy of the
+smoke config with that one value changed is planned: the DAG ``snakemake -n`` builds,
+with all rerun triggers. Two views of it are compared with ``READERS``:
 
-The test fails if a rule stops declaring a value its script reads: the params recorded
-by the fake run and the new ones then agree, the rule drops out of the value's plan, and
-the plan differs from ``READERS``. A script cannot read the config past its params and
-input (``test_no_script_reads_config``). It fails too if a rule declares more than it
-reads (it shows up in the plan of a key it does not read), if a key nothing reads is
-not listed in ``UNREAD`` with its reason, and if the same config with its keys in
-another order re-plans anything (params not in canonical form).
+- readers: the rules whose jobs see the change by Snakemake's own checks
+  (``params_changed``, ``input_changed``), asked of every job, or that get new jobs;
+  these must equal the key's entry in ``READERS`` (``UNREAD``: none);
+- first: the rules Snakemake re-plans on their own account (not merely because an
+  upstream job reruns); they must be among the readers, and not empty. Snakemake checks
+  a job's params only when nothing upstream reruns, so this is the first stage that
+  reads the value.
 
-One DAG per key, built in this process (~0.2-0.5 s each). This uses Snakemake's
-internal ``Workflow._prepare_dag``/``_build_dag``/``persistence`` (Snakemake 9).
+The test fails if a rule stops declaring a value its script reads: its recorded and new
+params then agree, the rule drops out of the key's readers and differs from
+``READERS`` (a script cannot read the config past its params and input:
+``test_no_script_reads_config``). It fails too if a rule declares a value it does not
+read (it shows up under a key it does not read), if a key no job reads is not listed in
+``UNREAD`` with its reason, and if the same config with its keys in another order
+re-plans anything (params not in canonical form).
+
+One DAG per key (~0.2-0.5 s each), built in this process with Snakemake's internal
+``Workflow._prepare_dag``/``_build_dag`` and ``persistence`` (Snakemake 9).
 """
 from __future__ import annotations
 
