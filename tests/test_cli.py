@@ -3,6 +3,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 from finray.cli import build_parser
 from finray.geometry.mesh import TriMesh
@@ -50,6 +51,43 @@ def test_geometry_object_file(tmp_path):
     assert len(obj.triangles) > 0 and np.isfinite(obj.points).all()
 
 
-def test_geometry_missing_size_is_an_error(tmp_path):
-    r = run("geometry", "--object", "square", "--out", str(tmp_path))
-    assert r.returncode != 0 and "--size-mm" in r.stderr
+def one_line_error(r, prefix):
+    """Exit code 2, nothing on stdout, one line on stderr that starts with ``prefix``."""
+    assert r.returncode == 2, (r.returncode, r.stderr)
+    assert "Traceback" not in r.stderr and r.stdout == ""
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(prefix), r.stderr
+    return lines[0]
+
+
+@pytest.mark.parametrize("command", ["geometry", "simulate"])
+def test_missing_size_is_an_error_named_by_its_command(tmp_path, command):
+    extra = ["--height-mm", "30"] if command == "simulate" else []
+    r = run(command, "--object", "square", *extra, "--out", str(tmp_path))
+    msg = one_line_error(r, f"finray {command}: ")
+    assert "--size-mm is required with --object" in msg
+
+
+def test_simulate_without_an_object_is_an_error(tmp_path):
+    r = run("simulate", "--height-mm", "30", "--out", str(tmp_path))
+    assert "give --object or --object-file" in one_line_error(r, "finray simulate: ")
+
+
+@pytest.mark.parametrize("command", ["geometry", "simulate"])
+def test_missing_config_file_is_an_error(tmp_path, command):
+    """A --config that does not exist stops the command (it once ran on the defaults)."""
+    missing = tmp_path / "missing.yaml"
+    r = run(command, "--config", str(missing), "--object", "circle", "--size-mm", "20",
+            "--height-mm", "30", "--out", str(tmp_path / "out"))
+    msg = one_line_error(r, f"finray {command}: config error: ")
+    assert f"config file '{missing}' does not exist" in msg
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("text, why", [("finger: [1, 2\n  mesh: {", "is not valid YAML"),
+                                       ("- a list\n- of things\n", "is not a mapping")])
+def test_config_that_is_not_a_mapping_is_an_error(tmp_path, text, why):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(text)
+    r = run("geometry", "--config", str(bad), "--out", str(tmp_path / "out"))
+    assert why in one_line_error(r, "finray geometry: config error: ")

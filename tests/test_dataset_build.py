@@ -8,6 +8,7 @@ import pytest
 from finray.dataset import (MANIFEST_COLUMNS, DatasetParams, FramePreparer, area_resample,
                             build_shard, example_figure, load_shard, pitch_object, render_shard,
                             scene_splits, segment, write_manifest)
+from finray.dataset.shards import SHARD_KEYS
 from finray.render import RenderParams, load_render_index, read_render_frame, render_scene
 
 from test_render_fixture import write_synthetic_fea_result
@@ -190,6 +191,8 @@ def test_render_shard_equals_build_shard_of_all_files(renders, tmp_path):
                             pitch, render_params=rp, scene=dict(scene, splits=["pitch"]))
         assert meta["scene"]["scene_id"] == f"ellipse_16x9_steel_h30_p{pitch:g}"
         assert meta["scene"]["splits"] == ["pitch"]
+        # the settings its arrays depend on, the ones the workflow re-renders for
+        assert sorted(meta["dataset"]) == sorted(SHARD_KEYS)
         if pitch == 0.0:  # every frame's image and stress support are pixel-aligned
             assert meta["support_iou_min"] >= 0.98
         build_shard(renders[pitch], tmp_path / f"b{pitch:g}.npz", {"splits": ["pitch"]})

@@ -75,3 +75,28 @@ def test_stage_times_sum_snakemake_benchmark_files(tmp_path):
     t = stage_times(tmp_path)
     assert set(t) == {"fea", "train"}
     assert t["fea"] == {"jobs": 2, "wall_s": 30.0, "cpu_s": 28.5, "longest_job_s": 20.0}
+
+
+def test_fea_checks_gather_the_scene_checks(tmp_path):
+    """summary.json of each scene -> fea_scenes.csv -> the checks the manuscript states."""
+    import json
+
+    from finray.evaluate.summary import fea_checks
+    from finray.fea.figures import scene_table
+
+    paths = []
+    for i, (res, eq, ls, fb, gap) in enumerate([(2e-4, 1e-8, 0, 1, 0.003),
+                                                (7e-4, 3e-7, 2, 0, 0.002)]):
+        p = tmp_path / f"s{i}.json"
+        p.write_text(json.dumps({
+            "scene": f"s{i}", "converged": True, "min_gap_mm": gap, "residual_tol": 1e-3,
+            "residual_final_rel": res / 2, "residual_max_rel": res, "equilibrium_tol": 1e-3,
+            "equilibrium_max_rel_error": eq, "line_search_failures": ls,
+            "gradient_fallbacks": fb}))
+        paths.append(p)
+    scene_table(paths, tmp_path / "fea_scenes.csv")
+    c = fea_checks(tmp_path / "fea_scenes.csv")
+    assert c == {"n_scenes": 2, "residual_tol": 1e-3, "residual_max_rel": 7e-4,
+                 "residual_max_scene": "s1", "equilibrium_tol": 1e-3,
+                 "equilibrium_max_rel_error": 3e-7, "equilibrium_max_scene": "s1",
+                 "line_search_failures": 2, "gradient_fallbacks": 1, "min_gap_mm": 0.002}

@@ -85,3 +85,63 @@ def test_object_blocked_by_the_clamp_is_reported(finger):
     pts, edges = circle_polyline([-1.15, 0.0], 1.0, 64)  # aims at the clamped corner (0, 0)
     with pytest.raises(SimulationError, match="blocked"):
         simulate(finger, RigidObject(pts, edges), FINGER, SimulationOptions(push_mm=1.0))
+
+
+@pytest.fixture(scope="module")
+def scene_inputs():
+    """Smoke config pushing 1 mm, its finger (1 mm mesh) and a placed steel circle."""
+    from pathlib import Path
+
+    from finray.config import load_config
+    from finray.fea.studies import with_overrides
+    from finray.geometry.objects import object_geometry
+
+    cfg = load_config(Path(__file__).resolve().parents[1] / "config" / "smoke.yaml")
+    cfg = with_overrides(cfg, {"fea.push_mm": 1.0, "fea.write_vtu": False})
+    fp, m = FingerParams.from_config(cfg["finger"]), cfg["mesh"]
+    finger = mesh_finger(fp, m["size_mm"], m["min_angle_deg"], m["order"], m["arc_chord_mm"])
+    obj = object_geometry("circle_d20", {"type": "circle", "diameter_mm": 20.0}, fp, 30.0,
+                          size_mm=m["size_mm"], gap_mm=cfg["placement"]["gap_mm"])
+    return cfg, finger, obj
+
+
+def test_scene_summary_carries_the_convergence_checks(scene_inputs, tmp_path):
+    import json
+
+    from finray.fea.output import run_scene
+
+    cfg, finger, obj = scene_inputs
+    report = tmp_path / "failed" / "c20.json"
+    report.parent.mkdir()
+    report.write_text("{}")  # a stale report of an earlier failure
+    out = run_scene(cfg, finger, obj, "steel", tmp_path / "scene", {"scene": "c20"},
+                    vtu=False, failure_report=report)
+    s = json.loads((tmp_path / "scene" / "summary.json").read_text())
+    assert s == json.loads(json.dumps(out))
+    assert s["residual_tol"] == cfg["fea"]["residual_tol"]
+    assert s["equilibrium_tol"] == cfg["fea"]["equilibrium_tol"]
+    assert 0 <= s["residual_final_rel"] <= s["residual_max_rel"] <= s["residual_tol"]
+    assert 0 <= s["equilibrium_max_rel_error"] <= s["equilibrium_tol"]
+    assert s["fx_final_N"] > 0  # the object touched: the checks saw a load
+    for k in ("line_search_failures", "gradient_fallbacks"):
+        assert isinstance(s[k], int) and s[k] >= 0
+    assert not report.exists()  # success removes the stale failure report
+
+
+def test_equilibrium_check_fails_the_scene_and_leaves_a_report(scene_inputs, tmp_path):
+    import json
+
+    from finray.fea.output import run_scene
+    from finray.fea.studies import with_overrides
+
+    cfg, finger, obj = scene_inputs
+    cfg = with_overrides(cfg, {"fea.equilibrium_tol": 1e-300})  # no frame can pass
+    report = tmp_path / "failed" / "c20.json"
+    with pytest.raises(SimulationError) as e:
+        run_scene(cfg, finger, obj, "steel", tmp_path / "scene", {"scene": "c20"}, vtu=False,
+                  failure_report=report)
+    msg = str(e.value)
+    assert "\n" not in msg and msg.startswith("scene c20: frame ")
+    assert "equilibrium error" in msg and "> tolerance 1e-300" in msg
+    r = json.loads(report.read_text())
+    assert r["converged"] is False and r["error"] == msg and r["cause"] == "equilibrium"

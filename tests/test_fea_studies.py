@@ -52,3 +52,75 @@ def test_write_pareto_outputs(tmp_path):
     assert err["default"] == pytest.approx(100 * (0.2 + 0.04) / 8.0)
     md = (tmp_path / "p.md").read_text()
     assert "Converged value** 8.0000 N" in md and "How the default was chosen" in md
+
+
+@pytest.fixture(scope="module")
+def smoke_cfg():
+    from pathlib import Path
+
+    from finray.config import load_config
+
+    return load_config(Path(__file__).resolve().parents[1] / "config" / "smoke.yaml")
+
+
+def _raiser(exc):
+    def run(cfg, cache=None, **scene):
+        raise exc
+    return run
+
+
+INTERSECTS = "the object intersects the finger in the initial state"
+
+
+def test_stability_suite_accepts_the_expected_refusal(smoke_cfg, tmp_path):
+    from finray.fea.simulate import SimulationError
+    from finray.fea.studies import Refusal, stability_suite
+
+    cases = {"overlap": ({}, {}, Refusal(SimulationError, "intersects the finger"))}
+    df = stability_suite(smoke_cfg, tmp_path / "s.csv", cases=cases, log=lambda *a: None,
+                         run=_raiser(SimulationError(INTERSECTS, step=0, cause="x")))
+    assert df["ok"].tolist() == [True] and not df["unexpected_error"].any()
+
+
+@pytest.mark.parametrize("exc", [TypeError("unsupported operand"),
+                                 "SimulationError with another message"])
+def test_stability_suite_fails_on_a_wrong_refusal(smoke_cfg, tmp_path, exc):
+    """A refused case that raises the wrong error type, or the right type with the
+    wrong message, fails the suite (after writing the table)."""
+    from finray.fea.simulate import SimulationError
+    from finray.fea.studies import Refusal, StabilityFailure, stability_suite
+
+    if isinstance(exc, str):
+        exc = SimulationError("load step 3 failed: line search failed", step=3, cause="ls")
+    cases = {"overlap": ({}, {}, Refusal(SimulationError, "intersects the finger"))}
+    with pytest.raises(StabilityFailure, match=r"unexpected error in overlap \(expected refuse"):
+        stability_suite(smoke_cfg, tmp_path / "s.csv", cases=cases, log=lambda *a: None,
+                        run=_raiser(exc))
+    df = pd.read_csv(tmp_path / "s.csv")
+    assert df["ok"].tolist() == [False] and df["unexpected_error"].tolist() == [True]
+
+
+def test_stability_suite_converge_case(smoke_cfg, tmp_path):
+    """A converge case stopping with a SimulationError is a finding (not ok, the suite
+    goes on); any other exception there is a bug and fails the suite."""
+    from finray.fea.simulate import SimulationError
+    from finray.fea.studies import StabilityFailure, stability_suite
+
+    cases = {"hard": ({}, {}, "converge")}
+    df = stability_suite(smoke_cfg, tmp_path / "s.csv", cases=cases, log=lambda *a: None,
+                         run=_raiser(SimulationError("load step 2 failed", step=2, cause="c")))
+    assert df["ok"].tolist() == [False] and not df["unexpected_error"].any()
+    with pytest.raises(StabilityFailure, match="hard"):
+        stability_suite(smoke_cfg, tmp_path / "s.csv", cases=cases, log=lambda *a: None,
+                        run=_raiser(KeyError("fx")))
+
+
+def test_stability_cases_name_their_refusals():
+    from finray.fea.simulate import SimulationError
+    from finray.fea.studies import STABILITY_CASES, Refusal
+
+    for case, (_, _, expected) in STABILITY_CASES.items():
+        assert expected == "converge" or isinstance(expected, Refusal), case
+    ov = STABILITY_CASES["overlap_0.2mm"][2]
+    assert ov.matches(SimulationError(INTERSECTS))
+    assert not ov.matches(TypeError(INTERSECTS))

@@ -8,7 +8,7 @@ import torch
 
 from finray.cli import main
 from finray.model import FinRayNet, NetConfig
-from finray.predict import Predictor, latency
+from finray.predict import Predictor, latency, read_frames
 from finray.train import export_onnx, export_torchscript, force_onnx_path
 
 PREPROCESS = {"base_width_mm": 30.0, "crop_x_mm": [-5.0, 35.0], "crop_y_mm": [0.0, 80.0],
@@ -155,3 +155,180 @@ def test_cli_predict_on_a_render_and_a_never_seen_image(exported, render_png, tm
     rows2 = list(csv.DictReader(open(out2 / "forces.csv")))
     np.testing.assert_allclose([float(r["fx_N"]) for r in rows2], forces, atol=1e-4)
     assert not list(out2.glob("*_stress.png"))
+
+
+def one_line_error(capsys, prefix):
+    """One line on stderr, starting with ``prefix`` (main returned, no traceback)."""
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(prefix), lines
+    return lines[0]
+
+
+def blank(path):
+    """A frame without a finger: plain grey."""
+    from PIL import Image
+
+    Image.fromarray(np.full((120, 80, 3), 90, np.uint8)).save(path)
+    return path
+
+
+def test_cli_predict_bad_input_is_one_line(exported, render_png, tmp_path, capsys):
+    _, d = exported
+    model = str(d / "model.ts")
+    out = str(tmp_path / "out")
+    assert main(["predict", "--model", str(tmp_path / "none.ts"), str(render_png),
+                 "--out", out]) == 2
+    assert f"no model at {tmp_path / 'none.ts'}" in one_line_error(capsys, "finray predict: ")
+    assert main(["predict", "--model", model, str(tmp_path / "nothing.png"), "--out", out]) == 2
+    msg = one_line_error(capsys, "finray predict: ")
+    assert f"{tmp_path / 'nothing.png'} does not exist" in msg
+    notes = tmp_path / "notes.png"
+    notes.write_text("not an image\n")
+    assert main(["predict", "--model", model, str(notes), "--out", out]) == 2
+    assert "notes.png: not a readable image (" in one_line_error(capsys, "finray predict: ")
+    no_finger = blank(tmp_path / "blank.png")
+    assert main(["predict", "--model", model, str(no_finger), "--out", out]) == 2
+    assert "blank.png: no finger found in the image" in one_line_error(capsys, "finray predict: ")
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert main(["predict", "--model", model, str(empty), "--out", out]) == 2
+    assert "no images (.png" in one_line_error(capsys, "finray predict: ")
+    bad_ts = tmp_path / "bad.ts"
+    bad_ts.write_bytes(b"not a model")
+    (tmp_path / "bad.ts.json").write_text((d / "model.ts.json").read_text())
+    assert main(["predict", "--model", str(bad_ts), str(render_png), "--out", out,
+                 "--backend", "torchscript"]) == 2
+    assert "bad.ts is not a TorchScript model" in one_line_error(capsys, "finray predict: ")
+
+
+def test_cli_predict_skips_bad_frames_and_writes_the_others(exported, render_png, tmp_path,
+                                                            capsys):
+    _, d = exported
+    src = tmp_path / "frames"
+    src.mkdir()
+    (src / "a_render.png").write_bytes(render_png.read_bytes())
+    (src / "b_corrupt.png").write_bytes(render_png.read_bytes()[:200])  # truncated file
+    blank(src / "c_blank.png")
+    never_seen(render_png, src / "d_other_camera.png")
+    out = tmp_path / "out"
+    assert main(["predict", "--model", str(d / "model.ts"), str(src), "--out", str(out),
+                 "--backend", "torchscript"]) == 1  # done, but not every frame
+    io = capsys.readouterr()
+    assert "Traceback" not in io.err
+    err = io.err.strip().splitlines()
+    assert err[0].startswith("finray predict: skipped b_corrupt.png: not a readable image (")
+    assert err[1] == ("finray predict: skipped c_blank.png: no finger found in the image "
+                      "(empty segmentation)")
+    assert err[2].startswith("finray predict: 2 of 4 frames skipped")
+    assert len(err) == 3
+    rows = list(csv.DictReader(open(out / "forces.csv")))
+    assert [r["frame"] for r in rows] == ["a_render.png", "d_other_camera.png"]
+    p = Predictor(d / "model.ts", backend="torchscript")
+    from PIL import Image
+
+    for r in rows:
+        want = p(np.asarray(Image.open(src / r["frame"]).convert("RGB")))[0]
+        assert abs(float(r["fx_N"]) - want) < 1e-4
+        assert (out / f"{r['frame'][:-4]}_stress.exr").is_file()
+    assert not (out / "b_corrupt_stress.exr").exists() and not (out / "c_blank_stress.exr").exists()
+
+
+def test_forces_csv_is_written_as_frames_complete(exported, render_png, tmp_path):
+    from finray.predict import predict_files
+
+    _, d = exported
+    src = tmp_path / "frames"
+    src.mkdir()
+    for k in range(3):
+        (src / f"f{k}.png").write_bytes(render_png.read_bytes())
+    on_disk = []
+
+    def on_frame(row):  # what a reader of forces.csv sees when frame k completes
+        on_disk.append((tmp_path / "out" / "forces.csv").read_text().splitlines())
+
+    out = predict_files(d / "model.ts", src, tmp_path / "out", backend="torchscript",
+                        force_only=True, on_frame=on_frame)
+    assert [len(lines) for lines in on_disk] == [2, 3, 4]  # header + one row per frame
+    assert on_disk[0][1].startswith("f0.png,") and out["skipped"] == []
+
+
+def write_video(path, frames, fps=10):
+    """An H.264 MP4 of RGB frames (even sizes), through PyAV."""
+    import av
+
+    h, w = frames[0].shape[:2]
+    with av.open(str(path), "w") as c:
+        s = c.add_stream("libx264", rate=fps)
+        s.width, s.height, s.pix_fmt = w, h, "yuv420p"
+        s.options = {"crf": "10"}  # near lossless: the finger's edges stay put
+        for f in frames:
+            c.mux(s.encode(av.VideoFrame.from_ndarray(np.ascontiguousarray(f), format="rgb24")))
+        c.mux(s.encode())
+    return path
+
+
+def test_cli_predict_on_a_video(exported, render_png, tmp_path, capsys):
+    """The fixture's rendered frames as a video, with a frame without a finger between
+    them: one force per frame with a finger, the same as from the PNGs."""
+    from PIL import Image
+
+    _, d = exported
+    pngs = sorted(render_png.parent.glob("image_*.png"))
+    frames = [np.asarray(Image.open(f).convert("RGB")) for f in pngs]
+    assert len(frames) == 3 and frames[0].shape[0] % 2 == 0 and frames[0].shape[1] % 2 == 0
+    video = write_video(tmp_path / "clip.mp4", [frames[0], np.zeros_like(frames[0]), *frames[1:]])
+    out = tmp_path / "out"
+    assert main(["predict", "--model", str(d / "model.ts"), str(video), "--out", str(out),
+                 "--backend", "torchscript"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[0] == "finray predict: skipped clip_00001: no finger found in the image " \
+                     "(empty segmentation)" and len(err) == 2
+    rows = list(csv.DictReader(open(out / "forces.csv")))
+    assert [r["frame"] for r in rows] == ["clip_00000", "clip_00002", "clip_00003"]
+    assert all(np.isfinite(float(r["fx_N"])) for r in rows)
+    # the decoded frames are the rendered ones, in order (H.264 moves a few edge pixels)
+    p = Predictor(d / "model.ts", backend="torchscript")
+    decoded = dict(read_frames(video))
+    assert list(decoded) == [f"clip_{k:05d}" for k in range(4)]
+    for name, f in zip(["clip_00000", "clip_00002", "clip_00003"], frames):
+        assert decoded[name].shape == f.shape and decoded[name].dtype == np.uint8
+        assert np.abs(decoded[name].astype(int) - f).mean() < 6
+        mask, want = p.segment(decoded[name]), p.segment(f)
+        assert (mask != want).sum() < 0.01 * want.sum()
+    assert all((out / f"{r['frame']}_stress.exr").is_file() for r in rows)
+
+
+def test_cli_predict_on_a_file_that_is_not_a_video(exported, tmp_path, capsys):
+    _, d = exported
+    fake = tmp_path / "clip.mp4"
+    fake.write_bytes(b"\x00" * 64)
+    assert main(["predict", "--model", str(d / "model.ts"), str(fake),
+                 "--out", str(tmp_path / "out")]) == 2
+    assert "clip.mp4 is not a readable video (" in one_line_error(capsys, "finray predict: ")
+
+
+def test_cli_predict_on_a_video_with_a_corrupt_frame(exported, render_png, tmp_path, capsys):
+    """One frame's packet zeroed in the file: that frame is reported, the others written."""
+    import av
+    from PIL import Image
+
+    _, d = exported
+    frames = [np.asarray(Image.open(f).convert("RGB"))
+              for f in sorted(render_png.parent.glob("image_*.png"))]
+    video = write_video(tmp_path / "clip.mp4", frames + frames)
+    with av.open(str(video)) as c:
+        s = c.streams.video[0]
+        packets = [(round(p.pts * p.time_base * s.average_rate), p.pos, p.size)
+                   for p in c.demux(s) if p.size and not p.is_keyframe]
+    rank, pos, size = max(packets, key=lambda p: p[2])  # the largest frame after the key frame
+    data = bytearray(video.read_bytes())
+    data[pos:pos + size] = bytes(size)
+    video.write_bytes(bytes(data))
+    out = tmp_path / "out"
+    assert main(["predict", "--model", str(d / "model.ts"), str(video), "--out", str(out),
+                 "--backend", "torchscript", "--force-only"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[0].startswith(f"finray predict: skipped clip_{rank:05d}: the frame does not decode")
+    assert err[1].startswith("finray predict: 1 of 6 frames skipped") and len(err) == 2
+    rows = list(csv.DictReader(open(out / "forces.csv")))
+    assert sorted(r["frame"] for r in rows) == [f"clip_{k:05d}" for k in range(6) if k != rank]

@@ -7,6 +7,10 @@ from pathlib import Path
 
 from . import __version__
 
+
+class UsageError(Exception):
+    """Options that do not go together; ``main`` prints ``finray <command>: <message>``."""
+
 GEOMETRY_HELP = """\
 Build the finger mesh and place objects at contact heights.
 
@@ -55,13 +59,25 @@ def _geometry_parser(sub) -> None:
     p.set_defaults(func=_run_geometry)
 
 
+def _raw_config(path: Path | None) -> dict:
+    """The config mapping of ``--config``; without it, the source tree's config if there
+    is one, else ``{}``. A ``--config`` that does not exist is an error."""
+    from .config import default_config_path, read_config_file
+
+    if path is None:
+        path = default_config_path()
+        if not path.is_file():
+            return {}
+    return read_config_file(path)
+
+
 def _object_spec(args) -> tuple[str, dict] | None:
     if args.object_file is not None:
         spec = {"type": "polygon_file", "path": str(args.object_file)}
         name = args.object_file.stem
     elif args.object is not None:
         if args.size_mm is None:
-            raise SystemExit("finray geometry: --size-mm is required with --object")
+            raise UsageError("--size-mm is required with --object")
         kind = args.object
         spec = {"type": kind}
         if kind in ("circle", "ring"):
@@ -85,15 +101,12 @@ def _object_spec(args) -> tuple[str, dict] | None:
 
 
 def _run_geometry(args) -> int:
-    import yaml
-
-    from .config import default_config_path, validate_config
+    from .config import validate_config
     from .geometry.build import build_finger, build_object
     from .geometry.gallery import gallery, scene_figure
     from .geometry.mesh import TriMesh
 
-    path = args.config or default_config_path()
-    raw = yaml.safe_load(Path(path).read_text()) if Path(path).is_file() else {}
+    raw = _raw_config(args.config)
     one = _object_spec(args)
     if one is not None:
         raw["objects"] = {one[0]: one[1]}
@@ -102,7 +115,7 @@ def _run_geometry(args) -> int:
     if args.mesh_size_mm:
         raw.setdefault("mesh", {})["size_mm"] = args.mesh_size_mm
     if not raw.get("objects"):
-        raise SystemExit("finray geometry: no config found; give --config or --object")
+        raise UsageError("no config found; give --config or --object")
     cfg = validate_config(raw, base_dir=Path.cwd())
     out = args.out
     summary = build_finger(cfg, out)
@@ -159,21 +172,19 @@ def _simulate_parser(sub) -> None:
 
 def _run_simulate(args) -> int:
     import json
+    import logging
 
-    import yaml
-
-    from .config import default_config_path, object_is_meshed, validate_config
+    from .config import object_is_meshed, validate_config
     from .fea.output import run_scene
     from .fea.solver import SimulationError
     from .geometry.build import finger_from_config
     from .geometry.finger import mesh_finger
     from .geometry.objects import object_geometry
 
-    path = args.config or default_config_path()
-    raw = yaml.safe_load(Path(path).read_text()) if Path(path).is_file() else {}
+    raw = _raw_config(args.config)
     one = _object_spec(args)
     if one is None:
-        raise SystemExit("finray simulate: give --object or --object-file")
+        raise UsageError("give --object or --object-file")
     name, spec = one
     spec["materials"] = [args.material]
     raw["objects"] = {name: spec}
@@ -189,20 +200,31 @@ def _run_simulate(args) -> int:
                           m["min_angle_deg"])
     scene = {"scene": f"{name}_{args.material}_h{args.height_mm:g}", "object": name,
              "material": args.material, "height_mm": args.height_mm}
+    # the solver's progress lines (frame k/n, travel, elapsed) on stderr
+    logger = logging.getLogger("finray")
+    progress, level = logging.StreamHandler(sys.stderr), logger.level
+    logger.addHandler(progress)
+    logger.setLevel(logging.INFO)
     try:
         out = run_scene(cfg, finger, obj, args.material, args.out, scene, vtu=not args.no_vtu)
     except SimulationError as exc:
         print(f"finray simulate: {exc}", file=sys.stderr)
         return 1
+    finally:
+        logger.removeHandler(progress)
+        logger.setLevel(level)
     print(json.dumps({k: v for k, v in out.items() if k != "solver"}, indent=1))
     return 0
 
 
 PREDICT_HELP = """\
 Predict the contact force (N) and the stress map of each frame of an image, a folder
-of images or a video. The finger is segmented and cropped as in the dataset stage,
-anchored on its clamped base, so camera frames of any size work. Writes forces.csv
-and, per frame, <name>_stress.exr (log10(1 + sigma / 1 kPa)) and <name>_stress.png.
+of images or a video (PyAV). The finger is segmented and cropped as in the dataset
+stage, anchored on its clamped base, so camera frames of any size work. Writes
+forces.csv (frame,fx_N; a row as each frame completes) and, per frame,
+<name>_stress.exr (log10(1 + sigma / 1 kPa)) and <name>_stress.png. A frame that
+cannot be predicted (corrupt, no finger) is reported on stderr and skipped, the
+others are written (exit code 1); bad input stops with one line (exit code 2).
 The network runs in ONNX Runtime when model.onnx and model.force.onnx lie beside
 model.ts (faster), else in TorchScript.
 """
@@ -228,10 +250,16 @@ def _predict_parser(sub) -> None:
 def _run_predict(args) -> int:
     from .predict import predict_files
 
-    rows = predict_files(args.model, args.source, args.out, args.threads, args.backend,
-                         args.force_only)
-    for r in rows:
-        print(f"{r['frame']}\t{r['fx_N']:.4f} N")
+    out = predict_files(args.model, args.source, args.out, args.threads, args.backend,
+                        args.force_only,
+                        on_frame=lambda r: print(f"{r['frame']}\t{r['fx_N']:.4f} N", flush=True),
+                        on_skip=lambda name, msg: print(f"finray predict: skipped {msg}",
+                                                        file=sys.stderr, flush=True))
+    if out["skipped"]:
+        n = len(out["rows"]) + len(out["skipped"])
+        print(f"finray predict: {len(out['skipped'])} of {n} frames skipped; the other "
+              f"{len(out['rows'])} are in {Path(args.out) / 'forces.csv'}", file=sys.stderr)
+        return 1
     return 0
 
 
@@ -249,14 +277,24 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run a subcommand: 0 done, 1 failed part way (solver, skipped frames), 2 bad input
+    (one line on stderr that names the subcommand)."""
     from .config import ConfigError
     from .geometry.finger import GeometryError
 
     args = build_parser().parse_args(argv)
+    bad_input: tuple[type[Exception], ...] = (UsageError,)
+    if args.command == "predict":  # (importing predict loads torch: only for predict)
+        from .predict import InputError
+
+        bad_input += (InputError,)
     try:
         return args.func(args)
     except (ConfigError, GeometryError) as exc:
-        print(f"finray: config error: {exc}", file=sys.stderr)
+        print(f"finray {args.command}: config error: {exc}", file=sys.stderr)
+        return 2
+    except bad_input as exc:
+        print(f"finray {args.command}: {exc}", file=sys.stderr)
         return 2
 
 

@@ -155,8 +155,9 @@ def _check_stage_sections(cfg: dict) -> None:
             f"'{b['latency_model']}' is not a key of train.models {sorted(cfg['train']['models'])}"))
 
 
-def load_config(path: str | Path) -> dict:
-    """Read and validate a YAML config file."""
+def read_config_file(path: str | Path) -> dict:
+    """The YAML mapping of a config file, not validated; :class:`ConfigError` when the
+    file is missing, is not YAML or is not a mapping."""
     path = Path(path)
     if not path.is_file():
         raise ConfigError("<config>", f"config file '{path}' does not exist")
@@ -164,7 +165,16 @@ def load_config(path: str | Path) -> dict:
         raw = yaml.safe_load(path.read_text())
     except yaml.YAMLError as exc:
         raise ConfigError("<config>", f"'{path}' is not valid YAML ({exc})".replace("\n", " "))
-    return validate_config(raw or {}, base_dir=Path.cwd())
+    if raw is None:
+        return {}
+    if not isinstance(raw, dict):
+        raise ConfigError("<config>", f"'{path}' is not a mapping of config keys")
+    return raw
+
+
+def load_config(path: str | Path) -> dict:
+    """Read and validate a YAML config file."""
+    return validate_config(read_config_file(path), base_dir=Path.cwd())
 
 
 def default_config_path() -> Path:

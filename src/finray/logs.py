@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import time
 from pathlib import Path
 
 
@@ -21,3 +22,23 @@ def log_to(path: str | Path):
             yield f
         finally:
             logging.getLogger().removeHandler(handler)
+
+
+class Progress:
+    """Progress lines of a long loop through ``logger.info`` (a workflow job's log gets
+    them through :func:`log_to`): ``<what>: frame k/n, <detail>, <elapsed> s``, at most
+    every ``every_s`` seconds, and always for the last frame (``every_s=0``: every frame).
+    """
+
+    def __init__(self, logger: logging.Logger, what: str, n: int, every_s: float = 30.0):
+        self.logger, self.what, self.n, self.every_s = logger, what, n, every_s
+        self.t0 = self.t_last = time.perf_counter()
+
+    def __call__(self, k: int, detail: str = "") -> None:
+        """Frame ``k`` (1-based) is done."""
+        now = time.perf_counter()
+        if k < self.n and now - self.t_last < self.every_s:
+            return
+        self.t_last = now
+        self.logger.info(f"{self.what}: frame {k}/{self.n}" + (f", {detail}" if detail else "")
+                         + f", {now - self.t0:.1f} s")

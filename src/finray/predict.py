@@ -28,6 +28,22 @@ import torch
 from .dataset.imageops import area_resample, segment
 
 BACKENDS = ("auto", "onnx", "torchscript")
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
+VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm")
+
+
+class InputError(ValueError):
+    """Input that cannot be predicted (model, source or frame); ``str`` is one line."""
+
+
+class FrameError(InputError):
+    """One frame that cannot be predicted: unreadable, not an image, or no finger in it."""
+
+
+def _one_line(exc: BaseException) -> str:
+    """``Type: first line`` of an exception from a reader (some span many lines)."""
+    text = str(exc).strip().splitlines()
+    return f"{type(exc).__name__}: {text[0] if text else ''}".rstrip(": ")
 
 #: The paper's inference time (GPU), for comparison with :func:`latency`.
 PAPER_LATENCY_MS = 8.0
@@ -45,12 +61,16 @@ class Predictor:
         model_path = Path(model_path)
         meta_path = Path(str(model_path) + ".json")
         if not model_path.is_file():
-            raise FileNotFoundError(f"no model at {model_path}")
+            raise InputError(f"no model at {model_path}")
         if not meta_path.is_file():
-            raise FileNotFoundError(f"{meta_path} (the model's preprocessing settings) is missing")
+            raise InputError(f"{meta_path} (the model's preprocessing settings) is missing")
         if backend not in BACKENDS:
             raise ValueError(f"backend must be one of {BACKENDS}, not {backend!r}")
-        self.meta = json.loads(meta_path.read_text())
+        try:
+            self.meta = json.loads(meta_path.read_text())
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise InputError(f"{meta_path} is not the model's JSON settings ({_one_line(exc)})"
+                             ) from None
         self.size = (self.meta["height"], self.meta["width"])
         pre = self.meta.get("preprocess", {})
         self.base_width_mm = pre.get("base_width_mm", 30.0)
@@ -76,20 +96,29 @@ class Predictor:
             opts.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
             for f in (onnx_full, onnx_force):
                 if not f.is_file():
-                    raise FileNotFoundError(f"no ONNX model at {f}")
-            self._full = ort.InferenceSession(str(onnx_full), opts, providers=["CPUExecutionProvider"])
-            self._force = ort.InferenceSession(str(onnx_force), opts,
-                                               providers=["CPUExecutionProvider"])
+                    raise InputError(f"no ONNX model at {f}")
+            try:
+                self._full = ort.InferenceSession(str(onnx_full), opts,
+                                                  providers=["CPUExecutionProvider"])
+                self._force = ort.InferenceSession(str(onnx_force), opts,
+                                                   providers=["CPUExecutionProvider"])
+            except Exception as exc:  # onnxruntime's own error types
+                raise InputError(f"cannot load the ONNX model {onnx_full} ({_one_line(exc)})"
+                                 ) from None
         else:
             torch.set_num_threads(threads)
-            self.model = torch.jit.load(str(model_path), map_location="cpu").eval()
+            try:
+                self.model = torch.jit.load(str(model_path), map_location="cpu").eval()
+            except (RuntimeError, ValueError) as exc:
+                raise InputError(f"{model_path} is not a TorchScript model ({_one_line(exc)})"
+                                 ) from None
             self._has_force = hasattr(self.model, "force")  # exports before the force path
 
     def crop_box(self, mask: np.ndarray) -> tuple[float, float, float, float]:
         """Training window in pixel edges ``(col0, row0, col1, row1)`` from the mask."""
         rows = np.flatnonzero(mask.any(axis=1))
         if len(rows) == 0:
-            raise ValueError("no finger found in the image (empty segmentation)")
+            raise FrameError("no finger found in the image (empty segmentation)")
         bottom = rows[-1]
         cols = np.flatnonzero(mask[bottom])
         left, right = cols[0], cols[-1] + 1  # pixel edges of the base
@@ -102,7 +131,7 @@ class Predictor:
         """Finger mask (H, W) bool, as in the dataset stage."""
         frame = np.asarray(frame)
         if frame.ndim not in (2, 3):
-            raise ValueError(f"expected an (H, W) or (H, W, 3) image, got shape {frame.shape}")
+            raise FrameError(f"expected an (H, W) or (H, W, 3) image, got shape {frame.shape}")
         return segment(frame, **self.segment_kw)
 
     def network_input(self, mask: np.ndarray) -> np.ndarray:
@@ -232,34 +261,114 @@ def latency_report(model_path: str | Path, images, n_frames: int = 200, repeats:
 
 
 def read_frames(path: str | Path):
-    """Yield ``(name, frame)`` from an image, a folder of images or a video file."""
-    import imageio.v3 as iio
-
+    """``(name, frame)`` of every frame of an image, a folder of images or a video (read
+    with PyAV), lazily. A frame that cannot be read comes as ``(name, FrameError)``, so
+    that the caller can report it and go on; a source that cannot be read at all
+    raises :class:`InputError` here."""
     path = Path(path)
     if path.is_dir():
-        files = sorted(p for p in path.iterdir()
-                       if p.suffix.lower() in (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff"))
+        files = sorted(p for p in path.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
         if not files:
-            raise ValueError(f"no images in {path}")
-        for p in files:
-            yield p.name, iio.imread(p)
-    elif path.suffix.lower() in (".mp4", ".avi", ".mov", ".mkv", ".webm"):
-        try:
-            for k, frame in enumerate(iio.imiter(path)):
-                yield f"{path.stem}_{k:05d}", frame
-        except Exception as exc:  # imageio has no video plugin without pyav/imageio-ffmpeg
-            raise RuntimeError(f"cannot read video {path} ({exc}); install 'av' or extract "
-                               "the frames to a folder") from exc
-    elif path.is_file():
-        yield path.name, iio.imread(path)
-    else:
-        raise FileNotFoundError(f"{path} does not exist")
+            raise InputError(f"no images ({', '.join(IMAGE_SUFFIXES)}) in {path}")
+        return ((p.name, _read_image(p)) for p in files)
+    if not path.is_file():
+        raise InputError(f"{path} does not exist")
+    if path.suffix.lower() in VIDEO_SUFFIXES:
+        return _video_frames(path)
+    return iter([(path.name, _read_image(path))])
+
+
+def _read_image(path: Path) -> np.ndarray | FrameError:
+    """The image (H, W[, C]) of a file, or the :class:`FrameError` saying why not."""
+    from PIL import Image
+
+    try:
+        with Image.open(path) as im:
+            if im.mode not in ("L", "LA", "RGB", "RGBA", "I", "I;16", "F"):
+                im = im.convert("RGB")  # palette, bilevel, CMYK, ...
+            img = np.asarray(im)
+    except Exception as exc:  # any decoder's error on a bad file is this frame's, not the run's
+        return FrameError(f"not a readable image ({_one_line(exc)})")
+    if img.ndim == 3 and img.shape[-1] in (1, 2):  # grey (+ alpha)
+        img = img[..., 0]
+    elif img.ndim == 3 and img.shape[-1] == 4:  # RGBA
+        img = img[..., :3]
+    if img.ndim not in (2, 3) or img.size == 0 or (img.ndim == 3 and img.shape[-1] != 3):
+        return FrameError(f"not a single grey or colour image (array of shape {img.shape})")
+    return img
+
+
+def _video_frames(path: Path):
+    """``(name, rgb (H, W, 3) uint8 | FrameError)`` of each frame of a video; names
+    ``<stem>_<k:05d>``, k the frame's rank in the stream (from its time stamp, so that
+    a lost frame leaves its rank out). A packet that does not decode comes as a
+    FrameError; a stream that cannot be read on ends the video with one; frames the
+    container counts that never came out of the decoder (a lost reference frame) come
+    as FrameErrors at the end."""
+    import av
+
+    try:
+        container = av.open(str(path))
+    except (av.FFmpegError, OSError) as exc:
+        raise InputError(f"{path} is not a readable video ({_one_line(exc)})") from None
+    if not container.streams.video:
+        container.close()
+        raise InputError(f"{path} has no video stream")
+    stream = container.streams.video[0]
+    rate = stream.average_rate or stream.guessed_rate
+    start = stream.start_time or 0
+    count = iter(range(1 << 62))  # ranks by order where a time stamp is missing
+    seen: set[str] = set()
+
+    def name(pts, time_base) -> str:
+        if pts is None or not rate or not time_base:
+            n = f"{path.stem}_{next(count):05d}"
+        else:
+            n = f"{path.stem}_{round((pts - start) * time_base * rate):05d}"
+        seen.add(n)
+        return n
+
+    def frames():
+        with container:
+            packets = container.demux(stream)
+            while True:
+                try:
+                    packet = next(packets)
+                except StopIteration:
+                    break
+                except av.FFmpegError as exc:
+                    yield (f"{path.stem} (rest)",
+                           FrameError(f"the video cannot be read on ({_one_line(exc)})"))
+                    return
+                try:
+                    decoded = packet.decode()
+                except av.FFmpegError as exc:
+                    yield (name(packet.pts, packet.time_base),
+                           FrameError(f"the frame does not decode ({_one_line(exc)})"))
+                    continue
+                for fr in decoded:
+                    yield name(fr.pts, fr.time_base), fr.to_ndarray(format="rgb24")
+        lost = [n for n in (f"{path.stem}_{k:05d}" for k in range(stream.frames)) if n not in seen]
+        for n in lost:
+            yield n, FrameError("the frame was not decoded (a frame it depends on was lost)")
+
+    return frames()
 
 
 def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = "auto",
-                  force_only: bool = False) -> list[dict]:
-    """Predict every frame of ``source``; write ``forces.csv`` and, per frame unless
-    ``force_only``, the stress map as EXR and as a coloured PNG into ``out_dir``."""
+                  force_only: bool = False, on_frame=None, on_skip=None) -> dict:
+    """Predict every frame of ``source`` (image, folder of images or video) into
+    ``out_dir``: ``forces.csv`` (``frame,fx_N``; a row appended and flushed as each
+    frame completes) and, per frame unless ``force_only``, the stress map as EXR and
+    as a coloured PNG.
+
+    A frame that cannot be predicted (unreadable, not an image, no finger) is skipped:
+    ``on_skip(name, message)`` is called and the run goes on. ``on_frame(row)`` gets
+    each row ``{"frame", "fx_N"}`` as it completes. Returns ``{"rows": [...],
+    "skipped": [(name, message), ...]}``. Raises :class:`InputError` for a missing
+    model or source, for a single image that cannot be predicted, and when no frame
+    at all could be.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -267,22 +376,46 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
 
     from .render.imageio import write_exr, write_png
 
+    frames = read_frames(source)  # checks the source before the model loads
+    one_image = Path(source).is_file() and Path(source).suffix.lower() not in VIDEO_SUFFIXES
+    p = Predictor(model_path, threads, backend)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    p = Predictor(model_path, threads, backend)
-    rows = []
-    for name, frame in read_frames(source):
-        if force_only:
-            rows.append({"frame": name, "fx_N": p.force(frame)})
-            continue
-        force, stress = p(frame)
-        stem = Path(name).stem
-        write_exr(out_dir / f"{stem}_stress.exr", {"stress": stress.astype(np.float32)},
-                  {"source": str(name), "force_N": force})
-        s = np.clip(stress / max(float(stress.max()), 1e-6), 0, 1)
-        write_png(out_dir / f"{stem}_stress.png", (cm.inferno(s)[..., :3] * 255).astype(np.uint8))
-        rows.append({"frame": name, "fx_N": force})
-    with open(out_dir / "forces.csv", "w") as f:
-        f.write("frame,fx_N\n")
-        f.writelines(f"{r['frame']},{r['fx_N']:.6g}\n" for r in rows)
-    return rows
+    rows, skipped = [], []
+    with open(out_dir / "forces.csv", "w") as table:
+        table.write("frame,fx_N\n")
+        table.flush()
+        for name, frame in frames:
+            try:
+                if isinstance(frame, FrameError):
+                    raise frame
+                if force_only:
+                    force = p.force(frame)
+                else:
+                    force, stress = p(frame)
+            except FrameError as exc:
+                msg = f"{name}: {exc}"
+                if one_image:
+                    raise InputError(msg) from None
+                skipped.append((name, msg))
+                if on_skip is not None:
+                    on_skip(name, msg)
+                continue
+            if not force_only:
+                stem = Path(name).stem
+                write_exr(out_dir / f"{stem}_stress.exr", {"stress": stress.astype(np.float32)},
+                          {"source": str(name), "force_N": force})
+                s = np.clip(stress / max(float(stress.max()), 1e-6), 0, 1)
+                write_png(out_dir / f"{stem}_stress.png",
+                          (cm.inferno(s)[..., :3] * 255).astype(np.uint8))
+            row = {"frame": name, "fx_N": force}
+            table.write(f"{name},{force:.6g}\n")
+            table.flush()  # a long video's forces can be read while it runs
+            rows.append(row)
+            if on_frame is not None:
+                on_frame(row)
+    if not rows:
+        if not skipped:
+            raise InputError(f"{source} has no frames")
+        raise InputError(f"no frame of {source} could be predicted ({len(skipped)} skipped)")
+    return {"rows": rows, "skipped": skipped}

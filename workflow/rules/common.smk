@@ -1,12 +1,15 @@
 # Config validation and target lists. Stage rules use these helpers only.
 import os
 import sys
+from dataclasses import fields
 
 import yaml
 from snakemake.utils import update_config
 
 from finray.config import ConfigError, object_is_meshed, scenes, validate_config
 from finray.dataset import pitch_object, scene_splits
+from finray.dataset.shards import SHARD_KEYS
+from finray.render import RenderParams
 
 DEFAULT_CONFIGFILE = os.path.join(workflow.basedir, "config", "config.yaml")
 if not workflow.config_settings.configfiles:
@@ -41,6 +44,41 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMB
     os.environ.setdefault(_var, "1")
 
 
+# ------------------------------------------------------------------ provenance
+# Every config value a job reads is a param (or input) of that job, so that changing it
+# re-plans exactly the jobs that read it. Snakemake records a param by its repr: params
+# are passed in canonical form (mapping keys sorted) so that the same config with its
+# keys in another order re-plans nothing (tests/test_provenance.py).
+
+SEGMENT_KEYS = ("threshold", "foreground", "min_object_frac", "max_hole_frac", "keep_largest")
+
+
+def canonical(value):
+    """``value`` with the keys of every mapping sorted (recursively), lists kept in order."""
+    if isinstance(value, dict):
+        return {k: canonical(value[k]) for k in sorted(value)}
+    if isinstance(value, (list, tuple)):
+        return [canonical(v) for v in value]
+    return value
+
+
+def section(name, keys=None, drop=()):
+    """Config section ``name`` (only ``keys`` if given, without ``drop``), canonical."""
+    sec = config[name]
+    return canonical({k: v for k, v in sec.items()
+                      if (keys is None or k in keys) and k not in drop})
+
+
+def render_params():
+    """The render section as the renderer reads it (``pitches_deg`` only picks the views)."""
+    return section("render", keys={f.name for f in fields(RenderParams)})
+
+
+def material_constants(name):
+    """What the solver reads of a material (its ``source`` is documentation only)."""
+    return canonical({k: v for k, v in config["materials"][name].items() if k != "source"})
+
+
 wildcard_constraints:
     object="[A-Za-z0-9_-]+",
     material="[A-Za-z0-9_-]+",
@@ -54,11 +92,11 @@ def height_labels():
 
 
 def object_geometry_files():
-    return expand(
+    return sorted(expand(
         f"{GEOMETRY}/objects/{{object}}_h{{height}}.npz",
         object=list(config["objects"]),
         height=height_labels(),
-    )
+    ))
 
 
 def polygon_file_input(wildcards):
@@ -68,7 +106,18 @@ def polygon_file_input(wildcards):
 
 
 def object_spec(wildcards):
-    return config["objects"][wildcards.object]
+    """The object's shape (its split and materials do not change the geometry)."""
+    spec = config["objects"][wildcards.object]
+    return canonical({k: v for k, v in spec.items() if k not in ("split", "materials")})
+
+
+def object_split(wildcards):
+    return config["objects"][wildcards.object]["split"]
+
+
+def object_splits():
+    """Split of every object (name -> split)."""
+    return canonical({n: s["split"] for n, s in config["objects"].items()})
 
 
 def object_deformable(wildcards):
@@ -77,17 +126,28 @@ def object_deformable(wildcards):
 
 
 def material_params(wildcards):
-    """The material's constants, so that editing them re-runs its scenes."""
-    return config["materials"][wildcards.material]
+    """The object material's constants, so that editing them re-runs its scenes."""
+    return material_constants(wildcards.material)
+
+
+def finger_fea_params():
+    """What a scene reads of the finger besides its mesh: material name, extrusion (mm)."""
+    return canonical({k: config["finger"][k] for k in ("material", "extrusion_mm")})
+
+
+def study_materials(*extra):
+    """Materials of an FEA study: steel, the finger's and ``extra`` (those configured)."""
+    names = {"steel", config["finger"]["material"], *extra} & set(config["materials"])
+    return canonical({n: material_constants(n) for n in names})
 
 
 def fea_files(name, splits=None):
     """A file of every FEA scene (optionally of some splits only)."""
-    return [
+    return sorted(
         f"{FEA}/{s.object}/{s.material}/h{s.height_mm:g}/{name}"
         for s in scenes(config)
         if splits is None or s.split in splits
-    ]
+    )
 
 
 def pitch_label(p):
@@ -107,16 +167,22 @@ def rendered_views():
 
 
 def shard_files(splits=None, pitch=None):
-    """Shards of every rendered view (optionally of some splits, or one pitch only)."""
-    return [
+    """Shards of every rendered view (optionally of some splits, or one pitch only), sorted:
+    the order of the objects in the config does not change what a job reads."""
+    return sorted(
         f"{DATASET}/shards/{s.object}/{s.material}/h{s.height_mm:g}/p{pitch_label(p)}.npz"
         for s, p in rendered_views()
         if (splits is None or s.split in splits) and (pitch is None or p == pitch)
-    ]
+    )
 
 
 def model_augment(wildcards):
-    return config["train"]["models"][wildcards.model]
+    return canonical(config["train"]["models"][wildcards.model])
+
+
+def model_names():
+    """Names of train.models, sorted."""
+    return sorted(config["train"]["models"])
 
 
 def pitch_scene():
@@ -144,19 +210,19 @@ def render_benchmark_input(wildcards):
 
 def render_scene_params(wildcards):
     """Scene description copied into the render index (and from there into the shard)."""
-    return {
+    return canonical({
         "object": wildcards.object,
         "material": wildcards.material,
         "height_mm": float(wildcards.height),
         "split": config["objects"][wildcards.object]["split"],
-    }
+    })
 
 
 def shard_scene_params(wildcards):
     scene = render_scene_params(wildcards)
     is_pitch_object = wildcards.object == pitch_object(config)
     scene["splits"] = scene_splits(scene["split"], float(wildcards.pitch), is_pitch_object)
-    return scene
+    return canonical(scene)
 
 
 def model_file(name):
@@ -173,6 +239,13 @@ def pitch_series_shards():
     return [f"{DATASET}/shards/{obj}/{mat}/h{h}/p{pitch_label(p)}.npz" for p in series_pitches()]
 
 
+def occlusion_level_order():
+    """Occlusion levels from the smallest discs to the largest (the config's keys in
+    whatever order they are written)."""
+    levels = config["dataset"]["occlusion_levels"]
+    return sorted(levels, key=lambda k: (list(levels[k]), k))
+
+
 def experiment_setup(wildcards):
     """Test shards, models and conditions of an experiment (see finray.evaluate)."""
     e = wildcards.experiment
@@ -185,21 +258,29 @@ def experiment_setup(wildcards):
     if e == "occlusion":
         return {"shards": shard_files(splits=["shape"], pitch=0.0),
                 "models": eval_models("plain", "occlusion"), "group_col": "object",
-                "conditions": {lvl: {"occlusion": lvl} for lvl in config["dataset"]["occlusion_levels"]}}
+                "conditions": [[lvl, {"occlusion": lvl}] for lvl in occlusion_level_order()]}
     return {"shards": pitch_series_shards(), "models": eval_models("plain", "pitch"), "group_col": None,
-            "conditions": {f"{p:g}": {"pitch_deg": p} for p in series_pitches()}}
+            "conditions": [[f"{p:g}", {"pitch_deg": p}] for p in series_pitches()]}
+
+
+def experiment_params(wildcards):
+    """Models (name, in the order compared), grouping and conditions (ordered [name,
+    settings] pairs) of an experiment; the shards and model files are its inputs."""
+    setup = experiment_setup(wildcards)
+    return canonical({"models": list(setup["models"]), "group_col": setup["group_col"],
+                      "conditions": setup["conditions"]})
 
 
 def experiment_inputs(wildcards):
     setup = experiment_setup(wildcards)
     return {"shards": setup["shards"], "models": list(setup["models"].values())}
 def render_index_files(pitch=None):
-    """index.json of every rendered view (optionally of one pitch only)."""
-    return [
+    """index.json of every rendered view (optionally of one pitch only), sorted."""
+    return sorted(
         f"{RENDER}/{s.object}/{s.material}/h{s.height_mm:g}/p{pitch_label(p)}/index.json"
         for s, p in rendered_views()
         if pitch is None or p == pitch
-    ]
+    )
 
 
 def all_targets():
@@ -221,5 +302,5 @@ def all_targets():
         f"{RESULTS}/benchmarks/inference_latency.json",
         f"{RESULTS}/benchmarks/train_time.csv",
     ] + expand("paper/figures/{name}.pdf", name=FIGURES) + expand(
-        f"{TRAIN}/{{model}}/model.ts", model=list(config["train"]["models"])
+        f"{TRAIN}/{{model}}/model.ts", model=model_names()
     ) + object_geometry_files()

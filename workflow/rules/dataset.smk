@@ -28,7 +28,8 @@ rule dataset_examples:
         ),
         png=f"{DATASET}/examples.png",
     params:
-        dataset=config["dataset"],
+        dataset=section("dataset", keys=SEGMENT_KEYS + ("crop_x_mm", "crop_y_mm", "noise_levels",
+                                                        "occlusion_levels", "occluder_value")),
     log:
         f"{RESULTS}/logs/dataset/examples.log",
     threads: 1

@@ -43,11 +43,12 @@ rule evaluate_experiment:
         checks=f"{EVALUATE}/{{experiment}}/checks.json",  # pitch: augmentation vs renders
     params:
         size=config["train"]["input_size"],
-        setup=experiment_setup,
-        occlusion_levels=config["dataset"]["occlusion_levels"],
+        setup=experiment_params,
+        occlusion_levels=section("dataset", keys=("occlusion_levels",))["occlusion_levels"],
         seed=config["evaluate"]["seed"],
-        pitch_geometry=pitch_geometry(config["dataset"], config["render"], config["train"]["input_size"][0],
-                                      config["finger"]["extrusion_mm"]),
+        pitch_geometry=canonical(pitch_geometry(config["dataset"], config["render"],
+                                                config["train"]["input_size"][0],
+                                                config["finger"]["extrusion_mm"])),
     log:
         f"{RESULTS}/logs/evaluate/{{experiment}}.log",
     benchmark:

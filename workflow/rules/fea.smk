@@ -10,8 +10,13 @@ rule fea_scene:
         forces=f"{FEA}/{{object}}/{{material}}/h{{height}}/forces.csv",
         summary=f"{FEA}/{{object}}/{{material}}/h{{height}}/summary.json",
     params:
-        fea=config["fea"],
+        fea=section("fea"),
         material=material_params,
+        finger=finger_fea_params(),
+        finger_material=material_constants(config["finger"]["material"]),
+        split=object_split,
+        # not an output: Snakemake deletes a failed job's outputs, this report stays
+        failure_report=f"{FEA}/failed/{{object}}_{{material}}_h{{height}}.json",
     log:
         f"{RESULTS}/logs/fea/{{object}}_{{material}}_h{{height}}.log",
     benchmark:

@@ -1,6 +1,9 @@
 # FEA stage benchmarks: cost against accuracy (Pareto) and robustness of hard scenes.
 # Pure compute from the config (no input files): the params carry the config sections
-# the studies read, so that editing them re-runs the studies.
+# the studies read, so that editing them re-runs the studies (and nothing else does).
+
+FEA_STUDY_KEYS = ("fea_reference_mesh_mm", "fea_mesh_sizes_mm", "fea_p1_mesh_sizes_mm",
+                  "fea_arc_chord_sizes_mm", "fea_fine_mesh_mm", "fea_coarse_mesh_mm")
 
 
 rule fea_pareto:
@@ -13,12 +16,12 @@ rule fea_pareto:
         ),
         summary=f"{RESULTS}/benchmarks/fea_pareto.md",
     params:
-        fea=config["fea"],
-        mesh=config["mesh"],
-        finger=config["finger"],
-        materials=config["materials"],
-        placement=config["placement"],
-        sizes=config["benchmarks"],
+        fea=section("fea"),
+        mesh=section("mesh"),
+        finger=section("finger"),
+        materials=study_materials(),
+        placement=section("placement"),
+        sizes=section("benchmarks", keys=FEA_STUDY_KEYS),
     log:
         f"{RESULTS}/logs/fea/benchmark_pareto.log",
     benchmark:
@@ -37,12 +40,12 @@ rule fea_stability:
         table=f"{RESULTS}/benchmarks/fea_stability.csv",
         summary=f"{RESULTS}/benchmarks/fea_stability.md",
     params:
-        fea=config["fea"],
-        mesh=config["mesh"],
-        finger=config["finger"],
-        materials=config["materials"],
-        placement=config["placement"],
-        sizes=config["benchmarks"],
+        fea=section("fea"),
+        mesh=section("mesh"),
+        finger=section("finger"),
+        materials=study_materials("neoprene"),  # a case of the suite
+        placement=section("placement"),
+        sizes=section("benchmarks", keys=FEA_STUDY_KEYS),
     log:
         f"{RESULTS}/logs/fea/benchmark_stability.log",
     benchmark:

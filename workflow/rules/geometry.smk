@@ -9,8 +9,8 @@ rule geometry_finger:
         surface=f"{GEOMETRY}/finger_surface.ply",
         surface_npz=f"{GEOMETRY}/finger_surface.npz",
     params:
-        finger=config["finger"],
-        mesh=config["mesh"],
+        finger=section("finger"),
+        mesh=section("mesh"),
     log:
         f"{RESULTS}/logs/geometry/finger.log",
     benchmark:
@@ -32,6 +32,9 @@ rule geometry_object:
     params:
         spec=object_spec,
         deformable=object_deformable,
+        finger=section("finger"),
+        mesh=section("mesh", keys=("size_mm", "min_angle_deg")),
+        placement=section("placement"),
     log:
         f"{RESULTS}/logs/geometry/{{object}}_h{{height}}.log",
     benchmark:
@@ -54,6 +57,8 @@ rule geometry_gallery:
             category="Geometry",
         ),
         png=f"{GEOMETRY}/gallery.png",
+    params:
+        splits=object_splits(),
     log:
         f"{RESULTS}/logs/geometry/gallery.log",
     threads: 1

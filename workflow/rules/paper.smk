@@ -1,6 +1,8 @@
 # The paper: figures (paper/figures/<name>.pdf + .png, each buildable on its own), the
 # headline numbers (results/summary.json) and the manuscript filled from them.
 
+from finray.evaluate.summary import setup_summary
+
 PAPER = "paper"
 FIGURES = ["shape_generalisation", "material_generalisation", "occlusion", "viewpoint", "speed"]
 
@@ -11,7 +13,7 @@ rule evaluate_speed:
         latency=f"{RESULTS}/benchmarks/inference_latency.json",
         # every stage has run, so that its benchmark files are complete
         stages=[f"{DATASET}/manifest.csv", f"{RESULTS}/benchmarks/render_throughput.json"]
-        + expand(f"{TRAIN}/{{model}}/model.ts", model=list(config["train"]["models"]))
+        + expand(f"{TRAIN}/{{model}}/model.ts", model=model_names())
         + expand(f"{EVALUATE}/{{experiment}}/metrics.json", experiment=EXPERIMENTS),
     output:
         json=f"{EVALUATE}/speed/speed.json",
@@ -122,11 +124,13 @@ rule summary:
         baseline=f"{EVALUATE}/baseline/fit.json",
         speed=f"{EVALUATE}/speed/speed.json",
         fea_pareto=f"{RESULTS}/benchmarks/fea_pareto.csv",
-        histories=expand(f"{TRAIN}/{{model}}/history.json", model=list(config["train"]["models"])),
+        fea_scenes=f"{RESULTS}/benchmarks/fea_scenes.csv",
+        histories=expand(f"{TRAIN}/{{model}}/history.json", model=model_names()),
     output:
         json=f"{RESULTS}/summary.json",
     params:
         usable_nrmse_pct=config["evaluate"]["usable_nrmse_pct"],
+        setup=canonical(setup_summary(config)),
         evaluate=lambda w, input: os.path.dirname(os.path.dirname(input.experiments[0])),
     log:
         f"{RESULTS}/logs/paper/summary.log",

@@ -11,8 +11,9 @@ rule render_scene:
         index=f"{RENDER}/{{object}}/{{material}}/h{{height}}/p{{pitch}}/index.json",
         shard=f"{DATASET}/shards/{{object}}/{{material}}/h{{height}}/p{{pitch}}.npz",
     params:
-        render=config["render"],
-        dataset=config["dataset"],
+        render=render_params(),
+        dataset=section("dataset", keys=SHARD_KEYS),
+        extrusion_mm=config["finger"]["extrusion_mm"],
         scene=shard_scene_params,
     log:
         f"{RESULTS}/logs/render/{{object}}_{{material}}_h{{height}}_p{{pitch}}.log",
@@ -31,7 +32,9 @@ rule render_benchmark:
     output:
         json=f"{RESULTS}/benchmarks/render_throughput.json",
     params:
-        dataset=config["dataset"],
+        render=render_params(),
+        dataset=section("dataset", keys=SHARD_KEYS),
+        extrusion_mm=config["finger"]["extrusion_mm"],
     log:
         f"{RESULTS}/logs/render/benchmark.log",
     threads: 1

@@ -16,8 +16,11 @@ rule train_model:
             category="Training",
         ),
     params:
-        train=config["train"],
+        train=section("train", drop=("models",)),
         augment=model_augment,
+        dataset=section("dataset", keys=SEGMENT_KEYS + ("crop_x_mm", "crop_y_mm", "occlusion_levels")),
+        render=section("render", keys=("window_y_mm",)),
+        finger=section("finger", keys=("extrusion_mm", "base_width_mm")),
     log:
         f"{RESULTS}/logs/train/{{model}}.log",
     benchmark:

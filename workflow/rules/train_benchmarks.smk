@@ -2,6 +2,9 @@
 # of the trained default model on rendered camera frames, training time of the full
 # config. Sized by the config's benchmarks section.
 
+TRAIN_STUDY_KEYS = ("train_sizes", "train_base_channels", "train_epochs", "train_every", "train_lr",
+                    "train_budget_ms", "train_tolerance")
+
 
 rule train_pareto:
     input:
@@ -15,8 +18,9 @@ rule train_pareto:
         ),
         summary=f"{RESULTS}/benchmarks/train_pareto.md",
     params:
-        benchmarks=config["benchmarks"],
-        train=config["train"],
+        benchmarks=section("benchmarks", keys=TRAIN_STUDY_KEYS + ("latency_frames",)),
+        train=section("train", keys=("input_size", "base_channels", "val_fraction", "batch_size",
+                                     "seed", "bf16", "channels_last")),
     log:
         f"{RESULTS}/logs/train/benchmark_pareto.log",
     benchmark:
@@ -39,7 +43,7 @@ rule inference_latency:
     output:
         json=f"{RESULTS}/benchmarks/inference_latency.json",
     params:
-        benchmarks=config["benchmarks"],
+        benchmarks=section("benchmarks", keys=("latency_frames", "latency_repeats")),
     log:
         f"{RESULTS}/logs/train/benchmark_latency.log",
     threads: 1
@@ -53,14 +57,12 @@ rule inference_latency:
 
 rule train_time:
     input:
-        histories=expand(f"{TRAIN}/{{model}}/history.json", model=list(config["train"]["models"])),
-        benchmarks=expand(
-            f"{RESULTS}/benchmarks/train/{{model}}.tsv", model=list(config["train"]["models"])
-        ),
+        histories=expand(f"{TRAIN}/{{model}}/history.json", model=model_names()),
+        benchmarks=expand(f"{RESULTS}/benchmarks/train/{{model}}.tsv", model=model_names()),
     output:
         table=f"{RESULTS}/benchmarks/train_time.csv",
     params:
-        models=list(config["train"]["models"]),
+        models=model_names(),
     log:
         f"{RESULTS}/logs/train/benchmark_train_time.log",
     threads: 1

@@ -1,9 +1,13 @@
-from finray.fea.studies import run_time_vs_error
+from finray.fea.studies import CIRCLE_D20, run_time_vs_error
 from finray.logs import log_to
 
-b = snakemake.config["benchmarks"]
+p = snakemake.params
+b = p.sizes
+# the sections the study reads; it validates a whole config, so it gets its own object
+cfg = {"fea": p.fea, "mesh": p.mesh, "finger": p.finger, "materials": p.materials,
+       "placement": p.placement, "objects": {"circle_d20": CIRCLE_D20}}
 with log_to(snakemake.log[0]):
-    table = run_time_vs_error(snakemake.config, snakemake.output.table,
+    table = run_time_vs_error(cfg, snakemake.output.table,
                               snakemake.output.figure, snakemake.output.summary,
                               reference_size_mm=b["fea_reference_mesh_mm"],
                               mesh_p2=b["fea_mesh_sizes_mm"], mesh_p1=b["fea_p1_mesh_sizes_mm"],

@@ -7,6 +7,5 @@ with log_to(snakemake.log[0]):
     for path in snakemake.input.objects:
         obj = TriMesh.load(path)
         objects.setdefault(obj.meta["name"], []).append(obj)
-    splits = {n: s["split"] for n, s in snakemake.config["objects"].items()}
     gallery(TriMesh.load(snakemake.input.finger), objects, snakemake.output.pdf,
-            snakemake.output.png, splits)
+            snakemake.output.png, snakemake.params.splits)

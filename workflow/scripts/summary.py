@@ -9,6 +9,8 @@ with log_to(snakemake.log[0]):
     histories = {Path(p).parent.name: p for p in snakemake.input.histories}
     s = build_summary(snakemake.params.evaluate, experiments, snakemake.input.baseline,
                       snakemake.input.speed, snakemake.input.fea_pareto, histories,
-                      snakemake.params.usable_nrmse_pct, snakemake.config)
+                      snakemake.params.usable_nrmse_pct,
+                      fea_scenes_csv=snakemake.input.fea_scenes)
+    s["setup"] = snakemake.params.setup  # the set-up constants, from the config that ran
     with open(snakemake.output.json, "w") as f:
         json.dump(s, f, indent=1)

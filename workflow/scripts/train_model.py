@@ -4,7 +4,7 @@ from finray.logs import log_to
 from finray.model import NetConfig
 from finray.train import AugmentConfig, TrainConfig, pitch_geometry, train_from_shards
 
-t = snakemake.params.train
+t, p = snakemake.params.train, snakemake.params
 with log_to(snakemake.log[0]):
     h, w = t["input_size"]
     net = NetConfig(in_channels=1, base_channels=t["base_channels"], height=h, width=w)
@@ -12,12 +12,10 @@ with log_to(snakemake.log[0]):
                       alpha_stress=t["alpha_stress"], alpha_force=t["alpha_force"], seed=t["seed"],
                       threads=snakemake.threads, bf16=t["bf16"], channels_last=t["channels_last"],
                       progress=False)
-    d = snakemake.config["dataset"]
-    aug = AugmentConfig(**snakemake.params.augment,
-                        **pitch_geometry(d, snakemake.config["render"], h,
-                                         snakemake.config["finger"]["extrusion_mm"]))
+    d = p.dataset
+    aug = AugmentConfig(**p.augment, **pitch_geometry(d, p.render, h, p.finger["extrusion_mm"]))
     occ = {k: tuple(v) for k, v in d["occlusion_levels"].items()}
-    preprocess = {"base_width_mm": snakemake.config["finger"]["base_width_mm"],
+    preprocess = {"base_width_mm": p.finger["base_width_mm"],
                   "crop_x_mm": d["crop_x_mm"], "crop_y_mm": d["crop_y_mm"],
                   "segment": {k: d[k] for k in ("threshold", "foreground", "min_object_frac",
                                                 "max_hole_frac", "keep_largest")}}

@@ -44,6 +44,13 @@ MANIFEST_COLUMNS = ["shard", "scene_id", "object", "material", "height_mm", "spl
                     "frame", "fea_frame", "displacement_mm", "fx_N", "fy_N"]
 
 
+#: The settings a shard's arrays depend on (sizes, crop, segmentation); the rest of
+#: :class:`DatasetParams` is for the test-time corruptions and figures. A shard records
+#: these only, and the workflow re-renders when one of them changes.
+SHARD_KEYS = ("sizes", "crop_x_mm", "crop_y_mm", "threshold", "foreground", "min_object_frac",
+              "max_hole_frac", "keep_largest")
+
+
 @dataclass(frozen=True)
 class DatasetParams:
     """Settings of the dataset stage (config section ``dataset``)."""
@@ -248,7 +255,8 @@ def _write_shard(out_npz, index: dict, prep: FramePreparer, scene: dict | None,
         "scene": _scene_of(index, scene), "sizes": [list(s) for s in params.sizes],
         "crop_box_px": list(box), "render_dir": str(render_dir), "render": index["params"],
         "renderer": index["renderer"], "stress_transform": index["stress_transform"],
-        "dataset": params.to_dict(), "n_frames": index["n_frames"],
+        "dataset": {k: v for k, v in params.to_dict().items() if k in SHARD_KEYS},
+        "n_frames": index["n_frames"],
         "support_iou_min": min(prep.support_iou) if prep.support_iou else None,
     }
     arrays = prep.stacked()

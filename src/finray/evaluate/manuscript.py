@@ -21,6 +21,7 @@ def render_manuscript(template, summary_json, out_md, out_html, extra: dict | No
     env = jinja2.Environment(undefined=jinja2.StrictUndefined, keep_trailing_newline=True)
     env.filters["f"] = _fmt
     env.filters["pct"] = lambda v, d=1: _fmt(v, d)
+    env.filters["g"] = lambda v, d=2: "n/a" if v is None else f"{v:.{d}g}"  # 0.001, 3.4e-07
     env.filters["degs"] = lambda v: ", ".join(f"{x:g}°" for x in v) if v else "no pitch"
     tpl = env.from_string(Path(template).read_text())
     summary = json.loads(Path(summary_json).read_text())

@@ -48,12 +48,41 @@ def setup_summary(cfg: dict) -> dict:
             "base_channels": cfg["train"]["base_channels"]}
 
 
+def fea_checks(fea_scenes_csv) -> dict:
+    """What the FEA scenes were checked against, over all scenes (``fea_scenes.csv``,
+    one row per scene's ``summary.json``): the Newton residual tolerance and the
+    largest residual reached (relative to the support forces), the per-frame
+    equilibrium tolerance and the largest error (|force on object - clamp reaction|
+    / |force|), the scene of each maximum, the summed line-search failures and
+    gradient-descent fallbacks, and the smallest gap (mm). A scene failing a check
+    stops the run, so the numbers describe scenes that passed."""
+    df = pd.read_csv(fea_scenes_csv)
+
+    def worst(col):
+        i = df[col].idxmax()
+        return float(df.at[i, col]), str(df.at[i, "scene"])
+
+    res, res_scene = worst("residual_max_rel")
+    eq, eq_scene = worst("equilibrium_max_rel_error")
+    return {"n_scenes": int(len(df)),
+            "residual_tol": float(df["residual_tol"].max()),
+            "residual_max_rel": res, "residual_max_scene": res_scene,
+            "equilibrium_tol": float(df["equilibrium_tol"].max()),
+            "equilibrium_max_rel_error": eq, "equilibrium_max_scene": eq_scene,
+            "line_search_failures": int(df["line_search_failures"].sum()),
+            "gradient_fallbacks": int(df["gradient_fallbacks"].sum()),
+            "min_gap_mm": float(df["min_gap_mm"].min())}
+
+
 def build_summary(evaluate_dir, experiments, baseline_fit, speed_json, fea_pareto_csv,
-                  histories: dict[str, str], usable_nrmse_pct: float, config: dict | None = None) -> dict:
+                  histories: dict[str, str], usable_nrmse_pct: float, config: dict | None = None,
+                  fea_scenes_csv=None) -> dict:
     evaluate_dir = Path(evaluate_dir)
     s: dict = {"experiments": {e: experiment_summary(evaluate_dir / e) for e in experiments}}
     if config is not None:
         s["setup"] = setup_summary(config)
+    if fea_scenes_csv is not None:
+        s["fea_checks"] = fea_checks(fea_scenes_csv)
     if "pitch" in experiments:
         m = pd.read_csv(evaluate_dir / "pitch" / "metrics.csv")
         s["pitch_usable_deg"] = {p: usable_range(m, p, usable_nrmse_pct)

@@ -29,7 +29,8 @@ def _load(results, summaries):
 
 
 def scene_table(summaries, out_csv) -> pd.DataFrame:
-    """One row per scene: convergence, wall time, Newton iterations, contact, peak stress."""
+    """One row per scene: convergence checks, wall time, Newton iterations, contact, peak
+    stress."""
     rows = []
     for s in summaries:
         d = json.loads(Path(s).read_text())
@@ -37,7 +38,8 @@ def scene_table(summaries, out_csv) -> pd.DataFrame:
             "scene", "object", "material", "height_mm", "split", "converged", "wall_time_s",
             "n_steps", "newton_iterations", "fx_final_N", "fy_final_N", "max_von_mises_MPa",
             "min_gap_mm", "self_contact_max_pairs", "self_contact_first_mm",
-            "equilibrium_max_rel_error")})
+            "residual_tol", "residual_final_rel", "residual_max_rel", "equilibrium_tol",
+            "equilibrium_max_rel_error", "line_search_failures", "gradient_fallbacks")})
     df = pd.DataFrame(rows)
     df.to_csv(out_csv, index=False)
     return df

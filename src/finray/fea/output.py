@@ -8,7 +8,9 @@ stresses MPa):
   the finger (positive along the push), equal and opposite to the force on the
   object and to the clamp's reaction;
 - ``forces.csv``: ``displacement_mm,fx_N,fy_N`` per frame;
-- ``summary.json``: convergence, timings, peak stress, smallest gap, contact pairs;
+- ``summary.json``: convergence checks (Newton residual, per-frame equilibrium error,
+  line-search failures, gradient fallbacks), timings, peak stress, smallest gap,
+  contact pairs;
 - ``finger.pvd`` + ``vtu/finger_NNNN.vtu`` (and ``object.pvd`` for deformable
   objects): the deformation series with displacement and von Mises stress, for
   ParaView (apply "Warp By Vector" on ``u``).
@@ -26,6 +28,7 @@ from .contact import ContactParams, split_p2_edges
 from .material import NeoHookean
 from .simulate import (DeformableObject, RigidObject, SimulationError, SimulationOptions,
                        SimulationResult, simulate)
+from .solver import NewtonOptions
 
 
 def material_law(cfg: dict, name: str) -> NeoHookean:
@@ -45,6 +48,8 @@ def simulation_options(cfg: dict) -> SimulationOptions:
                              contact=contact, max_step_mm=f["max_step_mm"],
                              initial_step_mm=f["max_step_mm"], min_step_mm=f["min_step_mm"],
                              max_retries=f["max_retries"],
+                             newton=NewtonOptions(tol_residual=f["residual_tol"]),
+                             equilibrium_tol=f["equilibrium_tol"],
                              extrusion_mm=cfg["finger"]["extrusion_mm"])
 
 
@@ -122,9 +127,19 @@ def write_vtu_series(outdir: Path, finger: TriMesh, obj, result: SimulationResul
 
 
 def summary(result: SimulationResult, wall_time_s: float, scene: dict) -> dict:
-    """Headline numbers of a converged run (forces on the finger, N)."""
+    """Headline numbers of a converged run (forces on the finger, N).
+
+    Checks: ``residual_final_rel`` (the last load step) and ``residual_max_rel`` (all
+    load steps) are Newton's free-DOF residual relative to the support forces
+    (:meth:`~finray.fea.solver.Model.residual_norm`), each at most ``residual_tol``;
+    ``equilibrium_max_rel_error`` is the largest per-frame ``|force on object - clamp
+    reaction| / |force|`` of the solved frames (1 on), at most ``equilibrium_tol``; ``line_search_failures`` and
+    ``gradient_fallbacks`` count the solver's stalled line searches (including those
+    of load steps then cut and retried) and non-descent Newton directions.
+    """
     gaps = np.concatenate([result.min_gap_object_mm, result.min_gap_self_mm])
     gaps = gaps[np.isfinite(gaps)]
+    m = result.meta
     return {
         **scene, "converged": True, "wall_time_s": round(wall_time_s, 3),
         "n_frames": int(len(result.displacement_mm)),
@@ -137,40 +152,60 @@ def summary(result: SimulationResult, wall_time_s: float, scene: dict) -> dict:
                                   if (result.n_pairs_self > 0).any() else None),
         "object_contact_max_pairs": int(result.n_pairs_object.max()),
         "fx_final_N": float(-result.force_N[-1, 0]), "fy_final_N": float(-result.force_N[-1, 1]),
-        "equilibrium_max_rel_error": _equilibrium_error(result),
-        "solver": result.meta,
+        "residual_tol": m["residual_tol"],
+        "residual_final_rel": float(result.residual_rel[-1]),
+        "residual_max_rel": float(m["residual_max_rel"]),
+        "equilibrium_tol": m["equilibrium_tol"],
+        "equilibrium_max_rel_error": float(result.equilibrium_rel_error[1:].max(initial=0.0)),
+        "line_search_failures": int(m["line_search_failures"]),
+        "gradient_fallbacks": int(m["gradient_fallbacks"]),
+        "solver": m,
     }
 
 
-def _equilibrium_error(result: SimulationResult) -> float:
-    """max |force on object - base reaction| / max |force| over the frames."""
-    scale = max(float(np.abs(result.force_N).max()), 1e-12)
-    return float(np.abs(result.force_N - result.base_reaction_N).max() / scale)
-
-
 def run_scene(cfg: dict, finger: TriMesh, obj_mesh: TriMesh, material: str, outdir: str | Path,
-              scene: dict | None = None, vtu: bool = True) -> dict:
-    """Simulate one scene and write its files; a failed solve writes ``summary.json``
-    with ``converged: false`` and the cause, then raises :class:`SimulationError`."""
+              scene: dict | None = None, vtu: bool = True,
+              failure_report: str | Path | None = None) -> dict:
+    """Simulate one scene and write its files.
+
+    A failed solve writes ``summary.json`` with ``converged: false`` and the cause
+    into ``outdir`` and, when given, the same report to ``failure_report`` (a path
+    that is no output of the workflow rule, so that it survives the failed job),
+    then raises :class:`SimulationError` with a one-line message naming the scene.
+    A successful run removes a stale ``failure_report``.
+    """
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
     scene = dict(scene or {})
+    name = scene.get("scene", "?")
     obj = scene_object(obj_mesh, material, cfg)
     t0 = time.perf_counter()
+
+    def fail(exc: SimulationError) -> SimulationError:
+        msg = f"scene {name}: {exc}"
+        report = {**scene, "converged": False, "wall_time_s": round(time.perf_counter() - t0, 3),
+                  "error": msg, "cause": exc.cause, "failed_step": exc.step,
+                  "load_factor": exc.load}
+        text = json.dumps(report, indent=2)
+        (outdir / "summary.json").write_text(text)
+        if failure_report is not None:
+            Path(failure_report).parent.mkdir(parents=True, exist_ok=True)
+            Path(failure_report).write_text(text)
+        return SimulationError(msg, step=exc.step, load=exc.load, cause=exc.cause)
+
     try:
         res = simulate(finger, obj, material_law(cfg, cfg["finger"]["material"]),
                        simulation_options(cfg))
     except SimulationError as exc:
-        fail = {**scene, "converged": False, "wall_time_s": round(time.perf_counter() - t0, 3),
-                "error": str(exc), "failed_step": exc.step}
-        (outdir / "summary.json").write_text(json.dumps(fail, indent=2))
-        raise SimulationError(f"scene {scene.get('scene', '?')}: {exc}", step=exc.step,
-                              load=exc.load, cause=exc.cause) from None
+        raise fail(exc) from None
     wall = time.perf_counter() - t0
-    for name, arr in (("displacement", res.finger_displacement_mm), ("force", res.force_N),
+    for what, arr in (("displacement", res.finger_displacement_mm), ("force", res.force_N),
                       ("stress", res.finger_von_mises_MPa)):
         if not np.isfinite(arr).all():
-            raise SimulationError(f"scene {scene.get('scene', '?')}: non-finite {name} in the result")
+            raise fail(SimulationError(f"non-finite {what} in the result",
+                                       cause="non-finite result"))
+    if failure_report is not None:
+        Path(failure_report).unlink(missing_ok=True)
     write_result_npz(outdir / "result.npz", finger, obj, res)
     np.savetxt(outdir / "forces.csv", np.column_stack([res.displacement_mm, -res.force_N]),
                delimiter=",", header="displacement_mm,fx_N,fy_N", comments="", fmt="%.8g")

@@ -13,16 +13,21 @@ can ovalise against the finger). No file is written here.
 
 Sign conventions: ``force_*`` is the force that the finger exerts *on the object*
 (a +x push gives a negative Fx); ``base_reaction_*`` is the force of the clamp on
-the finger. At equilibrium they are equal (the finger's free-body balance).
+the finger. At equilibrium they are equal (the finger's free-body balance), and
+every solved frame is checked: a relative difference above
+``SimulationOptions.equilibrium_tol`` stops the run with a :class:`SimulationError`
+naming the frame and the error.
 """
 from __future__ import annotations
 
+import logging
 import time
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
 from ..geometry.mesh import BOUNDARY_TAGS, TriMesh
+from ..logs import Progress
 from .assembly import ElementBlock
 from .contact import ContactModel, ContactParams, split_p2_edges
 from .material import NeoHookean
@@ -30,6 +35,8 @@ from .solver import Model, NewtonOptions, SimulationError, StepOptions, march
 
 __all__ = ["RigidObject", "DeformableObject", "SimulationOptions", "SimulationResult",
            "simulate", "SimulationError", "boundary_loops"]
+
+log = logging.getLogger(__name__)
 
 
 @dataclass
@@ -74,7 +81,11 @@ class SimulationOptions:
     friction_lag_iterations : re-solves with friction re-lagged at the solution
         of each step (0: lagged at the step start only; 1 makes Fy ~3 % and Fx
         ~0.6 % more accurate at ~20 % more cost).
-    newton : :class:`NewtonOptions` (tol_dx mm, max_iterations).
+    newton : :class:`NewtonOptions` (tol_dx mm, tol_residual, max_iterations).
+    equilibrium_tol : largest ``|force on object - clamp reaction| / max(|force|,
+        |reaction|, equilibrium_floor_N_per_mm)`` allowed at a recorded frame.
+    equilibrium_floor_N_per_mm : force (N/mm) below which the equilibrium error is
+        taken relative to this floor (frames before contact carry no force).
     extrusion_mm : out-of-plane width for the ``*_N`` forces.
     gap_probe_mm : gaps larger than this are reported as NaN.
     self_neighbour_mm : finger self pairs closer than this along the boundary are
@@ -82,6 +93,8 @@ class SimulationOptions:
     linear_solver : "auto", "cholmod", "cholespy" or "splu".
     psd : "auto" (exact Hessian, projected when not positive definite), True, False.
     stress : compute nodal von Mises stresses.
+    log_every_s : a progress line (frame k/n, travel mm, load steps, elapsed s) in the
+        ``finray.fea`` log at most this often (s), and at the last frame.
     """
 
     push_mm: float = 10.0
@@ -95,12 +108,15 @@ class SimulationOptions:
     max_retries: int = 12
     friction_lag_iterations: int = 1
     newton: NewtonOptions = field(default_factory=NewtonOptions)
+    equilibrium_tol: float = 1e-3
+    equilibrium_floor_N_per_mm: float = 1e-6
     extrusion_mm: float | None = None  # default: finger_mesh.meta["extrusion_mm"] or 20
     gap_probe_mm: float = 1.0  # gaps above this are reported as NaN
     self_neighbour_mm: float = 1.0  # self pairs closer than this along the boundary are ignored
     linear_solver: str = "auto"
     psd: object = "auto"
     stress: bool = True
+    log_every_s: float = 30.0
 
 
 @dataclass
@@ -124,6 +140,10 @@ class SimulationResult:
     n_pairs_object: np.ndarray  # (F,) active barrier pairs finger-object
     n_pairs_self: np.ndarray  # (F,) active barrier pairs finger-finger
     newton_iterations: np.ndarray  # (F,) since the previous frame
+    residual_rel: np.ndarray  # (F,) Newton residual of the solve that reached the frame
+    equilibrium_rel_error: np.ndarray  # (F,) |force - base reaction| / |force| (see options);
+    #   checked from frame 1 (frame 0 is the rest state, not solved: an object placed
+    #   within dhat already feels the barrier there)
     load_steps: np.ndarray  # (F,) cumulative
     wall_time_s: np.ndarray  # (F,) since the previous frame
     meta: dict
@@ -237,7 +257,7 @@ def simulate(finger_mesh: TriMesh, obj: RigidObject | DeformableObject, material
 
     rec: dict[str, list] = {k: [] for k in (
         "displacement_mm", "target_mm", "force", "base", "friction", "Uf", "vmf", "Uo", "vmo",
-        "gap_obj", "gap_self", "n_obj", "n_self", "iters", "steps", "wall")}
+        "gap_obj", "gap_self", "n_obj", "n_self", "iters", "steps", "wall", "res", "eq")}
 
     def self_real(v0, v1):
         same = loop_id[v0] == loop_id[v1]
@@ -253,9 +273,19 @@ def simulate(finger_mesh: TriMesh, obj: RigidObject | DeformableObject, material
         t = model.t(q)
         rec["displacement_mm"].append(float(t @ direction))
         rec["target_mm"].append(s * push)
-        rec["force"].append(model.contact_force(q, obj_nodes))
+        f_obj, f_base = model.contact_force(q, obj_nodes), model.elastic_force(q, base_mask)
+        err = float(np.linalg.norm(f_obj - f_base) / max(
+            np.linalg.norm(f_obj), np.linalg.norm(f_base), opts.equilibrium_floor_N_per_mm))
+        if k > 0 and not err <= opts.equilibrium_tol:  # frame 0: the rest state, not solved
+            raise SimulationError(
+                f"frame {k}: equilibrium error {err:.2e} > tolerance {opts.equilibrium_tol:.0e} "
+                f"(|force on object - clamp reaction| / |force|)", step=info.get("steps"),
+                load=s, cause="equilibrium")
+        rec["eq"].append(err)
+        rec["res"].append(info.get("residual_rel", 0.0))
+        rec["force"].append(f_obj)
         rec["friction"].append(model.contact_force(q, obj_nodes, friction_only=True))
-        rec["base"].append(model.elastic_force(q, base_mask))
+        rec["base"].append(f_base)
         rec["Uf"].append(U[:Nf].copy())
         rec["Uo"].append(U[Nf:].copy())
         if opts.stress:
@@ -279,13 +309,21 @@ def simulate(finger_mesh: TriMesh, obj: RigidObject | DeformableObject, material
     q0 = np.zeros(model.n)
     model.U_step_start = model.U(q0)
     record(0, 0.0, q0, {})
+    what = f"FEA {getattr(obj, 'name', 'object')}"
+    log.info(f"{what}: push {push:g} mm in {n_frames} frames, {model.n} DOFs")
+    progress = Progress(log, what, n_frames, opts.log_every_s)
+
+    def on_frame(k, s, q, info):
+        record(k + 1, s, q, info)
+        progress(k + 1, f"travel {rec['displacement_mm'][-1]:.2f}/{push:g} mm, "
+                        f"{info.get('steps', 0)} load steps")
     L = push
     so = StepOptions(initial_step=opts.initial_step_mm / L, max_step=opts.max_step_mm / L,
                      min_step=opts.min_step_mm / L, max_retries=opts.max_retries,
                      friction_lag_iterations=opts.friction_lag_iterations)
     try:
         march(model, q0, lambda s: s * push * direction, frames_s[1:], so, opts.newton,
-              on_frame=lambda k, s, q, info: record(k + 1, s, q, info),
+              on_frame=on_frame,
               friction=opts.contact.mu > 0)
     except SimulationError as e:
         e.args = (f"{e.args[0]} at object displacement {e.load * push:.4f} mm "
@@ -308,6 +346,10 @@ def simulate(finger_mesh: TriMesh, obj: RigidObject | DeformableObject, material
         "linear_solver": model.linsolve.backend,
         "cholmod_mode": model.linsolve.mode,
         "n_factorizations": model.linsolve.n_factorizations,
+        "line_search_failures": model.counters["line_search_failures"],
+        "gradient_fallbacks": model.counters["gradient_fallbacks"],
+        "residual_max_rel": model.counters["residual_max_rel"],
+        "residual_tol": opts.newton.tol_residual, "equilibrium_tol": opts.equilibrium_tol,
         "n_analyses": model.linsolve.n_analyses,
         "timings_s": {**{k: round(v, 4) for k, v in model.stats.items()},
                       "factor": round(model.linsolve.time_factor, 4),
@@ -324,7 +366,8 @@ def simulate(finger_mesh: TriMesh, obj: RigidObject | DeformableObject, material
         object_displacement_mm=np.array(rec["Uo"]), object_von_mises_MPa=vmo,
         min_gap_object_mm=np.array(rec["gap_obj"]), min_gap_self_mm=np.array(rec["gap_self"]),
         n_pairs_object=np.array(rec["n_obj"]), n_pairs_self=np.array(rec["n_self"]),
-        newton_iterations=np.array(rec["iters"]), load_steps=np.array(rec["steps"]),
+        newton_iterations=np.array(rec["iters"]), residual_rel=np.array(rec["res"]),
+        equilibrium_rel_error=np.array(rec["eq"]), load_steps=np.array(rec["steps"]),
         wall_time_s=np.array(rec["wall"]), meta=meta)
 
 

@@ -22,8 +22,12 @@ factorised again. The sparse Cholesky (CHOLMOD) reuses its symbolic analysis whi
 the pattern stays inside the analysed one. Each step is cut to the collision-free
 fraction found by continuous collision detection, then backtracked (Armijo) so
 that the energy decreases: no accepted state is interpenetrating or has an
-inverted element. Convergence: infinity norm of the Newton step below ``tol_dx``
-(mm); that last, tiny step is taken too.
+inverted element. Convergence needs both criteria of :class:`NewtonOptions`: the
+infinity norm of the Newton step below ``tol_dx`` (mm) and the force residual of the
+free DOFs below ``tol_residual`` relative to the support and load forces
+(:meth:`Model.residual_norm`, from the gradient already assembled for the step); that
+last, tiny step is taken too. Line-search failures and gradient-descent fallbacks
+are counted in ``Model.counters``, never silent.
 
 Load stepping (:func:`march`): adaptive steps (halved on failure, doubled after
 easy steps, bounded by the frame spacing), a linear predictor from the previous
@@ -298,6 +302,13 @@ class Model:
         self.U_step_start: np.ndarray | None = None
         self.stats = {"assembly_s": 0.0, "contact_s": 0.0, "solve_s": 0.0, "ccd_s": 0.0,
                       "line_search_s": 0.0}
+        # per model (scene): backtracking that found no decrease, non-descent Newton
+        # directions replaced by scaled gradient descent, and the largest relative
+        # residual of a converged solve
+        self.counters = {"line_search_failures": 0, "gradient_fallbacks": 0,
+                         "residual_max_rel": 0.0}
+        self._fixed_dofs = np.flatnonzero(np.repeat(fixed, 2))
+        self.force_scale = 0.0  # N/mm, set by evaluate() (see residual_norm)
 
     # -- state mapping -------------------------------------------------------------
     def U(self, q: np.ndarray) -> np.ndarray:
@@ -367,13 +378,19 @@ class Model:
                 extra_v.append(Hc.data[keep])
             self.stats["contact_s"] += time.perf_counter() - t0
         g = self.elastic.reduce_gradient(g_full)
+        # support reactions (fixed DOFs) and applied loads: the force scale of the residual
+        scale2 = float(g_full[self._fixed_dofs] @ g_full[self._fixed_dofs])
+        if self.load:
+            scale2 += self.load**2 * float((self.f_ext * self.f_ext).sum())
         if self.has_driver:
             dt = self.t(q) - self.t_target
             E += 0.5 * self.k_drive * float(dt @ dt)
             g[self.t_index] += self.k_drive * dt
+            scale2 += self.k_drive**2 * float(dt @ dt)
             extra_r.append(self.t_index)
             extra_c.append(self.t_index)
             extra_v.append(np.full(2, self.k_drive))
+        self.force_scale = float(np.sqrt(scale2))
         if order < 2:
             return E, g, None
         H = self.elastic.pattern.matrix(Hdata)
@@ -420,31 +437,70 @@ class Model:
         """Reduced gradient of the potential (out-of-balance forces, N/mm)."""
         return self.evaluate(q, order=1)[1]
 
+    def residual_norm(self, g: np.ndarray, floor: float = 1e-12) -> float:
+        """Force balance of the free nodes: ``|g_free|_2 / max(F, floor)``, dimensionless.
+
+        ``g`` is the reduced gradient returned by :meth:`evaluate` (out-of-balance
+        nodal forces, N/mm); its free-node part is used (the driver's two unknowns
+        only carry the penalty spring). ``F`` (N/mm) is the 2-norm of the nodal
+        forces that hold the bodies: the support reactions at the fixed nodes, the
+        driver spring and the applied loads, from the same evaluation. The scenes are
+        displacement driven (no applied load), so the reaction is the only load
+        scale they have; where a load is applied it equals the reaction at
+        equilibrium. ``floor`` (N/mm) stands in for F when nothing is loaded.
+        """
+        r = float(np.linalg.norm(g[:self.n_free_dofs]))
+        return r / max(self.force_scale, floor)
+
 
 # ----------------------------------------------------------------------------------
 # Newton
 # ----------------------------------------------------------------------------------
 @dataclass
 class NewtonOptions:
+    """Newton's stopping rule: converged when the step is below ``tol_dx`` (mm,
+    infinity norm) *and* the free-DOF residual below ``tol_residual`` (relative to the
+    support and load forces, :meth:`Model.residual_norm`; ``residual_floor`` N/mm
+    is the force scale of an unloaded model)."""
+
     max_iterations: int = 40
     tol_dx: float = 1e-5  # mm, infinity norm of the Newton direction
+    tol_residual: float = 1e-3  # |g_free| / |reactions + loads| (config fea.residual_tol)
+    residual_floor: float = 1e-12  # N/mm
     armijo: float = 1e-4
     min_alpha: float = 1e-10
 
 
 @dataclass
 class NewtonResult:
+    """``residual``: :meth:`Model.residual_norm` at the last assembled state (before
+    the final step of size < tol_dx, which in Newton's quadratic regime reduces it
+    further; no assembly is spent to measure it again); ``note``: why a converged
+    solve is unusual (e.g. the line search stalled at round-off)."""
+
     q: np.ndarray
     converged: bool
     iterations: int
     cause: str = ""
     energy: float = np.nan
     history: list = field(default_factory=list)
+    residual: float = np.nan
+    note: str = ""
 
 
 def newton(model: Model, q0: np.ndarray, opts: NewtonOptions | None = None) -> NewtonResult:
-    """Minimise the model's potential from q0 (must be valid and intersection-free)."""
+    """Minimise the model's potential from q0 (must be valid and intersection-free).
+
+    Converged: Newton step below ``opts.tol_dx`` and residual below
+    ``opts.tol_residual`` (both). A backtracking line search that finds no
+    decrease is counted (``model.counters["line_search_failures"]``) and ends the
+    solve: converged only if the residual criterion holds there (energy round-off
+    near the minimum), else not converged, with the step and residual in ``cause``.
+    A non-descent direction is replaced by scaled gradient descent and counted
+    (``model.counters["gradient_fallbacks"]``).
+    """
     opts = opts or NewtonOptions()
+    cnt = model.counters
     q = q0.copy()
     E, g, H = model.evaluate(q, 2)
     if not np.isfinite(E):
@@ -475,11 +531,14 @@ def newton(model: Model, q0: np.ndarray, opts: NewtonOptions | None = None) -> N
             return NewtonResult(q, False, it, "linear solve returned NaN", E, hist)
         gd = float(g @ d)
         if gd >= 0:  # not a descent direction (should not happen with PSD Hessians)
+            cnt["gradient_fallbacks"] += 1
             d = -g / np.maximum(H.diagonal(), 1e-12)
             gd = float(g @ d)
         dmax = float(np.abs(d).max()) if len(d) else 0.0
-        hist.append([E, float(np.abs(g).max()) if len(g) else 0.0, dmax, int(np.abs(d).argmax()) if len(d) else -1, 1.0, 1.0])
-        if dmax < opts.tol_dx:
+        res = model.residual_norm(g, opts.residual_floor)  # g of this state: no assembly
+        hist.append([E, float(np.abs(g).max()) if len(g) else 0.0, dmax,
+                     int(np.abs(d).argmax()) if len(d) else -1, 1.0, 1.0, res])
+        if dmax < opts.tol_dx and res <= opts.tol_residual:
             # take the (tiny) last Newton step too: the residual becomes O(|d|^2)
             q_try = q + d
             ok = model.contact is None or model.contact.max_step(model.U(q), model.U(q_try)) >= 1.0
@@ -487,7 +546,8 @@ def newton(model: Model, q0: np.ndarray, opts: NewtonOptions | None = None) -> N
                 E_try = model.energy(q_try)
                 if np.isfinite(E_try) and E_try <= E + 1e-12 * max(1.0, abs(E)):
                     q, E = q_try, E_try
-            return NewtonResult(q, True, it, "", E, hist)
+            cnt["residual_max_rel"] = max(cnt["residual_max_rel"], res)
+            return NewtonResult(q, True, it, "", E, hist, res)
         # continuous collision detection bounds the step
         alpha = 1.0
         if model.contact is not None:
@@ -507,17 +567,27 @@ def newton(model: Model, q0: np.ndarray, opts: NewtonOptions | None = None) -> N
             alpha *= 0.5
             if alpha < opts.min_alpha:
                 model.stats["line_search_s"] += time.perf_counter() - t0
-                if dmax < 100 * opts.tol_dx:  # converged to round-off
-                    return NewtonResult(q, True, it - 1, "", E, hist)
-                return NewtonResult(q, False, it, "line search failed (no decrease)", E, hist)
+                cnt["line_search_failures"] += 1
+                if dmax < 100 * opts.tol_dx and res <= opts.tol_residual:
+                    # balanced forces, energy differences below round-off
+                    cnt["residual_max_rel"] = max(cnt["residual_max_rel"], res)
+                    return NewtonResult(q, True, it - 1, "", E, hist, res,
+                                        note=f"line search stalled at |dx| = {dmax:.2e} mm "
+                                             f"with the residual {res:.2e} within tolerance")
+                return NewtonResult(q, False, it, f"line search failed (no decrease) at "
+                                    f"|dx| = {dmax:.2e} mm, residual {res:.2e} (tolerance "
+                                    f"{opts.tol_residual:.0e})", E, hist, res)
         model.stats["line_search_s"] += time.perf_counter() - t0
         hist[-1][5] = alpha
         q = q_try
         E, g, H = model.evaluate(q, 2)
-    dmax_last = hist[-1][2] if hist else np.nan  # [E, |g|, |d|, argmax, ccd alpha, alpha]
+    # hist rows: [E, |g|, |d|, argmax, ccd alpha, alpha, residual]
+    res_last = model.residual_norm(g, opts.residual_floor)
+    dmax_last = hist[-1][2] if hist else np.nan
     return NewtonResult(q, False, opts.max_iterations,
                         f"no convergence in {opts.max_iterations} iterations "
-                        f"(last |dx| = {dmax_last:.2e} mm)", E, hist)
+                        f"(last |dx| = {dmax_last:.2e} mm, residual {res_last:.2e})", E, hist,
+                        res_last)
 
 
 # ----------------------------------------------------------------------------------
@@ -543,7 +613,9 @@ def march(model: Model, q: np.ndarray, targets, frames: np.ndarray,
 
     ``targets(s)`` gives the driver target (2,) at load factor s (also sets
     ``model.load = s`` for external forces). ``on_frame(k, s, q, info)`` is called
-    at every frame with the Newton iterations and wall time since the previous one.
+    at every frame with the Newton iterations and wall time since the previous one
+    and ``residual_rel``, the residual of the solve that reached the frame
+    (:meth:`Model.residual_norm`).
     Raises :class:`SimulationError` naming the step and the cause on failure.
     Returns the final q.
     """
@@ -554,6 +626,7 @@ def march(model: Model, q: np.ndarray, targets, frames: np.ndarray,
     step = 0
     q_prev, s_prev = None, None
     iters_frame = 0
+    residual = np.nan
     t_frame = time.perf_counter()
     for k, s_f in enumerate(frames):
         while s < s_f - 1e-12:
@@ -606,11 +679,13 @@ def march(model: Model, q: np.ndarray, targets, frames: np.ndarray,
                 s_new = s + ds
             q_prev, s_prev = q, s
             q, s = res.q, s_new
+            residual = res.residual
             if iters <= so.easy_iterations:
                 ds = min(so.max_step, ds * so.grow)
         if on_frame is not None:
             on_frame(k, s, q, {"newton_iterations": iters_frame,
-                               "wall_time_s": time.perf_counter() - t_frame, "steps": step})
+                               "wall_time_s": time.perf_counter() - t_frame, "steps": step,
+                               "residual_rel": residual})
         iters_frame = 0
         t_frame = time.perf_counter()
     return q

@@ -26,12 +26,14 @@ target of a pitched image is the front-view map of the same frame.
 from __future__ import annotations
 
 import json
+import logging
 import time
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
+from ..logs import Progress
 from .imageio import read_exr, read_png, write_exr, write_png
 from .params import RenderParams
 from .raster import Rasterizer, composite
@@ -39,6 +41,8 @@ from .result import FEAResult, load_fea_result, resample_frames
 
 INDEX_FILE = "index.json"
 STRESS_TRANSFORM = "log10(1 + von_mises_MPa / stress_ref_MPa)"
+
+log = logging.getLogger(__name__)
 
 
 def _image_name(k: int) -> str:
@@ -106,7 +110,8 @@ def render_scene(result_npz: str | Path, out_dir: str | Path, pitch_deg: float =
                  params: RenderParams | None = None, extrusion_mm: float = 20.0,
                  backend: str = "auto", draw_object: bool = False,
                  scene: dict | None = None,
-                 on_frame: Callable[[int, np.ndarray, dict], None] | None = None) -> dict:
+                 on_frame: Callable[[int, np.ndarray, dict], None] | None = None,
+                 log_every_s: float = 30.0) -> dict:
     """Render all frames of a solver result into ``out_dir``; returns the index.
 
     ``params.frames_per_scene`` frames are taken evenly in displacement (fields
@@ -117,6 +122,8 @@ def render_scene(result_npz: str | Path, out_dir: str | Path, pitch_deg: float =
     (``rgb, maps`` as :meth:`SceneRenderer.frame` returns them).
     ``scene`` (object, material, height_mm, split, ...) is copied into the index.
     ``draw_object`` draws the pushing object (figures only; never for training).
+    A progress line (frame k/n, travel mm, elapsed s) goes to the ``finray.render``
+    log at most every ``log_every_s`` seconds, and at the last frame.
     """
     params = params or RenderParams()
     out_dir = Path(out_dir)
@@ -134,6 +141,11 @@ def render_scene(result_npz: str | Path, out_dir: str | Path, pitch_deg: float =
     written[params.written_frames(res.n_frames)] = True
     max_vm = res.von_mises_MPa.max(axis=1)
     with SceneRenderer(res, params, pitch_deg, extrusion_mm, backend, draw_object) as r:
+        sc = scene or {}
+        what = (f"render {sc['object']}_{sc.get('material')}_h{float(sc.get('height_mm', 0)):g}"
+                if "object" in sc else f"render {Path(result_npz).parent}")
+        log.info(f"{what}: {res.n_frames} frames at pitch {pitch_deg:g} deg ({r.backend})")
+        progress = Progress(log, what, res.n_frames, log_every_s)
         for k in range(res.n_frames):
             rgb, maps = r.frame(k)
             if written[k]:
@@ -149,6 +161,7 @@ def render_scene(result_npz: str | Path, out_dir: str | Path, pitch_deg: float =
                 "image": _image_name(k) if written[k] else None,
                 "stress": _stress_name(k) if written[k] else None,
             })
+            progress(k + 1, f"travel {res.displacement_mm[k]:.2f} mm")
         backend_used = r.backend
     index = {
         "result": str(result_npz), "pitch_deg": float(pitch_deg), "renderer": backend_used,

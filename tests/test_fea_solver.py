@@ -1,0 +1,94 @@
+"""Newton's stopping rule: converged only with a small step *and* balanced forces;
+stalled line searches and gradient fallbacks are counted and explained."""
+import numpy as np
+import pytest
+
+from finray.fea.assembly import ElementBlock
+from finray.fea.benchmarks import edge_load, rectangle_mesh
+from finray.fea.material import NeoHookean
+from finray.fea.solver import Model, NewtonOptions, newton
+
+MAT = NeoHookean.from_E_nu(12.0, 0.45)
+
+
+def strip(load=1.0):
+    """10 x 2 mm strip clamped at x = 0, pulled down at x = 10 (N/mm)."""
+    mesh = rectangle_mesh(np.linspace(0, 10, 11), np.linspace(0, 2, 3), order=2)
+    X = mesh.points
+    be = mesh.boundary_edges
+    mid = 0.5 * (X[be[:, 0]] + X[be[:, 1]])
+    tip = be[np.abs(mid[:, 0] - 10) < 1e-12]
+    model = Model(X, [ElementBlock(mesh.triangles, MAT)],
+                  fixed_nodes=np.flatnonzero(np.abs(X[:, 0]) < 1e-12),
+                  external_force=edge_load(mesh, tip, [0.0, -0.05]))
+    model.load = load
+    return model
+
+
+@pytest.fixture(scope="module")
+def solution():
+    model = strip()
+    res = newton(model, np.zeros(model.n), NewtonOptions(tol_dx=1e-12, tol_residual=1e-12))
+    assert res.converged and res.residual <= 1e-12
+    return res.q
+
+
+def perturbed(model, q, size_mm=4e-5):
+    """q moved by ``size_mm`` (infinity norm): Newton's step back is between tol_dx and
+    100 tol_dx, where the old rule called a stalled line search converged."""
+    d = np.random.default_rng(0).standard_normal(len(q))
+    return q + size_mm * d / np.abs(d).max()
+
+
+def test_stalled_line_search_is_not_converged(solution):
+    model = strip()
+    model.energy = lambda q: np.inf  # no trial point can decrease the energy
+    opts = NewtonOptions(tol_residual=1e-6)
+    res = newton(model, perturbed(model, solution), opts)
+    dx = res.history[0][2]
+    assert opts.tol_dx < dx < 100 * opts.tol_dx  # the old rule would say "converged"
+    assert res.residual > opts.tol_residual
+    assert not res.converged
+    assert "line search failed (no decrease)" in res.cause and "residual" in res.cause
+    assert model.counters["line_search_failures"] == 1
+
+
+def test_stalled_line_search_with_balanced_forces_converges_with_a_note(solution):
+    model = strip()
+    model.energy = lambda q: np.inf
+    res = newton(model, perturbed(model, solution), NewtonOptions(tol_residual=1.0))
+    assert res.converged and "line search stalled" in res.note
+    assert model.counters["line_search_failures"] == 1
+
+
+def test_small_step_alone_is_not_convergence():
+    """With a huge step tolerance only the residual criterion can stop Newton."""
+    model = strip()
+    opts = NewtonOptions(tol_dx=1e3, tol_residual=1e-8)
+    res = newton(model, np.zeros(model.n), opts)
+    assert res.converged and res.iterations > 1
+    assert res.residual <= opts.tol_residual
+    # reported: the last assembled state; the returned one (after the final tiny
+    # step) is at least as balanced
+    assert model.residual_norm(model.evaluate(res.q, 1)[1]) <= opts.tol_residual
+    assert model.counters == {"line_search_failures": 0, "gradient_fallbacks": 0,
+                              "residual_max_rel": res.residual}
+
+
+def test_residual_is_relative_to_the_support_forces(solution):
+    model = strip()
+    g = model.evaluate(solution, 1)[1]
+    # at the solution the clamp's reactions add to the applied load in the scale
+    assert model.force_scale > np.linalg.norm(model.f_ext)
+    g0 = model.evaluate(np.zeros(model.n), 1)[1]
+    # unloaded start: the free nodes carry the whole load, no reaction yet
+    assert model.residual_norm(g0) == pytest.approx(1.0, rel=1e-12)
+    assert model.residual_norm(g) < 1e-10
+
+
+def test_gradient_fallback_is_counted():
+    model = strip()
+    ascent = lambda A, b, extra=None: -b  # noqa: E731 - solves to +g: never a descent
+    model.linsolve.solve = ascent
+    newton(model, np.zeros(model.n), NewtonOptions(max_iterations=3))
+    assert model.counters["gradient_fallbacks"] == 3

@@ -1,0 +1,463 @@
+"""Provenance: a changed config value re-plans exactly the jobs that read it.
+
+How the plan is obtained (Snakemake's own, without running a job): the module fixture
+fakes a finished smoke run in a temporary working directory. Snakemake builds the smoke
+config's DAG, every output (and benchmark file) is touched in topological order, and
+Snakemake's persistence records each job's metadata as after a real run
+(``Persistence.finished``: params, set of input files, code, software stack); the smoke
+config then plans nothing. For every leaf key of the schema (for ``objects``,
+``materials`` and ``train.models``: the entries of config/smoke.yaml), a copy of the
+smoke config with that one value changed is planned: the DAG ``snakemake -n`` builds,
+with all rerun triggers. Two views of it are compared with ``READERS``:
+
+- readers: the rules whose jobs see the change by Snakemake's own checks
+  (``params_changed``, ``input_changed``), asked of every job, or that get new jobs;
+  these must equal the key's entry in ``READERS`` (``UNREAD``: none);
+- first: the rules Snakemake re-plans on their own account (not merely because an
+  upstream job reruns); they must be among the readers, and not empty. Snakemake checks
+  a job's params only when nothing upstream reruns, so this is the first stage that
+  reads the value.
+
+The test fails if a rule stops declaring a value its script reads: its recorded and new
+params then agree, the rule drops out of the key's readers and differs from
+``READERS`` (a script cannot read the config past its params and input:
+``test_no_script_reads_config``). It fails too if a rule declares a value it does not
+read (it shows up under a key it does not read), if a key no job reads is not listed in
+``UNREAD`` with its reason, and if the same config with its keys in another order
+re-plans anything (params not in canonical form).
+
+One DAG per key (~0.2-0.5 s each), built in this process with Snakemake's internal
+``Workflow._prepare_dag``/``_build_dag`` and ``persistence`` (Snakemake 9).
+"""
+from __future__ import annotations
+
+import copy
+import fnmatch
+import os
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+
+snakemake_api = pytest.importorskip("snakemake.api")
+from snakemake.settings.types import (ConfigSettings, DAGSettings, ExecutionSettings,  # noqa: E402
+                                      OutputSettings, Quietness, ResourceSettings)
+
+from finray.config import load_schema, validate_config  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+SMOKE = ROOT / "config" / "smoke.yaml"
+SCHEMA = ROOT / "workflow" / "schemas" / "config.schema.yaml"
+#: mappings whose entries are the user's (walked from the smoke config, not the schema)
+MAPS = {("objects",), ("materials",), ("train", "models")}
+
+# ------------------------------------------------------------------------- readers
+#: key pattern (fnmatch, first match wins) -> every rule whose jobs see a change of it:
+#: their params change, their set of input files changes, or the change adds jobs of
+#: that rule. Downstream rules that merely get updated input files are not listed.
+_STUDIES = {"fea_pareto", "fea_stability"}
+_GEOMETRY = {"geometry_finger", "geometry_object"} | _STUDIES  # the finger's shape
+_RENDER = {"render_scene", "render_benchmark"}
+_SEGMENT = _RENDER | {"dataset_examples", "train_model"}  # crop and segmentation
+#: what lists every scene or every training shard (a new or moved scene changes its input)
+_LISTS = {"fea_figures", "dataset_manifest", "evaluate_baseline", "train_model", "train_pareto",
+          "inference_latency"}
+READERS: list[tuple[str, set[str]]] = [
+    ("finger.material", _GEOMETRY | {"fea_scene", "summary"}),
+    ("finger.extrusion_mm", _GEOMETRY | _RENDER | {"fea_scene", "train_model",
+                                                   "evaluate_experiment", "summary"}),
+    ("finger.base_width_mm", _GEOMETRY | {"train_model"}),
+    ("finger.ribs.count", _GEOMETRY | {"summary"}),
+    ("finger.ribs.angle_step_deg", _GEOMETRY | {"summary"}),
+    ("finger.*", _GEOMETRY),
+    ("mesh.size_mm", _GEOMETRY | {"summary"}),
+    ("mesh.min_angle_deg", _GEOMETRY),
+    ("mesh.*", {"geometry_finger"} | _STUDIES),  # order, arc chords: the finger only
+    ("placement.gap_mm", {"geometry_object"} | _STUDIES),
+    ("heights_mm", {"geometry_object", "fea_scene", "render_scene", "geometry_gallery",
+                    "dataset_examples", "evaluate_experiment", "figure_material_generalisation",
+                    "render_benchmark", "summary"} | _LISTS),
+    ("fea.friction", {"fea_scene", "summary"} | _STUDIES),
+    ("fea.push_mm", {"fea_scene", "summary"} | _STUDIES),
+    ("fea.*", {"fea_scene"} | _STUDIES),
+    ("render.pitches_deg", {"render_scene", "dataset_manifest", "dataset_examples",
+                            "evaluate_experiment"}),  # the new pitch's view
+    ("render.window_y_mm", _RENDER | {"train_model", "evaluate_experiment"}),  # pitch axis
+    ("render.*", _RENDER),
+    ("dataset.sizes", _RENDER),
+    ("dataset.crop_y_mm", _SEGMENT | {"evaluate_experiment"}),
+    ("dataset.occlusion_levels", {"dataset_examples", "train_model", "evaluate_experiment"}),
+    ("dataset.noise_levels", {"dataset_examples"}),
+    ("dataset.occluder_value", {"dataset_examples"}),
+    ("dataset.pitch_object", {"render_scene", "render_benchmark", "dataset_manifest",
+                              "dataset_examples", "evaluate_experiment"}),
+    ("dataset.*", _SEGMENT),
+    ("train.input_size", {"train_model", "train_pareto", "evaluate_baseline",
+                          "evaluate_experiment", "summary"}),
+    ("train.base_channels", {"train_model", "train_pareto", "summary"}),
+    ("train.models.*", {"train_model"}),
+    ("train.epochs", {"train_model"}),
+    ("train.lr", {"train_model"}),
+    ("train.alpha_*", {"train_model"}),
+    ("train.*", {"train_model", "train_pareto"}),
+    ("evaluate.seed", {"evaluate_baseline", "evaluate_experiment"}),
+    ("evaluate.usable_nrmse_pct", {"figure_viewpoint", "summary"}),
+    ("benchmarks.fea_*", _STUDIES),
+    ("benchmarks.latency_model", {"inference_latency"}),
+    ("benchmarks.latency_frames", {"inference_latency", "train_pareto"}),
+    ("benchmarks.latency_repeats", {"inference_latency"}),
+    ("benchmarks.train_*", {"train_pareto"}),
+    # the finger's material: every scene (and the studies, which use it too)
+    ("materials.ninjaflex.youngs_modulus_MPa", {"fea_scene", "summary"} | _STUDIES),
+    ("materials.ninjaflex.*", {"fea_scene"} | _STUDIES),
+    ("materials.neoprene.rigid", {"geometry_object", "fea_scene", "fea_stability"}),
+    ("materials.neoprene.*", {"fea_scene", "fea_stability"}),
+    ("materials.steel.rigid", {"geometry_object", "fea_scene"} | _STUDIES),
+    # where an object's scenes go: its scenes, and what lists the splits' shards
+    ("objects.circle_d10.split", {"fea_scene", "render_scene", "geometry_gallery",
+                                  "dataset_examples", "dataset_manifest", "evaluate_baseline",
+                                  "evaluate_experiment", "render_benchmark", "train_model",
+                                  "train_pareto"}),  # it becomes the pitch object
+    ("objects.square_s10_a30.split", {"fea_scene", "render_scene", "geometry_gallery",
+                                      "evaluate_baseline", "evaluate_experiment", "train_model",
+                                      "train_pareto", "figure_material_generalisation"}),
+    ("objects.ring_d15.split", {"fea_scene", "render_scene", "geometry_gallery",
+                                "evaluate_baseline", "evaluate_experiment", "train_model",
+                                "train_pareto", "figure_material_generalisation"}),
+    ("objects.ellipse_16x9.split", {"fea_scene", "render_scene", "geometry_gallery",
+                                    "evaluate_experiment", "figure_material_generalisation"}),
+    # its materials: a deformable one meshes the object; new scenes (train objects: in
+    # the training lists), removed ones (the lists lose them)
+    ("objects.ring_d15.materials", {"geometry_object", "dataset_manifest", "evaluate_experiment",
+                                    "fea_figures", "figure_material_generalisation",
+                                    "inference_latency"}),
+    ("objects.ellipse_16x9.materials", {"geometry_object", "fea_scene", "render_scene",
+                                        "dataset_manifest", "evaluate_experiment",
+                                        "fea_figures", "inference_latency"}),
+    ("objects.*.materials", {"geometry_object", "fea_scene", "render_scene"} | _LISTS),
+    ("objects.*", {"geometry_object"}),  # the shape
+]
+
+#: keys no job reads, with the reason (a change re-plans nothing)
+UNREAD = {
+    "materials.ninjaflex.source": "documentation of the constants only",
+    "materials.neoprene.source": "documentation of the constants only",
+    "dataset.seed": "no stage draws from it: training and evaluation use train.seed and "
+                    "evaluate.seed",
+}
+
+#: keys that cannot change alone (the config is refused), with the expected message
+REFUSED = {
+    "materials.ninjaflex.rigid": "finger.material: the finger cannot be rigid",
+}
+
+
+def _with_wall(spec):
+    spec.update(type="ring", wall_mm=2.0)
+
+
+#: the new value of a key where the generic change (numbers x0.95 or +1, booleans
+#: flipped, last list item changed) is invalid or says nothing; a callable edits the
+#: config (a key the schema then requires comes with it)
+NEW_VALUES = {
+    "finger.material": "neoprene",
+    "finger.ribs.count": 10,
+    "mesh.order": 1,
+    "render.window_x_mm": [-5.0, 36.0],
+    "render.window_y_mm": [-2.0, 83.0],
+    "render.px_per_mm": 5.0,
+    "render.frames_per_scene": 30,
+    "dataset.sizes": [[128, 64], [64, 32], [32, 16]],
+    "dataset.crop_x_mm": [-4.0, 36.0],
+    "dataset.crop_y_mm": [1.0, 81.0],
+    "dataset.threshold": "otsu",
+    "dataset.foreground": "dark",
+    "dataset.noise_levels": {"none": 0.0, "low": 0.02, "medium": 0.05, "high": 0.12},
+    "dataset.occlusion_levels": {"none": [0, 0], "low": [0.1, 0.3], "medium": [0.4, 0.8],
+                                 "high": [0.8, 0.9]},
+    "dataset.occluder_value": 0.5,
+    "dataset.pitch_object": "ring_d15",
+    "train.input_size": [128, 64],
+    "train.bf16": False,
+    "benchmarks.fea_arc_chord_sizes_mm": [0.05],
+    "benchmarks.train_sizes": [[64, 32]],
+    "benchmarks.latency_model": "occlusion",
+    "materials.steel.rigid": lambda cfg: cfg["materials"]["steel"].update(
+        rigid=False, youngs_modulus_MPa=2e5, poisson_ratio=0.3),
+    "objects.circle_d10.type": lambda cfg: _with_wall(cfg["objects"]["circle_d10"]),
+    "objects.square_s10_a30.type": lambda cfg: cfg["objects"]["square_s10_a30"].update(
+        type="circle", diameter_mm=10.0),
+    "objects.ring_d15.type": "circle",
+    "objects.ellipse_16x9.type": lambda cfg: cfg["objects"]["ellipse_16x9"].update(
+        type="circle", diameter_mm=12.0),
+    "objects.circle_d10.split": "shape",
+    "objects.square_s10_a30.split": "material",
+    "objects.ring_d15.split": "train",
+    "objects.ellipse_16x9.split": lambda cfg: (
+        cfg["objects"]["ellipse_16x9"].update(split="material"),
+        cfg.setdefault("dataset", {}).update(pitch_object="ellipse_16x9")),
+    "objects.circle_d10.materials": ["steel", "neoprene"],
+    "objects.square_s10_a30.materials": ["steel", "neoprene"],
+    "objects.ring_d15.materials": ["steel"],
+    "objects.ellipse_16x9.materials": ["steel", "neoprene"],
+}
+
+
+# ------------------------------------------------------------------------- helpers
+def _get(d, path):
+    for k in path:
+        d = d[k]
+    return d
+
+
+def leaf_keys(schema: dict, full: dict) -> list[tuple[str, ...]]:
+    """Every leaf key of the schema; the entries of ``MAPS`` from ``full`` (the smoke
+    config with defaults)."""
+    out = []
+
+    def walk(node, path):
+        if tuple(path) in MAPS:
+            out.extend((*path, name, k) for name, entry in _get(full, path).items() for k in entry)
+        elif node.get("properties"):
+            for k, sub in node["properties"].items():
+                walk(sub, [*path, k])
+        else:
+            out.append(tuple(path))
+
+    walk(schema, [])
+    return out
+
+
+def _generic(value):
+    if isinstance(value, bool):
+        return not value
+    if isinstance(value, int):
+        return value + 1
+    if isinstance(value, float):
+        return round(value * 0.95, 9) if value else 0.01
+    if isinstance(value, str):  # a free text (an enum's keys are in NEW_VALUES)
+        return value + " (edited)"
+    if isinstance(value, list) and value:
+        return value[:-1] + [_generic(value[-1])]
+    raise AssertionError(f"no generic change for {value!r}: add the key to NEW_VALUES")
+
+
+def changed_config(raw: dict, full: dict, key: tuple[str, ...]) -> dict:
+    """Copy of the config file's ``raw`` dict with ``key`` changed (``full``: with defaults)."""
+    cfg = copy.deepcopy(raw)
+    new = NEW_VALUES.get(".".join(key), None)
+    if callable(new):
+        for k in key[:1]:  # the section the callable edits must be in the file
+            cfg.setdefault(k, copy.deepcopy(full[k]) if k in MAPS else {})
+        if key[0] in ("objects", "materials"):
+            cfg[key[0]] = copy.deepcopy(full[key[0]])
+        new(cfg)
+        return cfg
+    if new is None:
+        new = _generic(_get(full, key))
+    d = cfg
+    for i, k in enumerate(key[:-1]):
+        if k not in d:  # a section the smoke config leaves at its defaults
+            d[k] = copy.deepcopy(_get(full, key[:i + 1]))
+        d = d[k]
+    d[key[-1]] = new
+    return cfg
+
+
+def reordered(d):
+    """``d`` with every mapping's keys in reverse order (values unchanged)."""
+    if isinstance(d, dict):
+        return {k: reordered(d[k]) for k in reversed(list(d))}
+    if isinstance(d, list):
+        return [reordered(v) for v in d]
+    return d
+
+
+class Planner:
+    """Snakemake's DAG of the workflow for a config file, in a fixed working directory."""
+
+    def __init__(self, workdir: Path):
+        self.workdir = workdir
+
+    def _build(self, api, configfile: Path):
+        wf = api.workflow(ResourceSettings(cores=1), ConfigSettings(configfiles=[configfile]),
+                          snakefile=ROOT / "Snakefile", workdir=self.workdir)
+        wf.dag(DAGSettings())
+        w = wf._workflow
+        w._prepare_dag(forceall=False, ignore_incomplete=False, lock_warn_only=True, nolock=True)
+        w._build_dag()
+        return w
+
+    def _run(self, fn, configfile):
+        cwd = os.getcwd()
+        try:
+            with snakemake_api.SnakemakeApi(OutputSettings(quiet={Quietness.ALL})) as api:
+                return fn(self._build(api, configfile))
+        finally:
+            os.chdir(cwd)
+
+    def complete(self, configfile: Path) -> int:
+        """Fake a finished run of ``configfile``: outputs touched in topological order,
+        metadata recorded by Snakemake; returns the number of jobs."""
+        def fn(w):
+            w.execution_settings = ExecutionSettings()
+            t, n = time.time(), 0
+            for level in w.dag.toposorted():
+                t += 1
+                for job in level:
+                    for f in [*job.output, *([job.benchmark] if job.benchmark else [])]:
+                        p = self.workdir / str(f)
+                        p.parent.mkdir(parents=True, exist_ok=True)
+                        p.touch()
+                        os.utime(p, (t, t))
+                    w.async_run(w.persistence.finished(job))
+                    n += 1
+            return n
+        return self._run(fn, configfile)
+
+    def plan(self, configfile: Path) -> tuple[dict[str, set[str]], set[str]]:
+        """What Snakemake sees changed against the finished run, and what it re-plans.
+
+        Returns ``readers``: rule -> why its jobs see the change (``params`` or ``input``
+        set changed, by Snakemake's own checks on every job; ``new``: a job the change
+        adds), and ``first``: the rules Snakemake re-plans on their own account (params,
+        input set, code or software changed, output missing). Snakemake checks a job's
+        params only when no upstream job reruns, so ``first`` holds the first stage
+        that reads the change and ``readers`` every stage that does.
+        """
+        def fn(w):
+            p, readers, first = w.persistence, {}, set()
+            for job in w.dag.jobs:
+                if job.rule.name == "all":
+                    continue
+                why = {"params"} if p.params_changed(job) else set()
+                if any(p.input_changed(job)):
+                    why.add("input")
+                if all(p.metadata(f) is None for f in job.output):
+                    why.add("new")
+                if why:
+                    readers.setdefault(job.rule.name, set()).update(why)
+            for job in w.dag.needrun_jobs():
+                r = w.dag.reason(job)
+                if job.rule.name != "all" and (r.is_provenance_triggered() or r._missing_output):
+                    first.add(job.rule.name)
+            return readers, first
+        return self._run(fn, configfile)
+
+    def jobs(self, configfile: Path) -> dict[str, list[str]]:
+        """Rule -> its jobs' first outputs."""
+        def fn(w):
+            out: dict[str, list[str]] = {}
+            for job in w.dag.jobs:
+                if job.output:
+                    out.setdefault(job.rule.name, []).append(str(job.output[0]))
+            return out
+        return self._run(fn, configfile)
+
+
+# ------------------------------------------------------------------------- fixtures
+@pytest.fixture(scope="module", autouse=True)
+def _schema_once():
+    """Every plan validates a config: read the schema once (pure-Python YAML, ~0.3 s)."""
+    import finray.config
+
+    schema = finray.config.load_schema()
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(finray.config, "load_schema", lambda: schema)
+        yield
+
+
+@pytest.fixture(scope="module")
+def smoke():
+    raw = yaml.safe_load(SMOKE.read_text())
+    return raw, validate_config(raw, base_dir=ROOT)
+
+
+@pytest.fixture(scope="module")
+def planner(tmp_path_factory, smoke):
+    wd = tmp_path_factory.mktemp("provenance")
+    p = Planner(wd)
+    n = p.complete(SMOKE)
+    assert n > 50
+    assert p.plan(SMOKE) == ({}, set()), "a finished run of the smoke config re-plans nothing"
+    return p
+
+
+def _write(tmp_path: Path, name: str, cfg: dict) -> Path:
+    f = tmp_path / f"{name}.yaml"
+    f.write_text(yaml.safe_dump(cfg, sort_keys=False))
+    return f
+
+
+def expected_readers(key: str) -> set[str]:
+    for pattern, rules in READERS:
+        if fnmatch.fnmatchcase(key, pattern):
+            return rules
+    raise AssertionError(f"{key}: no entry in READERS")
+
+
+# ------------------------------------------------------------------------- tests
+def test_no_script_reads_config():
+    """Scripts read their params and input only (Snakemake does not track snakemake.config)."""
+    hits = [f"{p.name}:{i}" for p in sorted((ROOT / "workflow" / "scripts").glob("*.py"))
+            for i, line in enumerate(p.read_text().splitlines(), 1) if "snakemake.config" in line]
+    assert hits == []
+
+
+def test_reordered_keys_replan_nothing(planner, smoke, tmp_path):
+    """The same config with every mapping's keys in another order changes no job's params."""
+    raw, _ = smoke
+    f = _write(tmp_path, "reordered", reordered(raw))
+    assert f.read_text() != yaml.safe_dump(raw, sort_keys=False)
+    assert planner.plan(f) == ({}, set())
+
+
+def test_every_key_replans_its_first_readers(planner, smoke, tmp_path):
+    """Each leaf key, changed alone, re-plans exactly the rules of ``READERS`` (or
+    nothing, for ``UNREAD``; or is refused, for ``REFUSED``)."""
+    raw, full = smoke
+    keys = leaf_keys(yaml.safe_load(SCHEMA.read_text()) if SCHEMA.exists() else load_schema(), full)
+    assert len(keys) > 100
+    assert set(UNREAD) | set(REFUSED) <= {".".join(k) for k in keys}
+    got, wrong = {}, []
+    for key in keys:
+        name = ".".join(key)
+        cfg = changed_config(raw, full, key)
+        if name in REFUSED:
+            with pytest.raises(Exception, match=REFUSED[name]):
+                validate_config(cfg, base_dir=ROOT)
+            continue
+        validate_config(cfg, base_dir=ROOT)  # a clear message if the change itself is invalid
+        readers, first = planner.plan(_write(tmp_path, name, cfg))
+        got[name] = set(readers)
+        want = set() if name in UNREAD else expected_readers(name)
+        if got[name] != want:
+            wrong.append(f"{name}: seen by {sorted(got[name])}, expected {sorted(want)}")
+        elif want and not (first and first <= want):
+            wrong.append(f"{name}: Snakemake re-plans {sorted(first)} first, not its readers")
+    assert not wrong, "\n".join(wrong)
+
+
+def test_named_mappings(planner, smoke, tmp_path):
+    """The issue's cases, job by job: the finger's E re-plans every FEA scene (params),
+    placement.gap_mm every object, mesh.* the finger, render.* every render, train.*
+    every model."""
+    raw, full = smoke
+    jobs = planner.jobs(SMOKE)
+
+    def replanned(key, rule):
+        f = _write(tmp_path, "x", changed_config(raw, full, key))
+
+        def fn(w):
+            return sorted(str(j.output[0]) for j in w.dag.needrun_jobs()
+                          if j.rule.name == rule and w.dag.reason(j).params_changed)
+        return planner._run(fn, f)
+
+    assert replanned(("materials", "ninjaflex", "youngs_modulus_MPa"), "fea_scene") \
+        == sorted(jobs["fea_scene"])
+    assert replanned(("placement", "gap_mm"), "geometry_object") == sorted(jobs["geometry_object"])
+    for key in [("mesh", k) for k in ("size_mm", "min_angle_deg", "order", "arc_chord_mm")]:
+        assert replanned(key, "geometry_finger") == jobs["geometry_finger"], key
+    assert replanned(("render", "stress_ref_MPa"), "render_scene") == sorted(jobs["render_scene"])
+    assert replanned(("train", "seed"), "train_model") == sorted(jobs["train_model"])
