@@ -49,7 +49,9 @@ def test_train_time_table(tmp_path):
     d = tmp_path / "plain"
     d.mkdir()
     (d / "history.json").write_text(json.dumps({"epoch": [1, 2], "val_force_rmse_N": [0.3, 0.2],
-                                                "n_train": 1000, "n_val": 100, "train_seconds": 50.0}))
+                                                "n_train": 1000, "n_val": 100, "train_seconds": 50.0,
+                                                "precision": "float32", "step_ms": 80.0,
+                                                "step_cpu_ms": 78.0, "cpu": "AMD EPYC"}))
     (d / "model.ts.json").write_text(json.dumps({"height": 64, "width": 32, "base_channels": 16}))
     tsv = tmp_path / "plain.tsv"
     tsv.write_text("s\th:m:s\tmax_rss\tmax_vms\tmax_uss\tmax_pss\tio_in\tio_out\tmean_load\tcpu_time\n"
@@ -59,3 +61,4 @@ def test_train_time_table(tmp_path):
     assert r["input"] == "64x32" and r["base_channels"] == 16
     assert r["s_per_epoch"] == 25.0 and r["ms_per_frame"] == 25.0
     assert r["job_wall_s"] == 60.5 and r["job_cpu_s"] == 58.0 and r["best_val_force_rmse_N"] == 0.2
+    assert (r["precision"], r["step_ms"], r["step_cpu_ms"], r["cpu"]) == ("float32", 80.0, 78.0, "AMD EPYC")

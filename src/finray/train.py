@@ -56,7 +56,8 @@ class History:
     epoch_time_s: list = field(default_factory=list)  # training loop + validation (s)
     precision: str = ""  # "bfloat16" or "float32", as resolved from TrainConfig.bf16
     precision_reason: str = ""
-    step_ms: float = float("nan")  # median training step (batch, augmentation included)
+    step_ms: float = float("nan")  # median training step, wall (batch, augmentation included)
+    step_cpu_ms: float = float("nan")  # the same in the thread's CPU time (less load-dependent)
 
 
 @dataclass
@@ -154,6 +155,12 @@ def _use_bf16(cfg: TrainConfig) -> bool:
     return resolve_bf16(cfg.bf16)[0] if isinstance(cfg.bf16, str) else bool(cfg.bf16)
 
 
+def _step_times(hist: History, step_s: list[tuple[float, float]]) -> None:
+    """Median wall and CPU time of a step (ms), leaving out the first fifth (warm-up)."""
+    t = np.asarray(step_s[len(step_s) // 5:])
+    hist.step_ms, hist.step_cpu_ms = (1e3 * float(v) for v in np.median(t, axis=0))
+
+
 def _autocast(enabled: bool):
     if enabled:
         return torch.autocast("cpu", dtype=torch.bfloat16)
@@ -226,7 +233,7 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
     n_batches = max(1, n // cfg.batch_size)  # drop the last partial batch (batch-norm)
     log(f"{cfg.epochs} epochs of {n_batches} batches of {cfg.batch_size} "
         f"({n} frames), {cfg.threads} thread(s)")
-    step_s: list[float] = []  # first epoch's step times, for the measured step time
+    step_s: list[tuple[float, float]] = []  # first epoch's (wall, CPU) step times (s)
     t0 = time.perf_counter()
     try:
         from tqdm import tqdm
@@ -241,7 +248,7 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
                    disable=not cfg.progress) if tqdm else it
         te = t_log = time.perf_counter()
         for b in bar:
-            tb = time.perf_counter()
+            tb, cb = time.perf_counter(), time.thread_time()
             idx = perm[b * cfg.batch_size:(b + 1) * cfg.batch_size]
             x, s, f = x_all[idx], s_all[idx], f_all[idx]
             if augment is not None:
@@ -262,12 +269,12 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
             tot["f"] += float(lf.detach())
             now = time.perf_counter()
             if epoch == 1:
-                step_s.append(now - tb)
+                step_s.append((now - tb, time.thread_time() - cb))
                 if len(step_s) == min(n_batches, 25):  # past the first steps' warm-up
-                    hist.step_ms = 1e3 * float(np.median(step_s[len(step_s) // 5:]))
-                    log(f"step time {hist.step_ms:.1f} ms ({hist.precision}, batch "
-                        f"{cfg.batch_size}): about {hist.step_ms * n_batches / 1e3:.0f} s "
-                        "per epoch")
+                    _step_times(hist, step_s)
+                    log(f"step time {hist.step_ms:.1f} ms ({hist.step_cpu_ms:.1f} ms CPU; "
+                        f"{hist.precision}, batch {cfg.batch_size}): about "
+                        f"{hist.step_ms * n_batches / 1e3:.0f} s per epoch")
             if now - t_log >= cfg.log_every_s:
                 t_log = now
                 log(f"epoch {epoch}/{cfg.epochs}: batch {b + 1}/{n_batches}, train loss "
@@ -275,7 +282,7 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
             if tqdm and cfg.progress:
                 bar.set_postfix(loss=f"{tot['loss'] / (b + 1):.4f}")
         if step_s:
-            hist.step_ms = 1e3 * float(np.median(step_s[len(step_s) // 5:]))
+            _step_times(hist, step_s)
         hist.epoch.append(epoch)
         hist.train_loss.append(tot["loss"] / n_batches)
         hist.train_stress_mse.append(tot["s"] / n_batches)

@@ -281,6 +281,7 @@ def train_time_table(models, histories, benchmarks):
                "job_wall_s": float(b["s"]), "job_cpu_s": float(b["cpu_time"]),
                "max_rss_MB": float(b["max_rss"]),
                "precision": h.get("precision", ""), "step_ms": h.get("step_ms"),
+               "step_cpu_ms": h.get("step_cpu_ms"),
                "cpu": h.get("cpu", ""),
                "best_val_force_rmse_N": min(h["val_force_rmse_N"]) if h.get("val_force_rmse_N") else None}
         row["ms_per_frame"] = 1e3 * row["s_per_epoch"] / max(row["n_train"] or 1, 1)

@@ -108,6 +108,7 @@ def build_summary(evaluate_dir, experiments, baseline_fit, speed_json, fea_paret
                                "train_seconds": h["train_seconds"], "n_train": h["n_train"],
                                "n_val": h["n_val"], "epochs": len(h["epoch"]),
                                "precision": h.get("precision", ""), "step_ms": h.get("step_ms"),
+                               "step_cpu_ms": h.get("step_cpu_ms"),
                                "cpu": h.get("cpu", ""),
                                "best_val_force_rmse_N": min(h["val_force_rmse_N"]) if h["val_force_rmse_N"] else None}
     speed = json.loads(Path(speed_json).read_text())
