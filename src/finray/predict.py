@@ -13,8 +13,8 @@ the scale (px/mm); the window ``crop_x_mm`` x ``crop_y_mm`` of the training data
 then cut around it.
 
 The network runs in ONNX Runtime when ``model.onnx`` and ``model.force.onnx`` lie
-beside ``model.ts`` (2-3x faster than TorchScript at batch 1 on one thread), else in
-TorchScript.
+beside ``model.ts`` (faster than TorchScript at batch 1 on one thread: both are timed in
+``results/benchmarks/inference_latency.json``), else in TorchScript.
 """
 from __future__ import annotations
 

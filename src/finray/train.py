@@ -351,7 +351,8 @@ class _ForceOnly(nn.Module):
 
 def export_onnx(model: FinRayNet, path: str | Path) -> None:
     """Write the model as ONNX (opset 17, float32, any batch size) for ONNX Runtime,
-    2-3x faster than TorchScript at batch 1 on one CPU thread: ``path`` (input
+    faster than TorchScript at batch 1 on one CPU thread (``inference_latency.json``
+    times both): ``path`` (input
     ``image``, outputs ``stress_log`` and ``force_N``) and ``path`` with suffix
     ``.force.onnx`` (the encoder and force head only, output ``force_N``)."""
     import warnings

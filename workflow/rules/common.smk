@@ -157,7 +157,8 @@ def pitch_label(p):
 def rendered_views():
     """(scene, pitch) of every render: pitch 0 for all scenes, every pitch of
     render.pitches_deg for the pitch scene (pitch object, first material, middle
-    height: the 3D renderer is ~25x slower than the 2D one, so only where needed)."""
+    height: the 3D renderer is much slower than the 2D one, so only where needed; both
+    are timed in results/benchmarks/render_throughput.json)."""
     pobj, pmat, ph = pitch_scene()
     views = []
     for s in scenes(config):
