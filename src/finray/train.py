@@ -281,7 +281,7 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
                     f"{tot['loss'] / (b + 1):.5f}, {now - te:.0f} s")
             if tqdm and cfg.progress:
                 bar.set_postfix(loss=f"{tot['loss'] / (b + 1):.4f}")
-        if step_s:
+        if epoch == 1 and step_s:  # the whole first epoch (the log line had 25 steps)
             _step_times(hist, step_s)
         hist.epoch.append(epoch)
         hist.train_loss.append(tot["loss"] / n_batches)

@@ -1,11 +1,9 @@
-from finray.fea.studies import CIRCLE_D20, run_time_vs_error
+from finray.fea.studies import run_time_vs_error, study_config
 from finray.logs import log_to
 
 p = snakemake.params
 b = p.sizes
-# the sections the study reads; it validates a whole config, so it gets its own object
-cfg = {"fea": p.fea, "mesh": p.mesh, "finger": p.finger, "materials": p.materials,
-       "placement": p.placement, "objects": {"circle_d20": CIRCLE_D20}}
+cfg = study_config(p.fea, p.mesh, p.finger, p.materials, p.placement)
 with log_to(snakemake.log[0]):
     table = run_time_vs_error(cfg, snakemake.output.table,
                               snakemake.output.figure, snakemake.output.summary,

@@ -43,6 +43,13 @@ def _set(cfg: dict, dotted: str, value) -> None:
     d[last] = value
 
 
+def study_config(fea: dict, mesh: dict, finger: dict, materials: dict, placement: dict) -> dict:
+    """A config of the sections the studies read, with the studies' own object (the
+    steel circle) so that it validates as a whole."""
+    return {"fea": fea, "mesh": mesh, "finger": finger, "materials": materials,
+            "placement": placement, "objects": {"circle_d20": CIRCLE_D20}}
+
+
 def with_overrides(cfg: dict, overrides: dict | None, validate: bool = True) -> dict:
     """Copy of ``cfg`` with dotted-key ``overrides`` (e.g. ``{"mesh.size_mm": 0.5}``),
     validated again (a forbidden value raises :class:`~finray.config.ConfigError`)."""
