@@ -58,6 +58,9 @@ class History:
     precision_reason: str = ""
     step_ms: float = float("nan")  # median training step, wall (batch, augmentation included)
     step_cpu_ms: float = float("nan")  # the same in the thread's CPU time (less load-dependent)
+    best_epoch: int = 0  # the epoch whose weights are kept: lowest validation loss (train loss without validation)
+    force_mean_N: list = field(default_factory=list)  # the force normalisation (training frames)
+    force_std_N: list = field(default_factory=list)
 
 
 @dataclass
@@ -227,7 +230,8 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
     if val is not None:
         vx, vs, vf = (torch.as_tensor(a, dtype=torch.float32) for a in val)
         vf = vf.reshape(len(vx), -1)
-    hist = History(precision="bfloat16" if bf16 else "float32", precision_reason=why)
+    hist = History(precision="bfloat16" if bf16 else "float32", precision_reason=why,
+                   force_mean_N=mean.tolist(), force_std_N=scale.tolist())
     best, best_loss = None, math.inf
     n = len(x_all)
     n_batches = max(1, n // cfg.batch_size)  # drop the last partial batch (batch-norm)
@@ -301,6 +305,7 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
         msg += f", {hist.epoch_time_s[-1]:.0f} s"
         if score < best_loss:
             best_loss, best = score, copy.deepcopy(model.state_dict())
+            hist.best_epoch = epoch
             msg += " (best)"
         log(msg)
     model.load_state_dict(best)

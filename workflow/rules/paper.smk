@@ -2,6 +2,7 @@
 # headline numbers (results/summary.json) and the manuscript filled from them.
 
 from finray.evaluate.summary import setup_summary
+from finray.paper_reference import paper_reference
 
 PAPER = "paper"
 FIGURES = ["shape_generalisation", "material_generalisation", "occlusion", "viewpoint", "speed"]
@@ -126,11 +127,13 @@ rule summary:
         fea_pareto=f"{RESULTS}/benchmarks/fea_pareto.csv",
         fea_scenes=f"{RESULTS}/benchmarks/fea_scenes.csv",
         histories=expand(f"{TRAIN}/{{model}}/history.json", model=model_names()),
+        manifest=f"{DATASET}/manifest.csv",  # the frames behind training vs the FEA states
     output:
         json=f"{RESULTS}/summary.json",
     params:
         usable_nrmse_pct=config["evaluate"]["usable_nrmse_pct"],
         setup=canonical(setup_summary(config)),
+        paper=canonical(paper_reference()["values"]),  # a changed reference value reruns the summary
         evaluate=lambda w, input: os.path.dirname(os.path.dirname(input.experiments[0])),
     log:
         f"{RESULTS}/logs/paper/summary.log",

@@ -10,7 +10,9 @@ with log_to(snakemake.log[0]):
     s = build_summary(snakemake.params.evaluate, experiments, snakemake.input.baseline,
                       snakemake.input.speed, snakemake.input.fea_pareto, histories,
                       snakemake.params.usable_nrmse_pct,
-                      fea_scenes_csv=snakemake.input.fea_scenes)
+                      fea_scenes_csv=snakemake.input.fea_scenes,
+                      manifest_csv=snakemake.input.manifest)
     s["setup"] = snakemake.params.setup  # the set-up constants, from the config that ran
+    s["paper"] = snakemake.params.paper  # the paper's reference numbers (finray/paper_reference.yaml)
     with open(snakemake.output.json, "w") as f:
         json.dump(s, f, indent=1)

@@ -7,15 +7,9 @@ from pathlib import Path
 
 import pandas as pd
 
+from ..paper_reference import paper_reference
 from .experiments import usable_range
 
-#: The paper's own numbers (Frontiers in Robotics and AI 2021), for the comparison.
-PAPER = {
-    "shape_mse_N2_range": [0.02, 0.09],
-    "material_mse_N2": {"steel": 0.02, "ninjaflex": 0.03, "neoprene": 0.02},
-    "pitch_usable_below_deg": 10.0,
-    "network_ms_per_frame_gpu": 8.0,
-}
 KEEP = ("n", "mse_N2", "rmse_N", "nrmse_pct", "r2", "max_true_N", "stress_mse_log", "ssim")
 
 
@@ -45,7 +39,10 @@ def setup_summary(cfg: dict) -> dict:
             "finger_E_MPa": mat.get("youngs_modulus_MPa"), "friction": fea["friction"],
             "push_mm": fea["push_mm"], "heights_mm": list(cfg["heights_mm"]),
             "mesh_size_mm": cfg["mesh"]["size_mm"], "input_size": list(cfg["train"]["input_size"]),
-            "base_channels": cfg["train"]["base_channels"]}
+            "base_channels": cfg["train"]["base_channels"],
+            "batch_size": cfg["train"]["batch_size"],
+            "alpha_stress": cfg["train"]["alpha_stress"], "alpha_force": cfg["train"]["alpha_force"],
+            "occlusion_levels": {k: list(v) for k, v in cfg["dataset"]["occlusion_levels"].items()}}
 
 
 def fea_checks(fea_scenes_csv) -> dict:
@@ -74,15 +71,81 @@ def fea_checks(fea_scenes_csv) -> dict:
             "min_gap_mm": float(df["min_gap_mm"].min())}
 
 
+def fea_forces(fea_scenes_csv, split: str = "train") -> dict:
+    """How alike the scenes of ``split`` are, and how many jam: the largest coefficient
+    of variation (std / mean, %) and spread ((max - min) / mean, %) of the final force
+    across objects at one contact height, and the scenes whose finger touches itself
+    (ribs on ribs or walls) with the first travel (mm) at which it does, min and max."""
+    df = pd.read_csv(fea_scenes_csv)
+    t = df[df["split"] == split]
+    g = t.groupby("height_mm")["fx_final_N"]
+    cv = (g.std(ddof=0) / g.mean()).max() * 100
+    spread = ((g.max() - g.min()) / g.mean()).max() * 100
+    touched = df[df["self_contact_max_pairs"].fillna(0) > 0]
+    first = touched["self_contact_first_mm"].dropna()
+    return {"split": split, "n_scenes": int(len(t)), "heights": int(g.ngroups),
+            "force_cv_max_pct": float(cv), "force_spread_max_pct": float(spread),
+            "self_contact_scenes": int(len(touched)), "n_scenes_all": int(len(df)),
+            "self_contact_first_mm": [float(first.min()), float(first.max())] if len(first) else None}
+
+
+def training_data(manifest_csv, split: str = "train", pitch_deg: float = 0.0) -> dict:
+    """The frames behind training (``split`` at ``pitch_deg``, from the dataset manifest)
+    against the FEA states they come from: scenes, frames, solver frames (distinct FEA
+    states: a scene's frames are resampled evenly in travel between its solver frames,
+    ``fea_frame`` is the fractional solver-frame index, the last one exact) and the
+    frames that fall exactly on a solver frame (the others are interpolated)."""
+    m = pd.read_csv(manifest_csv)
+    m = m[(m["split"] == split) & (m["pitch_deg"].astype(float) == pitch_deg)]
+    last = m.groupby("scene_id")["fea_frame"].max()
+    on = (m["fea_frame"] % 1 == 0).sum()
+    return {"split": split, "pitch_deg": pitch_deg, "scenes": int(last.size),
+            "frames": int(len(m)), "solver_frames": int((last.round() + 1).sum()),
+            "solver_frames_per_scene": [int(last.min().round() + 1), int(last.max().round() + 1)],
+            "frames_on_solver_frames": int(on)}
+
+
+def training_summary(h: dict, manifest_csv=None) -> dict:
+    """One model's ``history.json`` -> what the manuscript states: the epoch kept (lowest
+    validation loss, as :func:`finray.train.train` keeps it), its validation force RMSE,
+    the force normalisation (mean and standard deviation of the training frames' force, N),
+    the precision and the step time. A history written before ``best_epoch`` and the
+    normalisation were recorded gets them by the same rules (the normalisation from the
+    manifest's training frames less the validation scenes)."""
+    score = h["val_loss"] or h["train_loss"]
+    best = h.get("best_epoch") or (h["epoch"][min(range(len(score)), key=score.__getitem__)]
+                                   if score else None)
+    k = h["epoch"].index(best) if best in h["epoch"] else None
+    val_rmse = h["val_force_rmse_N"][k] if k is not None and h["val_force_rmse_N"] else None
+    mean, std = h.get("force_mean_N") or None, h.get("force_std_N") or None
+    if mean is None and manifest_csv is not None:
+        m = pd.read_csv(manifest_csv)
+        f = m.loc[(m["split"] == "train") & (m["pitch_deg"].astype(float) == 0.0)
+                  & ~m["scene_id"].isin(h.get("validation_scenes", [])), "fx_N"]
+        mean, std = [float(f.mean())], [float(f.std(ddof=1))]  # torch.std: unbiased
+    return {"augment": h.get("augment"),
+            "train_seconds": h["train_seconds"], "n_train": h["n_train"],
+            "n_val": h["n_val"], "n_val_scenes": len(h.get("validation_scenes", [])),
+            "epochs": len(h["epoch"]), "best_epoch": best,
+            "selected_by": "validation loss" if h["val_loss"] else "training loss",
+            "best_val_force_rmse_N": val_rmse,
+            "force_mean_N": mean, "force_std_N": std,
+            "precision": h.get("precision", ""), "step_ms": h.get("step_ms"),
+            "step_cpu_ms": h.get("step_cpu_ms"), "cpu": h.get("cpu", "")}
+
+
 def build_summary(evaluate_dir, experiments, baseline_fit, speed_json, fea_pareto_csv,
                   histories: dict[str, str], usable_nrmse_pct: float, config: dict | None = None,
-                  fea_scenes_csv=None) -> dict:
+                  fea_scenes_csv=None, manifest_csv=None) -> dict:
     evaluate_dir = Path(evaluate_dir)
     s: dict = {"experiments": {e: experiment_summary(evaluate_dir / e) for e in experiments}}
     if config is not None:
         s["setup"] = setup_summary(config)
     if fea_scenes_csv is not None:
         s["fea_checks"] = fea_checks(fea_scenes_csv)
+        s["fea_forces"] = fea_forces(fea_scenes_csv)
+    if manifest_csv is not None:
+        s["training_data"] = training_data(manifest_csv)
     if "pitch" in experiments:
         m = pd.read_csv(evaluate_dir / "pitch" / "metrics.csv")
         s["pitch_usable_deg"] = {p: usable_range(m, p, usable_nrmse_pct)
@@ -103,14 +166,7 @@ def build_summary(evaluate_dir, experiments, baseline_fit, speed_json, fea_paret
                      "train_nrmse_pct": fit["train"]["nrmse_pct"]}
     s["training"] = {}
     for name, path in histories.items():
-        h = json.loads(Path(path).read_text())
-        s["training"][name] = {"augment": h.get("augment"),
-                               "train_seconds": h["train_seconds"], "n_train": h["n_train"],
-                               "n_val": h["n_val"], "epochs": len(h["epoch"]),
-                               "precision": h.get("precision", ""), "step_ms": h.get("step_ms"),
-                               "step_cpu_ms": h.get("step_cpu_ms"),
-                               "cpu": h.get("cpu", ""),
-                               "best_val_force_rmse_N": min(h["val_force_rmse_N"]) if h["val_force_rmse_N"] else None}
+        s["training"][name] = training_summary(json.loads(Path(path).read_text()), manifest_csv)
     speed = json.loads(Path(speed_json).read_text())
     s["fea_scenes"] = speed["fea_scenes"]
     s["speed"] = {"fea_seconds_per_scene": speed["fea_seconds_per_scene"],
@@ -119,5 +175,42 @@ def build_summary(evaluate_dir, experiments, baseline_fit, speed_json, fea_paret
                   "stages": speed["stages"]}
     pareto = pd.read_csv(fea_pareto_csv)
     s["fea_mesh_study"] = pareto.to_dict("records")
-    s["paper"] = PAPER
+    s["paper"] = paper_reference()["values"]  # {name: {value, unit, where, quote}}
     return s
+
+
+#: Where the summary's keys are names from the config or the data (conditions, groups,
+#: materials, stages, pitches) rather than fixed keys: see :func:`key_structure`.
+NAMED = [("experiments", "*"), ("experiments", "*", "*", "*", "groups"),
+         ("speed", "fea_seconds_per_scene"), ("speed", "stages"), ("pitch_augmentation_iou",),
+         ("setup", "occlusion_levels")]
+
+
+def key_structure(node, path: tuple = ()):
+    """The shape of a summary: nested dicts of its keys, with the names listed in
+    :data:`NAMED` merged under ``"*"``, a list of records as ``["[]", keys]`` and
+    values as ``None``; two runs of different configs compare equal when only those
+    names differ."""
+    def match(p):
+        return any(len(p) == len(n) and all(a == b or b == "*" for a, b in zip(p, n)) for n in NAMED)
+
+    if isinstance(node, dict):
+        if match(path):
+            merged: dict = {}
+            for k, v in node.items():
+                merged = _union(merged, key_structure(v, path + (k,)))
+            return {"*": merged} if node else {}
+        return {k: key_structure(v, path + (k,)) for k, v in node.items()}
+    if isinstance(node, list) and node and all(isinstance(v, dict) for v in node):
+        merged = {}
+        for v in node:
+            merged = _union(merged, key_structure(v, path + ("[]",)))
+        return ["[]", merged]
+    return None
+
+
+def _union(a, b):
+    if isinstance(a, dict) and isinstance(b, dict):
+        return {k: _union(a.get(k), b.get(k)) if k in a and k in b else (a.get(k) if k in a else b[k])
+                for k in {**a, **b}}
+    return a if a is not None else b

@@ -1,0 +1,47 @@
+"""Rebuild ``tests/data/summary_full.json`` (the full config's summary, a test fixture)
+from a finished full run, with the summary code of this checkout:
+
+    PYTHONPATH=src python tests/data/make_summary_full.py RESULTS_DIR [--config config/config.yaml]
+
+The same inputs as the workflow's ``summary`` rule (workflow/rules/paper.smk). The FEA
+scene table is rebuilt from the scenes' own ``summary.json`` files, so that a run whose
+``fea_scenes.csv`` predates a new column still gives every key.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import tempfile
+from pathlib import Path
+
+from finray.config import load_config
+from finray.evaluate.summary import build_summary
+from finray.fea.figures import scene_table
+
+ROOT = Path(__file__).resolve().parents[2]
+EXPERIMENTS = ["shape", "material", "occlusion", "pitch"]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("results", type=Path)
+    ap.add_argument("--config", type=Path, default=ROOT / "config" / "config.yaml")
+    ap.add_argument("--out", type=Path, default=Path(__file__).with_name("summary_full.json"))
+    a = ap.parse_args()
+    cfg = load_config(a.config)
+    r = a.results
+    with tempfile.TemporaryDirectory() as tmp:
+        scenes = Path(tmp) / "fea_scenes.csv"
+        scene_table(sorted(r.glob("fea/*/*/h*/summary.json")), scenes)
+        histories = {p.parent.name: p for p in sorted(r.glob("train/*/history.json"))}
+        s = build_summary(r / "evaluate", EXPERIMENTS, r / "evaluate" / "baseline" / "fit.json",
+                          r / "evaluate" / "speed" / "speed.json",
+                          r / "benchmarks" / "fea_pareto.csv", histories,
+                          cfg["evaluate"]["usable_nrmse_pct"], config=cfg,
+                          fea_scenes_csv=scenes, manifest_csv=r / "dataset" / "manifest.csv")
+    a.out.write_text(json.dumps(s, indent=1) + "\n")
+    print(f"wrote {a.out} ({a.out.stat().st_size} bytes)")
+
+
+if __name__ == "__main__":
+    main()
