@@ -158,6 +158,13 @@ def test_smoke_evaluation_summary_and_paper(smoke_run):
             assert (smoke_run / "paper" / "figures" / f"{name}.{ext}").stat().st_size > 1000
     html = (smoke_run / "paper" / "manuscript.html").read_text()
     assert "{{" not in html and "{%" not in html
+    # the full config's summary (the fixture tests/test_manuscript.py renders) has the
+    # same keys as this one, up to condition, group and stage names: else it is stale
+    from finray.evaluate.summary import key_structure
+
+    full = json.loads((ROOT / "tests" / "data" / "summary_full.json").read_text())
+    assert key_structure(s) == key_structure(full), \
+        "tests/data/summary_full.json is stale: refresh it with tests/data/make_summary_full.py"
     assert f"{shape['nrmse_pct']:.1f} %" in html
     assert 'src="figures/shape_generalisation.png"' in html
 
