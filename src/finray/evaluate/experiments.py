@@ -24,6 +24,7 @@ Every experiment writes into one directory:
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 
 import numpy as np
@@ -86,8 +87,6 @@ def _camera_rows(render_indices, nets, base, tab, fr, stress, maps, group_col, c
                  predictors, frames_out, log) -> list[dict]:
     """Metrics of the camera path on the rendered frames and of the shard path on the
     same frames; the camera frames are appended to ``frames_out``."""
-    import time
-
     t0 = time.perf_counter()
     arrays, ctab = camera_test_set(render_indices, shared_preprocessing(nets))
     sel = rendered_subset(tab, ctab)
