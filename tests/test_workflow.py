@@ -152,6 +152,18 @@ def test_smoke_evaluation_summary_and_paper(smoke_run):
     assert set(exps["occlusion"]["high"]) == {"plain", "occlusion", "baseline"}
     assert [float(p) for p in exps["pitch"]] == [0, 5, 10, 15, 20, 25, 30]
     assert set(exps["material"]["all"]["plain"]["groups"]) == {"steel", "neoprene"}
+    # the camera path (rendered frames through the Predictor) beside the shard path
+    import pandas as pd
+
+    for exp in ("shape", "material"):
+        m = pd.read_csv(smoke_run / "results" / "evaluate" / exp / "metrics.csv")
+        cam = m[(m["path"] == "camera") & (m["group"] == "all")].set_index("predictor")
+        same = m[(m["path"] == "shard") & (m["frames"] == "rendered") & (m["group"] == "all")
+                 ].set_index("predictor")
+        assert set(cam.index) == {"plain", "baseline"} and (cam["n"] > 0).all()
+        assert (cam["n"] == same["n"]).all()
+        assert exps[exp]["all"]["plain"]["camera"]["all"]["n"] == cam.loc["plain", "n"]
+        assert s["camera_path"][exp]["all"]["plain"]["n_frames"] == cam.loc["plain", "n"]
     assert set(s["speed"]["stages"]) >= {"geometry", "fea", "render", "train", "evaluate"}
     for name in ("shape_generalisation", "material_generalisation", "occlusion", "viewpoint", "speed"):
         for ext in ("pdf", "png"):
@@ -167,6 +179,7 @@ def test_smoke_evaluation_summary_and_paper(smoke_run):
         "tests/data/summary_full.json is stale: refresh it with tests/data/make_summary_full.py"
     assert f"{shape['nrmse_pct']:.1f} %" in html
     assert 'src="figures/shape_generalisation.png"' in html
+    assert "Through the camera path" in html
 
 
 def test_one_figure_builds_only_what_it_needs(tmp_path):

@@ -250,18 +250,17 @@ def occlusion_level_order():
 def experiment_setup(wildcards):
     """Test shards, models and conditions of an experiment (see finray.evaluate)."""
     e = wildcards.experiment
-    if e == "shape":
-        return {"shards": shard_files(splits=["shape"], pitch=0.0), "models": eval_models("plain"),
-                "group_col": "object", "conditions": None}
-    if e == "material":
-        return {"shards": shard_files(splits=["material"], pitch=0.0),
-                "models": eval_models("plain"), "group_col": "material", "conditions": None}
+    if e in ("shape", "material"):  # also scored through the camera path on the renders
+        return {"shards": shard_files(splits=[e], pitch=0.0), "models": eval_models("plain"),
+                "group_col": "object" if e == "shape" else "material", "conditions": None,
+                "renders": render_index_files(pitch=0.0, splits=[e])}
     if e == "occlusion":
         return {"shards": shard_files(splits=["shape"], pitch=0.0),
                 "models": eval_models("plain", "occlusion"), "group_col": "object",
-                "conditions": [[lvl, {"occlusion": lvl}] for lvl in occlusion_level_order()]}
+                "conditions": [[lvl, {"occlusion": lvl}] for lvl in occlusion_level_order()],
+                "renders": []}
     return {"shards": pitch_series_shards(), "models": eval_models("plain", "pitch"), "group_col": None,
-            "conditions": [[f"{p:g}", {"pitch_deg": p}] for p in series_pitches()]}
+            "conditions": [[f"{p:g}", {"pitch_deg": p}] for p in series_pitches()], "renders": []}
 
 
 def experiment_params(wildcards):
@@ -273,14 +272,22 @@ def experiment_params(wildcards):
 
 
 def experiment_inputs(wildcards):
+    """Test shards, model files (model.ts; its model.ts.json comes with it) and, for the
+    camera path, the test views' render indices."""
     setup = experiment_setup(wildcards)
-    return {"shards": setup["shards"], "models": list(setup["models"].values())}
-def render_index_files(pitch=None):
-    """index.json of every rendered view (optionally of one pitch only), sorted."""
+    return {"shards": setup["shards"], "models": list(setup["models"].values()),
+            "renders": setup["renders"]}
+
+
+def render_index_files(pitch=None, splits=None):
+    """index.json of every rendered view (optionally of one pitch, or some splits only),
+    sorted. A view's PNG + EXR files (render.files_per_scene) are written by the same
+    job before its index, which names them: the index stands for them in the DAG (how
+    many there are depends on the solver's frames, unknown before the FEA runs)."""
     return sorted(
         f"{RENDER}/{s.object}/{s.material}/h{s.height_mm:g}/p{pitch_label(p)}/index.json"
         for s, p in rendered_views()
-        if pitch is None or p == pitch
+        if (pitch is None or p == pitch) and (splits is None or s.split in splits)
     )
 
 

@@ -14,8 +14,8 @@ with log_to(snakemake.log[0]):
         conditions=dict(setup["conditions"]) if setup["conditions"] else None,
         group_col=setup["group_col"],
         occlusion_levels={k: tuple(v) for k, v in snakemake.params.occlusion_levels.items()},
-        seed=snakemake.params.seed)
-    print(m[m["group"] == "all"].to_string(index=False))
+        seed=snakemake.params.seed, render_indices=list(snakemake.input.renders))
+    print(m[m["group"] == "all"].to_string(index=False))  # shard and camera paths
     checks = {}
     if snakemake.wildcards.experiment == "pitch":
         # how close the training's pitch augmentation is to the pitched renders

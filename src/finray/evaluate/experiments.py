@@ -3,13 +3,20 @@ baseline on a test set, per condition, with force and stress metrics.
 
 Every experiment writes into one directory:
 
-- ``frames.csv``: one row per test frame and condition (scene, frame, displacement,
-  FEA force ``fx_N`` and one ``pred_<predictor>`` column per predictor);
+- ``frames.csv``: one row per test frame, condition and ``path`` (scene, frame,
+  displacement, FEA force ``fx_N`` and one ``pred_<predictor>`` column per predictor);
+  ``path`` is ``shard`` (the dataset shards' inputs) or ``camera`` (the rendered full
+  frames through :class:`~finray.predict.Predictor`, see :mod:`finray.evaluate.camera`;
+  when render indices are given);
 - ``metrics.csv``: force metrics (:func:`~finray.evaluate.metrics.force_metrics`) per
-  condition and predictor, with ``group == "all"`` for the condition as a whole and
-  one row per object (or material, height...) otherwise; stress metrics (log-stress
-  MSE inside the FEA mask, SSIM) for the networks;
-- ``metrics.json``: ``{condition: {predictor: metrics of "all"}}`` for the summary;
+  condition, ``path``, ``frames`` and predictor, with ``group == "all"`` for the
+  condition as a whole and one row per object (or material, height...) otherwise;
+  stress metrics (log-stress MSE inside the silhouette mask, SSIM) for the networks.
+  ``frames`` is ``all`` (every test frame) or ``rendered`` (only the frames written
+  as files, the camera path's: the shard path on them compares like for like);
+- ``metrics.json``: ``{condition: {predictor: metrics of "all"}}`` for the summary
+  (shard path, all frames), plus ``"<predictor>/camera"`` and
+  ``"<predictor>/shard_rendered"`` when the camera path ran;
 - ``examples.npz``: a few frames (input, FEA and predicted stress) for the figures;
 - ``checks.json`` (written by the rule's script): experiment-specific checks, e.g. for
   the pitch study the IoU of the pitch augmentation against the pitched renders.
@@ -17,12 +24,14 @@ Every experiment writes into one directory:
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from .baseline import RidgeBaseline
+from .camera import PATH_KEYS, camera_test_set, rendered_subset, shared_preprocessing
 from .metrics import force_metrics, stress_metrics
 from ..predict import Predictor
 from .predictions import load_test_set, occlude, predict_images
@@ -37,7 +46,8 @@ def _predict_all(images_u8, models: dict[str, Predictor], baseline: RidgeBaselin
 
 
 def _metric_rows(frames: pd.DataFrame, group_col: str | None, condition: str,
-                 predictors, stress: dict | None = None) -> list[dict]:
+                 predictors, stress: dict | None = None, path: str = "shard",
+                 subset: str = "all") -> list[dict]:
     """Force (and stress) metrics over the condition and per value of ``group_col``."""
     groups = [("all", np.ones(len(frames), bool))]
     if group_col:
@@ -45,11 +55,56 @@ def _metric_rows(frames: pd.DataFrame, group_col: str | None, condition: str,
     rows = []
     for gname, sel in groups:
         for p in predictors:
-            row = {"condition": condition, "group": gname, "predictor": p,
+            row = {"condition": condition, "path": path, "frames": subset, "group": gname,
+                   "predictor": p,
                    **force_metrics(frames["fx_N"][sel], frames[f"pred_{p}"][sel])}
             if stress is not None and p in stress["pred"]:
                 row.update(stress_metrics(stress["true"][sel], stress["pred"][p][sel], stress["mask"][sel]))
             rows.append(row)
+    return rows
+
+
+#: Columns that name a metrics row (the rest are metrics).
+ID_COLUMNS = ("condition", "path", "frames", "group", "predictor")
+
+
+def _variant(row: dict) -> str:
+    """Key of a metrics row's predictor in ``metrics.json``: the predictor's name for the
+    shard path on all frames, ``<predictor>/<path key>`` otherwise (see PATH_KEYS)."""
+    key = PATH_KEYS[(row.get("path", "shard"), row.get("frames", "all"))]
+    return row["predictor"] if key is None else f"{row['predictor']}/{key}"
+
+
+def headline_rows(metrics: pd.DataFrame) -> pd.DataFrame:
+    """The rows of the shard path on all frames (every row of a table from before the
+    camera path, which has no ``path`` column)."""
+    if "path" not in metrics:
+        return metrics
+    return metrics[(metrics["path"] == "shard") & (metrics["frames"] == "all")]
+
+
+def _camera_rows(render_indices, nets, base, tab, fr, stress, maps, group_col, cname,
+                 predictors, frames_out, log) -> list[dict]:
+    """Metrics of the camera path on the rendered frames and of the shard path on the
+    same frames; the camera frames are appended to ``frames_out``."""
+    t0 = time.perf_counter()
+    arrays, ctab = camera_test_set(render_indices, shared_preprocessing(nets))
+    sel = rendered_subset(tab, ctab)
+    preds, cmaps = _predict_all(arrays["images"], nets, base)
+    cfr = ctab.copy()
+    cfr.insert(0, fr.columns[0], cname)  # the condition column
+    cfr.insert(1, "path", "camera")
+    for p, v in preds.items():
+        cfr[f"pred_{p}"] = v
+    frames_out.append(cfr)
+    rows = _metric_rows(fr[sel].reset_index(drop=True), group_col, cname, predictors,
+                        {"true": stress["true"][sel], "mask": stress["mask"][sel],
+                         "pred": {k: v[sel] for k, v in maps.items()}}, "shard", "rendered")
+    rows += _metric_rows(cfr, group_col, cname, predictors,
+                         {"true": arrays["stress"], "mask": arrays["mask"], "pred": cmaps},
+                         "camera", "rendered")
+    log(f"{cname}: camera path on {len(ctab)} rendered frames of {len(render_indices)} views "
+        f"in {time.perf_counter() - t0:.2f} s")
     return rows
 
 
@@ -64,12 +119,15 @@ def _example_indices(table: pd.DataFrame, per: str, n: int = 1) -> np.ndarray:
 def run_experiment(out_dir, shard_paths, size, models: dict[str, str], baseline_path=None, *,
                    conditions: dict[str, dict] | None = None, condition_col: str = "condition",
                    group_col: str | None = "object", occlusion_levels: dict | None = None,
-                   seed: int = 0, log=print) -> pd.DataFrame:
+                   seed: int = 0, render_indices=None, log=print) -> pd.DataFrame:
     """Evaluate ``models`` (name -> TorchScript path) and the baseline on the shards.
 
     ``conditions``: name -> ``{"occlusion": level}`` (images corrupted, replayable from
     ``seed``) or ``{"pitch_deg": p}`` (frames of that pitch only); default: one condition
-    ``"all"`` over every frame. Returns the metrics table (also written).
+    ``"all"`` over every frame. ``render_indices`` (the test scenes' ``index.json``):
+    also score the camera path on their rendered frames, and the shard path on the same
+    frames, for every condition without corruption or selection. Returns the metrics
+    table (also written).
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -96,7 +154,11 @@ def run_experiment(out_dir, shard_paths, size, models: dict[str, str], baseline_
             fr[f"pred_{p}"] = v
         stress = {"true": arrays["stress"][sel], "mask": arrays["mask"][sel], "pred": maps}
         rows += _metric_rows(fr, group_col, cname, predictors, stress)
+        fr.insert(1, "path", "shard")
         frames_out.append(fr)
+        if render_indices and not cond:
+            rows += _camera_rows(render_indices, nets, base, tab, fr, stress, maps, group_col,
+                                 cname, predictors, frames_out, log)
         ex = _example_indices(tab, group_col or "scene_id")
         examples[cname] = {"input": images[ex], "stress_true": stress["true"][ex],
                            "mask": stress["mask"][ex],
@@ -108,7 +170,7 @@ def run_experiment(out_dir, shard_paths, size, models: dict[str, str], baseline_
     pd.concat(frames_out, ignore_index=True).to_csv(out_dir / "frames.csv", index=False,
                                                     float_format="%.6g")
     metrics.to_csv(out_dir / "metrics.csv", index=False, float_format="%.10g")
-    summary = {c: {r["predictor"]: {k: r[k] for k in r if k not in ("condition", "group", "predictor")}
+    summary = {c: {_variant(r): {k: r[k] for k in r if k not in ID_COLUMNS}
                    for r in rows if r["condition"] == c and r["group"] == "all"}
                for c in conditions}
     (out_dir / "metrics.json").write_text(json.dumps(summary, indent=1))
@@ -130,7 +192,8 @@ def load_examples(path) -> dict[str, dict[str, np.ndarray]]:
 def usable_range(metrics: pd.DataFrame, predictor: str, threshold_pct: float) -> float | None:
     """Largest pitch (deg) up to which every pitch's force NRMSE is <= the threshold
     (None when even pitch 0 is above it). Conditions are named by their pitch."""
-    m = metrics[(metrics["group"] == "all") & (metrics["predictor"] == predictor)].copy()
+    m = headline_rows(metrics)
+    m = m[(m["group"] == "all") & (m["predictor"] == predictor)].copy()
     m["pitch"] = m["condition"].astype(float)
     usable = None
     for _, r in m.sort_values("pitch").iterrows():

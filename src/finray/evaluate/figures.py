@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .experiments import load_examples
+from .experiments import headline_rows, load_examples
 
 COLOURS = {"fea": "black", "plain": "tab:blue", "occlusion": "tab:orange", "pitch": "tab:green",
            "baseline": "tab:gray"}
@@ -88,7 +88,9 @@ def _force_and_stress_grid(exp_dir, group_col: str, extra_cols: int = 0):
     plt = _plt()
     exp_dir = Path(exp_dir)
     frames = pd.read_csv(exp_dir / "frames.csv")
-    metrics = pd.read_csv(exp_dir / "metrics.csv")
+    if "path" in frames:  # the test video: shard inputs of every frame
+        frames = frames[frames["path"] == "shard"].reset_index(drop=True)
+    metrics = headline_rows(pd.read_csv(exp_dir / "metrics.csv"))
     ex = load_examples(exp_dir / "examples.npz")["all"]
     preds = _predictors(frames)
     groups = sorted(frames[group_col].astype(str).unique())
@@ -140,7 +142,7 @@ def condition_figure(exp_dir, out_pdf, title: str, xlabel: str, threshold_pct: f
     and stress maps of each condition."""
     plt = _plt()
     exp_dir = Path(exp_dir)
-    metrics = pd.read_csv(exp_dir / "metrics.csv")
+    metrics = headline_rows(pd.read_csv(exp_dir / "metrics.csv"))
     ex = load_examples(exp_dir / "examples.npz")
     allm = metrics[metrics["group"] == "all"]
     conds = list(dict.fromkeys(allm["condition"].astype(str)))

@@ -8,7 +8,8 @@ from pathlib import Path
 import pandas as pd
 
 from ..paper_reference import paper_reference
-from .experiments import usable_range
+from .camera import PATH_KEYS
+from .experiments import headline_rows, usable_range
 
 KEEP = ("n", "mse_N2", "rmse_N", "nrmse_pct", "r2", "max_true_N", "stress_mse_log", "ssim")
 
@@ -18,15 +19,43 @@ def _clean(d: dict) -> dict:
 
 
 def experiment_summary(exp_dir) -> dict:
-    """``{condition: {predictor: {"all": metrics, "groups": {group: metrics}}}}``."""
+    """``{condition: {predictor: {"all": metrics, "groups": {group: metrics}}}}`` of the
+    shard path on all test frames; where the camera path ran (shape, material), each
+    predictor also has ``"camera"`` (the rendered frames through the Predictor) and
+    ``"shard_rendered"`` (the shard inputs of the same frames), each ``{"all", "groups"}``
+    (see :data:`finray.evaluate.camera.PATH_KEYS`)."""
     m = pd.read_csv(Path(exp_dir) / "metrics.csv")
     out: dict = {}
     for r in m.to_dict("records"):
         node = out.setdefault(str(r["condition"]), {}).setdefault(r["predictor"], {"groups": {}})
+        key = PATH_KEYS[(r.get("path", "shard"), r.get("frames", "all"))]
+        if key is not None:
+            node = node.setdefault(key, {"groups": {}})
         if r["group"] == "all":
             node["all"] = _clean(r)
         else:
             node["groups"][str(r["group"])] = _clean(r)
+    return out
+
+
+def camera_agreement(exp_dir) -> dict:
+    """How far the camera path's forces are from the shard path's on the same frames
+    (``frames.csv``): ``{condition: {predictor: {"n_frames", "max_abs_diff_N",
+    "rms_diff_N"}}}``; empty where the camera path did not run."""
+    f = pd.read_csv(Path(exp_dir) / "frames.csv")
+    if "path" not in f or not (f["path"] == "camera").any():
+        return {}
+    key = [f.columns[0], "scene_id", "frame"]  # condition, scene, frame
+    cam = f[f["path"] == "camera"]
+    both = cam.merge(f[f["path"] == "shard"], on=key, suffixes=("_camera", "_shard"),
+                     validate="one_to_one")
+    out: dict = {}
+    for c, g in both.groupby(key[0], sort=False):
+        out[str(c)] = {}
+        for p in (col[5:] for col in f.columns if col.startswith("pred_")):
+            d = g[f"pred_{p}_camera"].to_numpy() - g[f"pred_{p}_shard"].to_numpy()
+            out[str(c)][p] = {"n_frames": int(len(d)), "max_abs_diff_N": float(abs(d).max()),
+                              "rms_diff_N": float((d ** 2).mean() ** 0.5)}
     return out
 
 
@@ -139,6 +168,7 @@ def build_summary(evaluate_dir, experiments, baseline_fit, speed_json, fea_paret
                   fea_scenes_csv=None, manifest_csv=None) -> dict:
     evaluate_dir = Path(evaluate_dir)
     s: dict = {"experiments": {e: experiment_summary(evaluate_dir / e) for e in experiments}}
+    s["camera_path"] = {e: a for e in experiments if (a := camera_agreement(evaluate_dir / e))}
     if config is not None:
         s["setup"] = setup_summary(config)
     if fea_scenes_csv is not None:
@@ -147,7 +177,7 @@ def build_summary(evaluate_dir, experiments, baseline_fit, speed_json, fea_paret
     if manifest_csv is not None:
         s["training_data"] = training_data(manifest_csv)
     if "pitch" in experiments:
-        m = pd.read_csv(evaluate_dir / "pitch" / "metrics.csv")
+        m = headline_rows(pd.read_csv(evaluate_dir / "pitch" / "metrics.csv"))
         s["pitch_usable_deg"] = {p: usable_range(m, p, usable_nrmse_pct)
                                  for p in m["predictor"].unique()}
         s["pitch_usable_nrmse_pct"] = usable_nrmse_pct
