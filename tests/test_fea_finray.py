@@ -79,7 +79,7 @@ def test_initial_intersection_is_refused(finger):
 
 
 def test_object_blocked_by_the_clamp_is_reported(finger):
-    from finray.fea.benchmarks import circle_polyline
+    from finray.geometry.primitives import circle_polyline
     from finray.fea.simulate import RigidObject
 
     pts, edges = circle_polyline([-1.15, 0.0], 1.0, 64)  # aims at the clamped corner (0, 0)
@@ -93,7 +93,7 @@ def scene_inputs():
     from pathlib import Path
 
     from finray.config import load_config
-    from finray.fea.studies import with_overrides
+    from finray.benchmarks.fea import with_overrides
     from finray.geometry.objects import object_geometry
 
     cfg = load_config(Path(__file__).resolve().parents[1] / "config" / "smoke.yaml")
@@ -132,7 +132,7 @@ def test_equilibrium_check_fails_the_scene_and_leaves_a_report(scene_inputs, tmp
     import json
 
     from finray.fea.output import run_scene
-    from finray.fea.studies import with_overrides
+    from finray.benchmarks.fea import with_overrides
 
     cfg, finger, obj = scene_inputs
     cfg = with_overrides(cfg, {"fea.equilibrium_tol": 1e-300})  # no frame can pass

@@ -13,7 +13,6 @@ contact    incremental potential contact (ipctk): barrier, lagged friction, CCD.
 solver     Newton with CCD-bounded backtracking line search, sparse Cholesky with
            reused symbolic factorisation, adaptive load stepping.
 simulate   the pure-compute entry point :func:`simulate` for the Fin Ray scene.
-benchmarks simple meshes and polylines for the verification problems.
 """
 from .material import MATERIALS, NeoHookean, material_from_name
 from .simulate import (DeformableObject, RigidObject, SimulationError, SimulationOptions,
