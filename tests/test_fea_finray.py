@@ -3,14 +3,16 @@ import numpy as np
 import pytest
 from shapely.geometry import Point
 
-from finray.fea.material import NeoHookean, material_from_name
+from finray.config import default_config_path, load_config
+from finray.fea.output import material_law
 from finray.fea.simulate import (DeformableObject, SimulationError, SimulationOptions,
                                  front_contact_circle, simulate)
 from finray.fea.solver import NewtonOptions
 from finray.geometry.finger import FingerParams, mesh_finger
 from finray.geometry.mesh import triangulate_polygon
 
-FINGER = NeoHookean.from_E_nu(12.0, 0.45, "ninjaflex")
+CONFIG = load_config(default_config_path())  # the material constants
+FINGER = material_law(CONFIG, "ninjaflex")
 
 
 @pytest.fixture(scope="module")
@@ -49,7 +51,7 @@ def test_deformable_ring_push_equilibrium(finger):
     c = front_contact_circle(FingerParams(), 30.0, 15.0, gap_mm=0.1).points.mean(axis=0)
     ring = Point(c).buffer(7.5, quad_segs=16).difference(Point(c).buffer(5.5, quad_segs=16))
     mesh, _ = triangulate_polygon(ring, 1.0, 25.0, order=2)
-    obj = DeformableObject(mesh, material_from_name("neoprene"), name="ring_neoprene")
+    obj = DeformableObject(mesh, material_law(CONFIG, "neoprene"), name="ring_neoprene")
     r = simulate(finger, obj, FINGER, SimulationOptions(push_mm=4.0, frame_step_mm=1.0))
     check_frames(r)
     assert r.object_von_mises_MPa is not None and np.nanmax(r.object_von_mises_MPa[-1]) > 0
