@@ -29,14 +29,15 @@ def _shard(path, scene_id, n, seed):
 
 @pytest.fixture()
 def shards(tmp_path):
-    return [_shard(tmp_path / "b.npz", "square_s10", 5, 1), _shard(tmp_path / "a.npz", "circle_d5", 4, 0)]
+    return [_shard(tmp_path / "b.npz", "square_s10", 5, 1),
+            _shard(tmp_path / "a.npz", "circle_d5", 4, 0)]
 
 
 def test_load_frames_reads_one_size_as_stored(shards):
     a, t = load_frames(shards, (16, 8), every=2)
     d0, d1 = load_shard(shards[0]), load_shard(shards[1])
-    np.testing.assert_array_equal(a["images"], np.concatenate([d0["input_16x8"][::2], d1["input_16x8"][::2]]))
-    np.testing.assert_array_equal(a["stress"], np.concatenate([d0["stress_16x8"][::2], d1["stress_16x8"][::2]]))
+    for key, stored in (("images", "input_16x8"), ("stress", "stress_16x8"), ("mask", "mask_16x8")):
+        np.testing.assert_array_equal(a[key], np.concatenate([d0[stored][::2], d1[stored][::2]]))
     assert a["images"].dtype == np.uint8 and a["stress"].dtype == np.float32 and a["mask"].dtype == bool
     assert list(t.columns) == FRAME_COLUMNS
     assert t["scene_id"].tolist() == ["square_s10"] * 3 + ["circle_d5"] * 2  # the order given

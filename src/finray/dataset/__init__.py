@@ -6,7 +6,8 @@ Public API:
 - :func:`sample_augment`, :func:`apply_augment`, :func:`augment_seed` -- seeded,
   replayable salt-and-pepper noise and disc occlusion
 - :class:`DatasetParams` (config ``dataset``), :func:`build_shard`, :func:`load_shard`,
-  :func:`load_frames` (the frames of shards at one size), :func:`write_manifest`, :func:`prepare_frame`, :class:`FramePreparer`
+  :func:`load_frames` (the frames of shards at one size), :func:`write_manifest`,
+  :func:`prepare_frame`, :class:`FramePreparer`
 - :func:`render_shard` -- render a solver result and build its shard in one pass
 - :func:`pitch_object`, :func:`scene_splits` -- the splits
 - :func:`example_figure` -- the paper-style figure
@@ -22,7 +23,8 @@ from .splits import SPLITS, pitch_object, scene_splits
 
 __all__ = [
     "FRAME_COLUMNS", "MANIFEST_COLUMNS", "NOISE_LEVELS", "OCCLUSION_LEVELS", "SPLITS",
-    "AugmentParams",    "DatasetParams", "FramePreparer", "apply_augment", "area_resample", "augment_seed", "build_shard",
+    "AugmentParams", "DatasetParams", "FramePreparer", "apply_augment", "area_resample",
+    "augment_seed", "build_shard",
     "disc_diameters", "example_figure", "load_frames", "load_shard", "pitch_object", "prepare_frame",
     "render_shard", "sample_augment", "scene_id", "scene_splits", "segment", "size_key", "to_gray",
     "write_manifest",
