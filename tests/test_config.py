@@ -99,3 +99,15 @@ def test_bad_config_cli_one_line_and_exit_code(case, tmp_path):
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and key in lines[0], r.stderr
     assert not (tmp_path / "out").exists()  # stopped before any work
+
+
+def test_one_schema_the_package_ships_the_workflow_schema():
+    """``src/finray/config.schema.yaml`` is a link to ``workflow/schemas/config.schema.yaml``
+    (one file to edit) and the package reads the same bytes (package-data)."""
+    from importlib import resources
+
+    workflow_schema = ROOT / "workflow" / "schemas" / "config.schema.yaml"
+    link = ROOT / "src" / "finray" / "config.schema.yaml"
+    assert link.is_symlink() and link.resolve() == workflow_schema.resolve()
+    shipped = resources.files("finray").joinpath("config.schema.yaml").read_bytes()
+    assert shipped == workflow_schema.read_bytes()

@@ -63,20 +63,6 @@ def test_usable_range_stops_at_the_first_pitch_above_the_threshold():
     assert usable_range(m, "plain", 10.0) == 15.0
 
 
-def test_stage_times_sum_snakemake_benchmark_files(tmp_path):
-    from finray.evaluate.speed import stage_times
-
-    header = "s\th:m:s\tmax_rss\tmax_vms\tmax_uss\tmax_pss\tio_in\tio_out\tmean_load\tcpu_time\n"
-    for stage, runs in {"fea": [(10.0, 9.5), (20.0, 19.0)], "train": [(100.0, 98.0)]}.items():
-        (tmp_path / stage).mkdir()
-        for k, (s, cpu) in enumerate(runs):
-            (tmp_path / stage / f"job{k}.tsv").write_text(header + f"{s}\t0:00:10\t1\t1\t1\t1\t0\t0\t90\t{cpu}\n")
-    (tmp_path / "empty").mkdir()
-    t = stage_times(tmp_path)
-    assert set(t) == {"fea", "train"}
-    assert t["fea"] == {"jobs": 2, "wall_s": 30.0, "cpu_s": 28.5, "longest_job_s": 20.0}
-
-
 def test_fea_checks_gather_the_scene_checks(tmp_path):
     """summary.json of each scene -> fea_scenes.csv -> the checks the manuscript states."""
     import json

@@ -4,7 +4,7 @@ import pytest
 from shapely.geometry import Polygon
 
 from finray.fea.assembly import ElasticAssembler, ElementBlock
-from finray.fea.benchmarks import edge_load, rectangle_mesh
+from finray.geometry.primitives import edge_load, rectangle_mesh
 from finray.fea.material import NeoHookean
 from finray.fea.solver import Model, NewtonOptions, newton
 from finray.geometry.mesh import triangulate_polygon

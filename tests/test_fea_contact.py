@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from finray.fea.assembly import ElementBlock
-from finray.fea.benchmarks import (arc_polyline, circle_polyline, graded_coords, rectangle_mesh,
+from finray.geometry.primitives import (arc_polyline, circle_polyline, graded_coords, rectangle_mesh,
                                    segment_polyline)
 from finray.fea.contact import ContactModel, ContactParams, split_p2_edges
 from finray.fea.material import NeoHookean

@@ -3,14 +3,16 @@ import numpy as np
 import pytest
 from shapely.geometry import Point
 
-from finray.fea.material import NeoHookean, material_from_name
+from finray.config import default_config_path, load_config
+from finray.fea.output import material_law
 from finray.fea.simulate import (DeformableObject, SimulationError, SimulationOptions,
                                  front_contact_circle, simulate)
 from finray.fea.solver import NewtonOptions
 from finray.geometry.finger import FingerParams, mesh_finger
 from finray.geometry.mesh import triangulate_polygon
 
-FINGER = NeoHookean.from_E_nu(12.0, 0.45, "ninjaflex")
+CONFIG = load_config(default_config_path())  # the material constants
+FINGER = material_law(CONFIG, "ninjaflex")
 
 
 @pytest.fixture(scope="module")
@@ -49,7 +51,7 @@ def test_deformable_ring_push_equilibrium(finger):
     c = front_contact_circle(FingerParams(), 30.0, 15.0, gap_mm=0.1).points.mean(axis=0)
     ring = Point(c).buffer(7.5, quad_segs=16).difference(Point(c).buffer(5.5, quad_segs=16))
     mesh, _ = triangulate_polygon(ring, 1.0, 25.0, order=2)
-    obj = DeformableObject(mesh, material_from_name("neoprene"), name="ring_neoprene")
+    obj = DeformableObject(mesh, material_law(CONFIG, "neoprene"), name="ring_neoprene")
     r = simulate(finger, obj, FINGER, SimulationOptions(push_mm=4.0, frame_step_mm=1.0))
     check_frames(r)
     assert r.object_von_mises_MPa is not None and np.nanmax(r.object_von_mises_MPa[-1]) > 0
@@ -79,7 +81,7 @@ def test_initial_intersection_is_refused(finger):
 
 
 def test_object_blocked_by_the_clamp_is_reported(finger):
-    from finray.fea.benchmarks import circle_polyline
+    from finray.geometry.primitives import circle_polyline
     from finray.fea.simulate import RigidObject
 
     pts, edges = circle_polyline([-1.15, 0.0], 1.0, 64)  # aims at the clamped corner (0, 0)
@@ -93,7 +95,7 @@ def scene_inputs():
     from pathlib import Path
 
     from finray.config import load_config
-    from finray.fea.studies import with_overrides
+    from finray.benchmarks.fea import with_overrides
     from finray.geometry.objects import object_geometry
 
     cfg = load_config(Path(__file__).resolve().parents[1] / "config" / "smoke.yaml")
@@ -132,7 +134,7 @@ def test_equilibrium_check_fails_the_scene_and_leaves_a_report(scene_inputs, tmp
     import json
 
     from finray.fea.output import run_scene
-    from finray.fea.studies import with_overrides
+    from finray.benchmarks.fea import with_overrides
 
     cfg, finger, obj = scene_inputs
     cfg = with_overrides(cfg, {"fea.equilibrium_tol": 1e-300})  # no frame can pass

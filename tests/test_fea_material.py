@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from finray.fea.material import (MATERIALS, NeoHookean, gent_modulus_from_shore_a, lame,
-                                 material_from_name, project_tangent_psd, von_mises)
+from finray.fea.material import (NeoHookean, gent_modulus_from_shore_a, lame, project_tangent_psd,
+                                 von_mises)
 
 
 @pytest.fixture
@@ -78,14 +78,23 @@ def test_psd_projection(mat):
     assert np.linalg.eigvalsh(A.reshape(-1, 4, 4)[0]).min() < 0  # the test exercises a fix
 
 
-def test_library_has_sources_and_neoprene_softer_than_ninjaflex():
-    for name, m in MATERIALS.items():
-        for key in ("E", "nu"):
-            assert m[key]["source"] and m[key]["unit"]
-    nf = material_from_name("ninjaflex")
-    neo = material_from_name("neoprene")
-    assert material_from_name("steel") is None
-    assert nf.E == pytest.approx(12.0) and nf.nu == pytest.approx(0.45)
+def test_config_materials_have_sources_and_give_the_laws():
+    """The default config's ``materials:`` is the one source of the constants."""
+    from finray.config import default_config_path, load_config
+    from finray.fea.output import material_law
+
+    cfg = load_config(default_config_path())
+    mats = cfg["materials"]
+    assert {"steel", "ninjaflex", "neoprene"} <= set(mats)
+    for name, m in mats.items():
+        assert m.get("source"), f"material {name} has no source"
+    nf, neo = material_law(cfg, "ninjaflex"), material_law(cfg, "neoprene")
+    assert nf.E == pytest.approx(mats["ninjaflex"]["youngs_modulus_MPa"])
+    assert nf.nu == pytest.approx(mats["ninjaflex"]["poisson_ratio"])
     assert neo.E < nf.E
-    assert gent_modulus_from_shore_a(60) == pytest.approx(MATERIALS["neoprene"]["E"]["value"], rel=0.01)
-    assert material_from_name("ninjaflex", {"youngs_modulus_MPa": 10.0}).E == pytest.approx(10.0)
+    with pytest.raises(ValueError, match="material steel is rigid"):
+        material_law(cfg, "steel")
+    # neoprene's modulus is Gent's relation at Shore A 60, as its source says
+    assert "Shore A 60" in mats["neoprene"]["source"]
+    assert gent_modulus_from_shore_a(60) == pytest.approx(mats["neoprene"]["youngs_modulus_MPa"],
+                                                          rel=0.01)

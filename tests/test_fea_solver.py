@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from finray.fea.assembly import ElementBlock
-from finray.fea.benchmarks import edge_load, rectangle_mesh
+from finray.geometry.primitives import edge_load, rectangle_mesh
 from finray.fea.material import NeoHookean
 from finray.fea.solver import Model, NewtonOptions, newton
 

@@ -246,7 +246,7 @@ def test_draw_object_for_figures(result_path, tmp_path):
 
 
 def test_benchmark_reports_both_paths(result_path):
-    from finray.render import benchmark
+    from finray.benchmarks.render import benchmark
 
     b = benchmark(result_path, n_frames=2, pitch_deg=15.0)
     # the fields and their relation (frames per second from ms per frame), not the timings

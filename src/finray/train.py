@@ -388,28 +388,18 @@ def force_onnx_path(path: str | Path) -> Path:
 # Data from the dataset stage
 # ----------------------------------------------------------------------------------
 def load_split(shards, size: tuple[int, int], every: int = 1) -> dict[str, np.ndarray]:
-    """Stack the frames of shards at one input size: ``images`` (N, 1, H, W) in [0, 1],
-    ``stress`` (N, 1, H, W), ``mask`` (N, H, W) bool, ``fx_N`` (N, 1), and per-frame
-    ``scene_id``, ``displacement_mm``. ``every``: keep every ``every``-th frame of each
-    shard (evenly over the push), sliced before the float conversion."""
-    from .dataset import load_shard, size_key
+    """The frames of shards at one input size as network tensors (arrays): ``images``
+    (N, 1, H, W) in [0, 1], ``stress`` (N, 1, H, W), ``mask`` (N, H, W) bool, ``fx_N``
+    (N, 1), and per-frame ``scene_id``, ``displacement_mm``. ``every``: keep every
+    ``every``-th frame of each shard (see :func:`finray.dataset.load_frames`)."""
+    from .dataset import load_frames
 
-    k = size_key(size)
-    sel = slice(0, None, max(1, int(every)))
-    parts: dict[str, list] = {n: [] for n in ("images", "stress", "mask", "fx_N", "scene_id",
-                                              "displacement_mm")}
-    for path in shards:
-        d = load_shard(path)
-        x = d[f"input_{k}"][sel]
-        parts["images"].append(x[:, None].astype(np.float32) / 255.0)
-        parts["stress"].append(d[f"stress_{k}"][sel][:, None].astype(np.float32))
-        parts["mask"].append(d[f"mask_{k}"][sel].astype(bool))
-        parts["fx_N"].append(d["fx_N"][sel][:, None].astype(np.float32))
-        parts["scene_id"].append(np.full(len(x), d["meta"]["scene"]["scene_id"]))
-        parts["displacement_mm"].append(d["displacement_mm"][sel])
-    if not parts["images"]:
-        raise ValueError("no shards given")
-    return {n: np.concatenate(v) for n, v in parts.items()}
+    a, table = load_frames(shards, size, every)
+    return {"images": a["images"][:, None].astype(np.float32) / np.float32(255.0),
+            "stress": a["stress"][:, None].astype(np.float32), "mask": a["mask"],
+            "fx_N": a["fx_N"][:, None].astype(np.float32),
+            "scene_id": np.array(table["scene_id"].tolist()),
+            "displacement_mm": table["displacement_mm"].to_numpy()}
 
 
 def validation_scenes(scene_ids, fraction: float, seed: int) -> set[str]:

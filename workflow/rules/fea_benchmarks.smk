@@ -25,7 +25,7 @@ rule fea_pareto:
     log:
         f"{RESULTS}/logs/fea/benchmark_pareto.log",
     benchmark:
-        f"{RESULTS}/benchmarks/fea/benchmark_pareto.tsv"
+        f"{RESULTS}/benchmarks/studies/fea_pareto.tsv"
     threads: 1
     resources:
         runtime=20,
@@ -49,7 +49,7 @@ rule fea_stability:
     log:
         f"{RESULTS}/logs/fea/benchmark_stability.log",
     benchmark:
-        f"{RESULTS}/benchmarks/fea/benchmark_stability.tsv"
+        f"{RESULTS}/benchmarks/studies/fea_stability.tsv"
     threads: 1
     resources:
         runtime=20,

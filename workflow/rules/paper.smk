@@ -12,10 +12,12 @@ rule evaluate_speed:
     input:
         fea_scenes=f"{RESULTS}/benchmarks/fea_scenes.csv",
         latency=f"{RESULTS}/benchmarks/inference_latency.json",
-        # every stage has run, so that its benchmark files are complete
-        stages=[f"{DATASET}/manifest.csv", f"{RESULTS}/benchmarks/render_throughput.json"]
+        # every stage and study has run, so that its benchmark files are complete
+        stages=[f"{DATASET}/manifest.csv"]
         + expand(f"{TRAIN}/{{model}}/model.ts", model=model_names())
         + expand(f"{EVALUATE}/{{experiment}}/metrics.json", experiment=EXPERIMENTS),
+        studies=[f"{RESULTS}/benchmarks/{name}" for name in (
+            "fea_pareto.csv", "fea_stability.csv", "render_throughput.json", "train_pareto.csv")],
     output:
         json=f"{EVALUATE}/speed/speed.json",
         table=f"{EVALUATE}/speed/speed.md",

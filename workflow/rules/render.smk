@@ -37,6 +37,8 @@ rule render_benchmark:
         extrusion_mm=config["finger"]["extrusion_mm"],
     log:
         f"{RESULTS}/logs/render/benchmark.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/studies/render_throughput.tsv"
     threads: 1
     conda:
         "../../envs/finray.yaml"

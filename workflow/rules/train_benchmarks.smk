@@ -24,7 +24,7 @@ rule train_pareto:
     log:
         f"{RESULTS}/logs/train/benchmark_pareto.log",
     benchmark:
-        f"{RESULTS}/benchmarks/train/benchmark_pareto.tsv"
+        f"{RESULTS}/benchmarks/studies/train_pareto.tsv"
     threads: 1
     resources:
         runtime=30,
@@ -46,6 +46,8 @@ rule inference_latency:
         benchmarks=section("benchmarks", keys=("latency_frames", "latency_repeats")),
     log:
         f"{RESULTS}/logs/train/benchmark_latency.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/studies/inference_latency.tsv"
     threads: 1
     resources:
         runtime=10,

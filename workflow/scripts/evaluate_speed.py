@@ -1,6 +1,6 @@
 import json
 
-from finray.evaluate.speed import speed_summary, speed_table
+from finray.benchmarks.speed import speed_summary, speed_table
 from finray.logs import log_to
 
 with log_to(snakemake.log[0]):

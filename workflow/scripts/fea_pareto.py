@@ -1,4 +1,4 @@
-from finray.fea.studies import run_time_vs_error, study_config
+from finray.benchmarks.fea import run_time_vs_error, study_config
 from finray.logs import log_to
 
 p = snakemake.params

@@ -1,4 +1,4 @@
-from finray.fea.studies import stability_cases, stability_suite, study_config
+from finray.benchmarks.fea import stability_cases, stability_suite, study_config
 from finray.logs import log_to
 
 p = snakemake.params

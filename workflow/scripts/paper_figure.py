@@ -1,8 +1,8 @@
 import json
 from pathlib import Path
 
+from finray.benchmarks.speed import fea_seconds_by_material
 from finray.evaluate import figures
-from finray.evaluate.speed import fea_seconds_by_material
 from finray.logs import log_to
 
 name = snakemake.params.figure

@@ -1,8 +1,9 @@
 import json
 
+from finray.benchmarks.render import benchmark
 from finray.dataset import DatasetParams
 from finray.logs import log_to
-from finray.render import RenderParams, benchmark
+from finray.render import RenderParams
 
 p = snakemake.params
 with log_to(snakemake.log[0]):

@@ -1,5 +1,5 @@
+from finray.benchmarks.network import run_time_vs_error
 from finray.logs import log_to
-from finray.train_study import run_time_vs_error
 
 b, t = snakemake.params.benchmarks, snakemake.params.train
 with log_to(snakemake.log[0]):

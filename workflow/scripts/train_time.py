@@ -1,5 +1,5 @@
+from finray.benchmarks.network import train_time_table
 from finray.logs import log_to
-from finray.train_study import train_time_table
 
 with log_to(snakemake.log[0]):
     table = train_time_table(snakemake.params.models, snakemake.input.histories,

@@ -6,7 +6,8 @@ Public API:
 - :func:`sample_augment`, :func:`apply_augment`, :func:`augment_seed` -- seeded,
   replayable salt-and-pepper noise and disc occlusion
 - :class:`DatasetParams` (config ``dataset``), :func:`build_shard`, :func:`load_shard`,
-  :func:`write_manifest`, :func:`prepare_frame`, :class:`FramePreparer`
+  :func:`load_frames` (the frames of shards at one size), :func:`write_manifest`,
+  :func:`prepare_frame`, :class:`FramePreparer`
 - :func:`render_shard` -- render a solver result and build its shard in one pass
 - :func:`pitch_object`, :func:`scene_splits` -- the splits
 - :func:`example_figure` -- the paper-style figure
@@ -15,14 +16,16 @@ from .augment import (NOISE_LEVELS, OCCLUSION_LEVELS, AugmentParams, apply_augme
                       disc_diameters, sample_augment)
 from .figures import example_figure
 from .imageops import area_resample, segment, to_gray
-from .shards import (MANIFEST_COLUMNS, DatasetParams, FramePreparer, build_shard, load_shard,
-                     prepare_frame, render_shard, scene_id, size_key, write_manifest)
+from .shards import (FRAME_COLUMNS, MANIFEST_COLUMNS, DatasetParams, FramePreparer, build_shard,
+                     load_frames, load_shard, prepare_frame, render_shard, scene_id, size_key,
+                     write_manifest)
 from .splits import SPLITS, pitch_object, scene_splits
 
 __all__ = [
-    "MANIFEST_COLUMNS", "NOISE_LEVELS", "OCCLUSION_LEVELS", "SPLITS", "AugmentParams",
-    "DatasetParams", "FramePreparer", "apply_augment", "area_resample", "augment_seed", "build_shard",
-    "disc_diameters", "example_figure", "load_shard", "pitch_object", "prepare_frame",
+    "FRAME_COLUMNS", "MANIFEST_COLUMNS", "NOISE_LEVELS", "OCCLUSION_LEVELS", "SPLITS",
+    "AugmentParams", "DatasetParams", "FramePreparer", "apply_augment", "area_resample",
+    "augment_seed", "build_shard",
+    "disc_diameters", "example_figure", "load_frames", "load_shard", "pitch_object", "prepare_frame",
     "render_shard", "sample_augment", "scene_id", "scene_splits", "segment", "size_key", "to_gray",
     "write_manifest",
 ]

@@ -336,6 +336,44 @@ def load_shard(path: str | Path) -> dict:
     return d
 
 
+#: The per-frame table of :func:`load_frames`.
+FRAME_COLUMNS = ["scene_id", "object", "material", "height_mm", "pitch_deg", "frame",
+                 "displacement_mm", "fx_N"]
+
+
+def load_frames(shard_paths, size: tuple[int, int], every: int = 1):
+    """The frames of shards at one input size, in the order given: arrays and a
+    per-frame table (the one shard reader of training, evaluation and the studies).
+
+    Arrays, as stored: ``images`` (N, H, W) uint8 (the soft silhouette x255),
+    ``stress`` (N, H, W) float32 log-stress, ``mask`` (N, H, W) bool, ``fx_N`` (N,) in N.
+    Table (pandas): :data:`FRAME_COLUMNS`. ``every``: keep every ``every``-th frame of
+    each shard (evenly over the push). Only the arrays of ``size`` are read."""
+    import pandas as pd
+
+    k = size_key(size)
+    sel = slice(0, None, max(1, int(every)))
+    arrays: dict[str, list] = {"images": [], "stress": [], "mask": [], "fx_N": []}
+    rows = []
+    for path in shard_paths:
+        with np.load(path, allow_pickle=False) as f:
+            sc = json.loads(str(f["meta"]))["scene"]
+            arrays["images"].append(f[f"input_{k}"][sel])
+            arrays["stress"].append(f[f"stress_{k}"][sel])
+            arrays["mask"].append(f[f"mask_{k}"][sel].astype(bool))
+            arrays["fx_N"].append(f["fx_N"][sel])
+            frame, disp = f["frame"][sel], f["displacement_mm"][sel]
+        rows.append(pd.DataFrame({
+            "scene_id": sc["scene_id"], "object": sc.get("object"), "material": sc.get("material"),
+            "height_mm": float(sc.get("height_mm", np.nan)), "pitch_deg": float(sc["pitch_deg"]),
+            "frame": frame, "displacement_mm": disp, "fx_N": arrays["fx_N"][-1]},
+            columns=FRAME_COLUMNS))
+    if not rows:
+        raise ValueError("no shards given")
+    return ({n: np.concatenate(v) for n, v in arrays.items()},
+            pd.concat(rows, ignore_index=True))
+
+
 def write_manifest(shard_paths, out_csv: str | Path, relative_to: str | Path | None = None):
     """One row per frame and split of every shard (a pitch-0 frame of the pitch object
     appears under its own split and under ``pitch``); returns the DataFrame.

@@ -185,7 +185,8 @@ def condition_figure(exp_dir, out_pdf, title: str, xlabel: str, threshold_pct: f
 
 
 def speed_figure(speed: dict, out_pdf):
-    """FEA s/scene vs network ms/frame, and the DAG's CPU time per stage."""
+    """FEA s/scene vs network ms/frame, and the job time per pipeline stage and per study
+    (apart), with the DAG's wall time."""
     plt = _plt()
     fig, ax = plt.subplots(1, 2, figsize=(9, 3.4))
     fea = speed["fea_seconds_per_scene"]
@@ -197,12 +198,18 @@ def speed_figure(speed: dict, out_pdf):
     ax[0].set_yscale("log")
     ax[0].set_ylabel("s (FEA: median per scene; CNN: per frame)")
     ax[0].tick_params(axis="x", labelsize=8)
-    st = speed["stages"]
+    st, studies = speed["stages"], speed["studies"]
     # job durations (one thread per job); Snakemake's sampled cpu_time misses short jobs
-    bars = ax[1].barh(list(st), [st[k]["wall_s"] / 60 for k in st], color="tab:blue")
+    bars = ax[1].barh(list(st) + [f"study: {k}" for k in studies],
+                      [st[k]["wall_s"] / 60 for k in st] + [v["wall_s"] / 60 for v in studies.values()],
+                      color=["tab:blue"] * len(st) + ["0.6"] * len(studies))
     ax[1].bar_label(bars, fmt="%.1f", fontsize=7)
     ax[1].set_xlabel("minutes (sum of job times, one thread each)")
+    ax[1].tick_params(axis="y", labelsize=7)
     ax[1].invert_yaxis()
+    dag = speed["dag"]
+    ax[1].set_title(f"pipeline stages (blue), studies (grey); whole DAG "
+                    f"{dag['wall_s'] / 60:.1f} min wall", fontsize=8)
     fig.suptitle("Speed: FEA against the network, and the pipeline's stages", fontsize=10)
     fig.tight_layout()
     _save(fig, out_pdf)

@@ -4,33 +4,15 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from ..dataset import apply_augment, augment_seed, load_shard, sample_augment, size_key
+from ..dataset import apply_augment, augment_seed, load_frames, sample_augment
 
 
 def load_test_set(shard_paths, size: tuple[int, int]) -> tuple[dict, pd.DataFrame]:
-    """Arrays at one input size and a per-frame table.
-
-    Arrays: ``images`` (N, H, W) uint8 (the soft silhouette x255), ``stress`` (N, H, W)
-    float32 log-stress, ``mask`` (N, H, W) bool, ``fx_N`` (N,). Table columns:
-    scene_id, object, material, height_mm, pitch_deg, frame, displacement_mm, fx_N.
-    """
-    k = size_key(size)
-    arrays = {"images": [], "stress": [], "mask": [], "fx_N": []}
-    rows = []
-    for path in sorted(str(p) for p in shard_paths):
-        d = load_shard(path)
-        sc = d["meta"]["scene"]
-        arrays["images"].append(d[f"input_{k}"])
-        arrays["stress"].append(d[f"stress_{k}"])
-        arrays["mask"].append(d[f"mask_{k}"].astype(bool))
-        arrays["fx_N"].append(d["fx_N"])
-        rows.append(pd.DataFrame({
-            "scene_id": sc["scene_id"], "object": sc["object"], "material": sc["material"],
-            "height_mm": float(sc["height_mm"]), "pitch_deg": float(sc["pitch_deg"]),
-            "frame": d["frame"], "displacement_mm": d["displacement_mm"], "fx_N": d["fx_N"]}))
-    if not rows:
-        raise ValueError("no shards given")
-    return {n: np.concatenate(v) for n, v in arrays.items()}, pd.concat(rows, ignore_index=True)
+    """Arrays at one input size and a per-frame table of the shards, in path order
+    (:func:`finray.dataset.load_frames`: ``images`` uint8, ``stress``, ``mask``,
+    ``fx_N``; columns scene_id, object, material, height_mm, pitch_deg, frame,
+    displacement_mm, fx_N)."""
+    return load_frames(sorted(str(p) for p in shard_paths), size)
 
 
 def occlude(images: np.ndarray, table: pd.DataFrame, level: str, seed: int,

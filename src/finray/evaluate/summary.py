@@ -202,7 +202,7 @@ def build_summary(evaluate_dir, experiments, baseline_fit, speed_json, fea_paret
     s["speed"] = {"fea_seconds_per_scene": speed["fea_seconds_per_scene"],
                   "network_ms_per_frame": speed["network_ms_per_frame"],
                   "network_force_only_ms_per_frame": speed["network_force_only_ms_per_frame"],
-                  "stages": speed["stages"]}
+                  "stages": speed["stages"], "studies": speed["studies"], "dag": speed["dag"]}
     pareto = pd.read_csv(fea_pareto_csv)
     s["fea_mesh_study"] = pareto.to_dict("records")
     s["paper"] = paper_reference()["values"]  # {name: {value, unit, where, quote}}
@@ -212,7 +212,7 @@ def build_summary(evaluate_dir, experiments, baseline_fit, speed_json, fea_paret
 #: Where the summary's keys are names from the config or the data (conditions, groups,
 #: materials, stages, pitches) rather than fixed keys: see :func:`key_structure`.
 NAMED = [("experiments", "*"), ("experiments", "*", "*", "*", "groups"),
-         ("speed", "fea_seconds_per_scene"), ("speed", "stages"), ("pitch_augmentation_iou",),
+         ("speed", "fea_seconds_per_scene"), ("speed", "stages"), ("speed", "studies"), ("pitch_augmentation_iou",),
          ("setup", "occlusion_levels")]
 
 

@@ -6,18 +6,17 @@ name says otherwise), stresses and moduli MPa, energies N mm per mm of thickness
 Modules
 -------
 material   compressible neo-Hookean law (energy, first Piola, tangent, Cauchy,
-           von Mises) and the material constants with their sources.
+           von Mises); the constants and their sources are the config's materials.
 assembly   quadratic (6-node) and linear triangles, fused numba assembly into a
            CSR matrix whose pattern and scatter index are computed once.
 contact    incremental potential contact (ipctk): barrier, lagged friction, CCD.
 solver     Newton with CCD-bounded backtracking line search, sparse Cholesky with
            reused symbolic factorisation, adaptive load stepping.
 simulate   the pure-compute entry point :func:`simulate` for the Fin Ray scene.
-benchmarks simple meshes and polylines for the verification problems.
 """
-from .material import MATERIALS, NeoHookean, material_from_name
+from .material import NeoHookean
 from .simulate import (DeformableObject, RigidObject, SimulationError, SimulationOptions,
                        SimulationResult, simulate)
 
-__all__ = ["MATERIALS", "NeoHookean", "material_from_name", "RigidObject", "DeformableObject",
+__all__ = ["NeoHookean", "RigidObject", "DeformableObject",
            "SimulationOptions", "SimulationResult", "SimulationError", "simulate"]

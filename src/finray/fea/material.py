@@ -16,8 +16,9 @@ Continuum Mechanics for FEA*, eq. 6.27)::
 
 which reduces to linear elasticity with Lame constants ``mu, lam`` at small strain.
 
-Every constant the project uses is in :data:`MATERIALS` with a ``source`` string so
-that the config can take them over.
+The constants (Young's modulus, Poisson's ratio, rigid or not) and their sources are
+the config's ``materials:`` section (``config/config.yaml``); :func:`finray.fea.output.material_law`
+builds the law of a configured material.
 """
 from __future__ import annotations
 
@@ -25,52 +26,6 @@ from dataclasses import dataclass
 
 import numba as nb
 import numpy as np
-
-#: Material constants. ``E`` Young's modulus (MPa), ``nu`` Poisson's ratio (-).
-#: ``rigid`` materials are never meshed or solved.
-MATERIALS: dict[str, dict] = {
-    "ninjaflex": {
-        "model": "neo_hookean",
-        "rigid": False,
-        "E": {"value": 12.0, "unit": "MPa", "source": (
-            "NinjaTek NinjaFlex technical data sheet: tensile modulus 12 MPa (ASTM D638). "
-            "Printed thin NinjaFlex sheets measured 8-12 MPa (Int. J. Bioprinting 9(4), "
-            "2023, Table 3). Reppel & Weinberg (Tech. Mech. 38(1), 2018) and the SoRoForge "
-            "database (Smith et al., 3D Print. Addit. Manuf. 2023, doi:10.1089/3dp.2023.0010) "
-            "fit hyperelastic laws to printed NinjaFlex, but their coefficients could not "
-            "be retrieved here: the initial modulus is taken from the data sheet.")},
-        "nu": {"value": 0.45, "unit": "-", "source": (
-            "design assumption of the project (printed TPU is nearly but not fully "
-            "incompressible)")},
-    },
-    "neoprene": {
-        "model": "neo_hookean",
-        "rigid": False,
-        "E": {"value": 3.6, "unit": "MPa", "source": (
-            "commercial-grade neoprene (polychloroprene) sheet, Shore A 60, converted with "
-            "Gent's relation E = 0.0981 (56 + 7.62336 S) / (0.137505 (254 - 2.54 S)) MPa "
-            "(A. N. Gent, Trans. Inst. Rubber Ind. 34, 1958). The ANSYS 'Neoprene Rubber' "
-            "library coefficients could not be retrieved here; replace when available.")},
-        "nu": {"value": 0.49, "unit": "-", "source": (
-            "rubber is nearly incompressible (bulk modulus ~ 1000x shear modulus); 0.49 "
-            "keeps plane-strain P2 elements free of volumetric locking")},
-    },
-    "steel": {
-        "model": "rigid",
-        "rigid": True,
-        "E": {"value": 200e3, "unit": "MPa", "source": (
-            "structural steel, ~200 GPa: 4 orders of magnitude stiffer than the "
-            "finger, so it is modelled as rigid (never meshed or solved)")},
-        "nu": {"value": 0.3, "unit": "-", "source": "structural steel"},
-    },
-}
-
-#: Contact constants.
-CONTACT: dict[str, dict] = {
-    "friction_coefficient": {"value": 0.15, "unit": "-", "source": (
-        "project specification (issue): Coulomb friction finger/object, lagged")},
-}
-
 
 def gent_modulus_from_shore_a(shore_a: float) -> float:
     """Young's modulus (MPa) from Shore A hardness, Gent (1958)."""
@@ -97,13 +52,6 @@ class NeoHookean:
     def from_E_nu(cls, E: float, nu: float, name: str = "neo_hookean") -> "NeoHookean":
         mu, lam = lame(E, nu)
         return cls(mu, lam, name)
-
-    @classmethod
-    def from_library(cls, key: str) -> "NeoHookean":
-        m = MATERIALS[key]
-        if m["rigid"]:
-            raise ValueError(f"material {key!r} is rigid: it has no elastic law")
-        return cls.from_E_nu(m["E"]["value"], m["nu"]["value"], key)
 
     @property
     def E(self) -> float:
@@ -246,19 +194,3 @@ def project_tangent_psd(A: np.ndarray, eps: float = 0.0) -> np.ndarray:
     M = np.ascontiguousarray(A.reshape(-1, 4, 4), dtype=float).copy()
     _project_psd_inplace(M, float(eps))
     return M.reshape(shp)
-
-
-def material_from_name(name: str, overrides: dict | None = None) -> NeoHookean | None:
-    """Elastic law of a library material (None for a rigid one).
-
-    ``overrides`` may give ``E`` (MPa) and ``nu``, e.g. from the project config.
-    """
-    m = MATERIALS[name]
-    if m["rigid"]:
-        return None
-    E = m["E"]["value"]
-    nu = m["nu"]["value"]
-    if overrides:
-        E = overrides.get("E", overrides.get("youngs_modulus_MPa", E))
-        nu = overrides.get("nu", overrides.get("poisson_ratio", nu))
-    return NeoHookean.from_E_nu(E, nu, name)

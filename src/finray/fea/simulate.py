@@ -27,6 +27,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from ..geometry.mesh import BOUNDARY_TAGS, TriMesh
+from ..geometry.primitives import circle_polyline
 from ..logs import Progress
 from .assembly import ElementBlock
 from .contact import ContactModel, ContactParams, split_p2_edges
@@ -379,8 +380,6 @@ def front_contact_circle(params, height_mm: float, diameter_mm: float, gap_mm: f
                          n: int | None = None, size_mm: float = 0.25) -> RigidObject:
     """A rigid circle touching the finger's front face at ``height_mm`` with ``gap_mm``
     clearance (for benchmarks; the project's placement lives in the geometry stage)."""
-    from .benchmarks import circle_polyline
-
     W, H = params.base_width_mm, params.apex_height_mm
     t = np.array([W, H]) / np.hypot(W, H)  # along the front face
     nrm = np.array([H, -W]) / np.hypot(W, H)  # into the finger

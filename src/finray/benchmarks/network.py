@@ -19,11 +19,13 @@ variant and on the front.
 from __future__ import annotations
 
 import tempfile
-import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from .pareto import pareto_front
+from .timing import Stopwatch, time_calls
 
 COLUMNS = ["input", "height", "width", "base_channels", "parameters", "n_train", "n_val",
            "epochs", "train_s_per_epoch", "train_ms_per_frame", "train_cpu_s_per_epoch",
@@ -50,7 +52,7 @@ def network_latency(model, n_calls: int = 200, repeats: int = 3) -> dict:
     one-thread session in it), which a machine shared with other jobs inflates less."""
     import onnxruntime as ort
 
-    from .train import export_onnx, force_onnx_path
+    from ..train import export_onnx, force_onnx_path
 
     c = model.cfg
     x = np.random.default_rng(0).random((1, c.in_channels, c.height, c.width)).astype(np.float32)
@@ -63,26 +65,11 @@ def network_latency(model, n_calls: int = 200, repeats: int = 3) -> dict:
         export_onnx(model, path)
         for key, f in (("force", force_onnx_path(path)), ("full", path)):
             sess = ort.InferenceSession(str(f), opts, providers=["CPUExecutionProvider"])
-            for _ in range(20):
-                sess.run(None, {"image": x})
-            ts, cs = [], []
-            for _ in range(repeats * n_calls):
-                t0, c0 = time.perf_counter(), time.thread_time()
-                sess.run(None, {"image": x})
-                ts.append(time.perf_counter() - t0)
-                cs.append(time.thread_time() - c0)
-            out[key] = float(np.median(ts) * 1e3)
-            out[f"{key}_cpu"] = float(np.median(cs) * 1e3)
+            t = time_calls(lambda k: sess.run(None, {"image": x}), n_calls, repeats, warmup=20,
+                           cpu="thread")
+            out[key] = t.wall_s * 1e3
+            out[f"{key}_cpu"] = t.cpu_s * 1e3
     return out
-
-
-def pareto_front(cost: np.ndarray, error: np.ndarray) -> np.ndarray:
-    """Bool mask of the points no other point beats in both cost and error (lower is
-    better; ties kept)."""
-    cost, error = np.asarray(cost, float), np.asarray(error, float)
-    dominated = ((cost[None, :] <= cost[:, None]) & (error[None, :] <= error[:, None])
-                 & ((cost[None, :] < cost[:, None]) | (error[None, :] < error[:, None])))
-    return ~dominated.any(axis=1)
 
 
 def choose_default(cost: np.ndarray, error: np.ndarray, tolerance: float,
@@ -112,8 +99,8 @@ def run_time_vs_error(shards, out_csv, out_png, out_md, sizes, bases, configured
     import pandas as pd
     import torch
 
-    from .model import NetConfig, count_parameters
-    from .train import TrainConfig, evaluate, load_split, train, validation_scenes
+    from ..model import NetConfig, count_parameters
+    from ..train import TrainConfig, evaluate, load_split, train, validation_scenes
 
     torch.set_num_threads(1)
     rows = []
@@ -132,10 +119,10 @@ def run_time_vs_error(shards, out_csv, out_png, out_md, sizes, bases, configured
             log(f"{v.label}: {len(tr['images'])} training frames, {len(va['images'])} validation")
             net = NetConfig(in_channels=1, base_channels=base, height=h, width=w)
             # best epoch by validation loss, as in the real training
-            c0 = time.thread_time()
-            model, hist = train(tr["images"], tr["stress"], tr["fx_N"],
-                                (va["images"], va["stress"], va["fx_N"]), net, cfg, log=log)
-            cpu_seconds = time.thread_time() - c0  # with the validation passes
+            with Stopwatch(cpu="thread") as clock:
+                model, hist = train(tr["images"], tr["stress"], tr["fx_N"],
+                                    (va["images"], va["stress"], va["fx_N"]), net, cfg, log=log)
+            cpu_seconds = clock.cpu_s  # with the validation passes
             seconds = hist.wall_time_s[-1]  # the loop, before the last validation pass
             ev = evaluate(model, torch.as_tensor(va["images"]), torch.as_tensor(va["stress"]),
                           torch.as_tensor(va["fx_N"]), cfg)

@@ -1,9 +1,10 @@
-"""The convergence helpers of the FEA cost/accuracy study (finray.fea.studies)."""
+"""The convergence helpers of the FEA cost/accuracy study (finray.benchmarks.fea)."""
 import numpy as np
 import pandas as pd
 import pytest
 
-from finray.fea.studies import converged_estimate, pareto_front, richardson, write_pareto
+from finray.benchmarks.fea import converged_estimate, richardson, write_pareto
+from finray.fea.simulate import SimulationError
 
 
 @pytest.mark.parametrize("p", [1.0, 2.0, 3.5])
@@ -39,10 +40,6 @@ def test_converged_estimate_adds_chord_correction():
     assert est["fx_N"] == pytest.approx(8.0, abs=1e-9)
 
 
-def test_pareto_front():
-    assert pareto_front([1, 2, 3, 4], [5, 6, 1, 0.5]).tolist() == [0, 2, 3]
-
-
 def test_write_pareto_outputs(tmp_path):
     cfg = {"mesh": {"size_mm": 1.0, "arc_chord_mm": 0.1, "order": 2},
            "fea": {"max_step_mm": 0.5, "dhat_mm": 0.02}}
@@ -73,8 +70,7 @@ INTERSECTS = "the object intersects the finger in the initial state"
 
 
 def test_stability_suite_accepts_the_expected_refusal(smoke_cfg, tmp_path):
-    from finray.fea.simulate import SimulationError
-    from finray.fea.studies import Refusal, stability_suite
+    from finray.benchmarks.fea import Refusal, stability_suite
 
     cases = {"overlap": ({}, {}, Refusal(SimulationError, "intersects the finger"))}
     df = stability_suite(smoke_cfg, tmp_path / "s.csv", cases=cases, log=lambda *a: None,
@@ -87,8 +83,7 @@ def test_stability_suite_accepts_the_expected_refusal(smoke_cfg, tmp_path):
 def test_stability_suite_fails_on_a_wrong_refusal(smoke_cfg, tmp_path, exc):
     """A refused case that raises the wrong error type, or the right type with the
     wrong message, fails the suite (after writing the table)."""
-    from finray.fea.simulate import SimulationError
-    from finray.fea.studies import Refusal, StabilityFailure, stability_suite
+    from finray.benchmarks.fea import Refusal, StabilityFailure, stability_suite
 
     if isinstance(exc, str):
         exc = SimulationError("load step 3 failed: line search failed", step=3, cause="ls")
@@ -103,8 +98,7 @@ def test_stability_suite_fails_on_a_wrong_refusal(smoke_cfg, tmp_path, exc):
 def test_stability_suite_converge_case(smoke_cfg, tmp_path):
     """A converge case stopping with a SimulationError is a finding (not ok, the suite
     goes on); any other exception there is a bug and fails the suite."""
-    from finray.fea.simulate import SimulationError
-    from finray.fea.studies import StabilityFailure, stability_suite
+    from finray.benchmarks.fea import StabilityFailure, stability_suite
 
     cases = {"hard": ({}, {}, "converge")}
     df = stability_suite(smoke_cfg, tmp_path / "s.csv", cases=cases, log=lambda *a: None,
@@ -116,8 +110,7 @@ def test_stability_suite_converge_case(smoke_cfg, tmp_path):
 
 
 def test_stability_cases_name_their_refusals():
-    from finray.fea.simulate import SimulationError
-    from finray.fea.studies import STABILITY_CASES, Refusal
+    from finray.benchmarks.fea import STABILITY_CASES, Refusal
 
     for case, (_, _, expected) in STABILITY_CASES.items():
         assert expected == "converge" or isinstance(expected, Refusal), case

@@ -1,4 +1,4 @@
-"""Benchmarks of the FEA stage: cost against accuracy, and robustness (results/benchmarks/).
+"""Studies of the FEA stage: cost against accuracy, and robustness (results/benchmarks/).
 
 :func:`run_time_vs_error` varies the discretisation (mesh size and order, load step,
 barrier distance) one factor at a time around the config's defaults for one scene
@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import copy
 import re
-import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -23,13 +22,15 @@ import numpy as np
 import pandas as pd
 
 from ..config import validate_config
+from ..fea.output import material_law, scene_object, simulation_options
+from ..fea.simulate import SimulationError, simulate
 from ..geometry.finger import FingerParams, mesh_finger
 from ..geometry.mesh import TriMesh
 from ..geometry.objects import object_geometry
-from .output import material_law, scene_object, simulation_options
-from .simulate import SimulationError, simulate
+from .pareto import pareto_front
+from .timing import Stopwatch
 
-__all__ = ["run_time_vs_error", "stability_suite", "run_case", "pareto_front", "richardson",
+__all__ = ["run_time_vs_error", "stability_suite", "run_case", "richardson",
            "converged_estimate", "write_pareto", "Refusal", "StabilityFailure"]
 
 CIRCLE_D20 = {"type": "circle", "diameter_mm": 20.0}
@@ -82,10 +83,10 @@ class _FingerCache:
         key = (repr(sorted(cfg["finger"].items())), m["size_mm"], m["min_angle_deg"], m["order"],
                m["arc_chord_mm"])
         if key not in self._meshes:
-            t0 = time.perf_counter()
-            mesh = mesh_finger(FingerParams.from_config(cfg["finger"]), m["size_mm"],
-                               m["min_angle_deg"], m["order"], m["arc_chord_mm"])
-            self._meshes[key] = (mesh, time.perf_counter() - t0)
+            with Stopwatch() as t:
+                mesh = mesh_finger(FingerParams.from_config(cfg["finger"]), m["size_mm"],
+                                   m["min_angle_deg"], m["order"], m["arc_chord_mm"])
+            self._meshes[key] = (mesh, t.wall_s)
         return self._meshes[key]
 
 
@@ -121,10 +122,9 @@ def run_case(cfg: dict, spec: dict = CIRCLE_D20, material: str = "steel", height
     opts = simulation_options(cfg)
     if frame_step_mm is not None:
         opts.frame_step_mm = frame_step_mm
-    t0, c0 = time.perf_counter(), time.process_time()
-    res = simulate(finger, obj, material_law(cfg, cfg["finger"]["material"]), opts)
-    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-    return {"result": res, "wall_time_s": wall, "cpu_time_s": cpu, "mesh_time_s": t_mesh,
+    with Stopwatch() as t:
+        res = simulate(finger, obj, material_law(cfg, cfg["finger"]["material"]), opts)
+    return {"result": res, "wall_time_s": t.wall_s, "cpu_time_s": t.cpu_s, "mesh_time_s": t_mesh,
             "n_nodes": len(finger.points), "n_dofs": res.meta["n_dofs"]}
 
 
@@ -211,18 +211,6 @@ def richardson(h, f, p_bounds=(0.5, 6.0)) -> tuple[float, float]:
     return float(f3 - d23 * h3**p / (h2**p - h3**p)), float(p)
 
 
-def pareto_front(time_s, err) -> np.ndarray:
-    """Indices of the non-dominated points (lower time and lower error), by time."""
-    time_s, err = np.asarray(time_s, float), np.asarray(err, float)
-    ok = np.flatnonzero(np.isfinite(time_s) & np.isfinite(err))
-    front, best = [], np.inf
-    for i in ok[np.lexsort((err[ok], time_s[ok]))]:
-        if err[i] < best:
-            front.append(i)
-            best = err[i]
-    return np.array(front, int)
-
-
 #: The default before the fillet study (for the table): 0.75 mm P2 with 0.25 mm chords.
 PREVIOUS_DEFAULT = {"mesh.size_mm": 0.75, "mesh.arc_chord_mm": 0.25}
 
@@ -279,7 +267,7 @@ def run_time_vs_error(cfg: dict, out_csv, out_png, out_md=None, *, height_mm: fl
     """
     base = with_overrides(cfg, {"fea.push_mm": push_mm, "fea.write_vtu": False})
     cache = _FingerCache()
-    t_all = time.perf_counter()
+    clock = Stopwatch()  # the whole study
     rows = []
 
     def one(label, factor, overrides):
@@ -311,7 +299,7 @@ def run_time_vs_error(cfg: dict, out_csv, out_png, out_md=None, *, height_mm: fl
                                               arc_chords, previous):
         rows.append(one(label, factor, overrides))
     rows.append(ref)
-    total = time.perf_counter() - t_all
+    total = clock.wall_s
     df = write_pareto(pd.DataFrame(rows), base, out_csv, out_png, out_md, height_mm=height_mm,
                       push_mm=push_mm, reference_size_mm=reference_size_mm, total_s=total)
     log(f"study wall time {total:.1f} s")
@@ -554,7 +542,7 @@ def stability_suite(cfg: dict, out_csv, out_md=None, cases: dict | None = None, 
     base = with_overrides(cfg, {"mesh.size_mm": mesh_size_mm, "fea.write_vtu": False})
     cache = _FingerCache()
     rows = []
-    t_all = time.perf_counter()
+    clock = Stopwatch()  # the whole suite
     for case, (overrides, scene, expected) in cases.items():
         row = {"case": case, "converged": False, "stop_message": "", "failed_step": None,
                "wall_time_s": np.nan, "newton_iterations": None, "fx_10mm_N": np.nan,
@@ -562,7 +550,7 @@ def stability_suite(cfg: dict, out_csv, out_md=None, cases: dict | None = None, 
                "gradient_fallbacks": None, "residual_max_rel": np.nan,
                "equilibrium_max_rel_error": np.nan, "expected": str(expected),
                "unexpected_error": False}
-        t0 = time.perf_counter()
+        case_clock = Stopwatch()
         exc = None
         try:
             c = with_overrides(base, _resolve(overrides, base))
@@ -585,7 +573,7 @@ def stability_suite(cfg: dict, out_csv, out_md=None, cases: dict | None = None, 
             exc = e
             row.update(stop_message=f"scene {case}: {type(e).__name__}: {e}")
         if not np.isfinite(row["wall_time_s"]):
-            row["wall_time_s"] = round(time.perf_counter() - t0, 3)
+            row["wall_time_s"] = round(case_clock.wall_s, 3)
         good_run = row["converged"] and not row["any_nan"] and row["min_gap_mm"] > 0
         if isinstance(expected, Refusal):
             clear_stop = exc is not None and expected.matches(exc) and not row["any_nan"]
@@ -601,7 +589,7 @@ def stability_suite(cfg: dict, out_csv, out_md=None, cases: dict | None = None, 
             f"{row['wall_time_s']:6.1f} s  Fx={row['fx_10mm_N']:.4f}  gap={row['min_gap_mm']:.2e}"
             + (f"  {row['stop_message']}" if row["stop_message"] else ""))
         rows.append(row)
-    total = time.perf_counter() - t_all
+    total = clock.wall_s
     log(f"suite wall time {total:.1f} s")
     df = pd.DataFrame(rows)
     out_csv = Path(out_csv)

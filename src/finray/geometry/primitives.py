@@ -1,4 +1,5 @@
-"""Simple geometries for verification problems and benchmarks (mm).
+"""Test-problem geometry (mm): simple meshes and polylines for the FEA verification
+problems, the benchmarks and the rigid objects of a scene.
 
 Structured (optionally graded) rectangle meshes of linear or quadratic
 triangles, and polylines for rigid bodies (circles, segments).
@@ -7,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry.mesh import TriMesh, elevate_to_p2
+from .mesh import TriMesh, elevate_to_p2
 
 
 def graded_coords(a: float, b: float, n: int, grading: float = 1.0,

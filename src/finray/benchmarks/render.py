@@ -4,29 +4,26 @@ from __future__ import annotations
 
 import os
 import tempfile
-import time
 from pathlib import Path
 
-from .imageio import write_exr, write_png
-from .params import RenderParams
-from .raster import Rasterizer, composite
-from .result import load_fea_result
+from ..dataset.shards import DatasetParams, FramePreparer
+from ..render.imageio import write_exr, write_png
+from ..render.params import RenderParams
+from ..render.raster import Rasterizer, composite
+from ..render.result import load_fea_result
+from .timing import Stopwatch, time_calls
 
 
 def _timed(fn, n: int) -> tuple[float, float]:
-    """Mean wall and CPU (process) ms per call over n calls (after one warm-up call)."""
-    fn(0)
-    t, c = time.perf_counter(), time.process_time()
-    for k in range(n):
-        fn(k)
-    n = max(n, 1)
-    return (time.perf_counter() - t) / n * 1000.0, (time.process_time() - c) / n * 1000.0
+    """Median wall and CPU (process) ms per call over ``n`` calls (after one warm-up)."""
+    t = time_calls(fn, n)
+    return t.wall_s * 1e3, t.cpu_s * 1e3
 
 
 def benchmark(result_npz: str | Path, *, params: RenderParams | None = None,
               dataset_params=None, n_frames: int = 20, pitch_deg: float = 15.0,
               extrusion_mm: float = 20.0, pyvista: bool = True) -> dict:
-    """Milliseconds per frame and frames per second per core of each render path and
+    """Milliseconds per frame (median over the frames) and frames per second per core of each render path and
     of the whole per-frame pipeline of the workflow.
 
     Single-threaded by construction (numba kernels are serial; Mesa's llvmpipe is
@@ -46,8 +43,6 @@ def benchmark(result_npz: str | Path, *, params: RenderParams | None = None,
       + the front-view stress maps (raster) + segmentation and area-averages
     - ``*_fps_per_core``: 1000 / the wall ms (``*_cpu_fps_per_core``: / the CPU ms)
     """
-    from ..dataset.shards import DatasetParams, FramePreparer
-
     params = params or RenderParams()
     dparams = dataset_params or DatasetParams()
     res = load_fea_result(result_npz)
@@ -81,11 +76,11 @@ def benchmark(result_npz: str | Path, *, params: RenderParams | None = None,
         put("raster_io", _timed(raster_io, n_frames))
     put("pipeline_raster", _timed(lambda k: prep.prepare(*raster_frame(k)), n_frames))
     if pyvista:
-        from .pvrender import PyVistaRenderer
+        from ..render.pvrender import PyVistaRenderer
 
-        t = time.perf_counter()
-        pvr = PyVistaRenderer(res.mesh, params, extrusion_mm=extrusion_mm, pitch_deg=0.0)
-        out["pyvista_init_s"] = time.perf_counter() - t
+        with Stopwatch() as t:
+            pvr = PyVistaRenderer(res.mesh, params, extrusion_mm=extrusion_mm, pitch_deg=0.0)
+        out["pyvista_init_s"] = t.wall_s
         try:
             put("pyvista_front", _timed(lambda k: pvr.render(res.deformed_points(k % nf)),
                                         n_frames))

@@ -4,15 +4,8 @@ import json
 import numpy as np
 import pandas as pd
 
-from finray.train_study import COLUMNS, choose_default, pareto_front, summary_markdown, train_time_table
-
-
-def test_pareto_front():
-    cost = np.array([1.0, 2.0, 3.0, 2.0, 4.0])
-    err = np.array([5.0, 3.0, 1.0, 4.0, 1.0])
-    # (2, 4) is beaten by (2, 3); (4, 1) by (3, 1)
-    np.testing.assert_array_equal(pareto_front(cost, err), [True, True, True, False, False])
-    np.testing.assert_array_equal(pareto_front([1.0, 1.0], [2.0, 2.0]), [True, True])  # ties kept
+from finray.benchmarks.network import COLUMNS, choose_default, summary_markdown, train_time_table
+from finray.benchmarks.pareto import pareto_front
 
 
 def test_choose_default_is_the_cheapest_within_tolerance():

@@ -1,0 +1,76 @@
+"""Stage times, study times and the DAG's wall time from Snakemake's benchmark files."""
+import os
+
+import numpy as np
+import pytest
+
+from finray.benchmarks.speed import DAG_SPAN_COVERS, dag_span, speed_table, stage_times, study_times
+
+HEADER = "s\th:m:s\tmax_rss\tmax_vms\tmax_uss\tmax_pss\tio_in\tio_out\tmean_load\tcpu_time\n"
+
+
+def _tsv(path, s, cpu, end):
+    """A benchmark file of a job that took ``s`` wall seconds and ended at ``end``."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(HEADER + f"{s}\t0:00:10\t1\t1\t1\t1\t0\t0\t90\t{cpu}\n")
+    os.utime(path, (end, end))
+
+
+@pytest.fixture()
+def bench(tmp_path):
+    t0 = 1_700_000_000.0
+    _tsv(tmp_path / "geometry" / "finger.tsv", 5.0, 4.0, t0 + 5)  # the first job: 0-5 s
+    _tsv(tmp_path / "fea" / "a.tsv", 10.0, 9.5, t0 + 20)  # 10-20 s
+    _tsv(tmp_path / "fea" / "b.tsv", 20.0, 19.0, t0 + 30)  # 10-30 s
+    _tsv(tmp_path / "train" / "plain.tsv", 100.0, 98.0, t0 + 130)  # the last stage job
+    (tmp_path / "empty").mkdir()
+    # studies: in the DAG, not stages; the network study ends last
+    _tsv(tmp_path / "studies" / "fea_pareto.tsv", 50.0, 49.0, t0 + 60)
+    _tsv(tmp_path / "studies" / "train_pareto.tsv", 40.0, 39.0, t0 + 150)
+    return tmp_path
+
+
+def test_stage_times_count_the_pipeline_only(bench):
+    t = stage_times(bench)
+    assert list(t) == ["geometry", "fea", "train"]  # pipeline order; no studies, no empty
+    assert t["fea"] == {"jobs": 2, "wall_s": 30.0, "cpu_s": 28.5, "longest_job_s": 20.0}
+    assert t["train"]["wall_s"] == 100.0
+
+
+def test_study_times_are_apart(bench):
+    assert study_times(bench) == {"fea_pareto": {"wall_s": 50.0, "cpu_s": 49.0},
+                                  "train_pareto": {"wall_s": 40.0, "cpu_s": 39.0}}
+
+
+def test_dag_span_from_the_file_times(bench):
+    d = dag_span(bench)
+    assert d["wall_s"] == pytest.approx(150.0)  # first start (0 s) to the last end (150 s)
+    assert d["pipeline_wall_s"] == pytest.approx(130.0)  # stages only: 0 s to 130 s
+    assert d["jobs"] == 6 and d["job_s"] == pytest.approx(225.0)
+    assert d["covers"] == DAG_SPAN_COVERS
+
+
+def test_dag_span_without_benchmark_files(tmp_path):
+    d = dag_span(tmp_path)
+    assert d["jobs"] == 0 and np.isnan(d["wall_s"]) and np.isnan(d["pipeline_wall_s"])
+
+
+def test_speed_table_lists_studies_and_the_dag(bench):
+    speed = {"fea_seconds_per_scene": {"steel": {"median": 12.0, "n": 3}},
+             "network_ms_per_frame": 1.0, "network_force_only_ms_per_frame": 0.5,
+             "paper_network_ms_per_frame": 8.0, "studies": study_times(bench),
+             "dag": dag_span(bench)}
+    md = speed_table(speed)
+    assert "| study: fea_pareto | 0.8 min |" in md and "| study: train_pareto | 0.7 min |" in md
+    assert "| whole DAG, wall | 2.5 min | 6 benchmarked jobs, 3.8 min of job time; pipeline " \
+           "stages alone 2.2 min |" in md
+
+
+def test_speed_figure_shows_stages_and_studies(bench, tmp_path):
+    from finray.evaluate.figures import speed_figure
+
+    speed = {"fea_seconds_per_scene": {"steel": {"median": 12.0, "n": 3}},
+             "network_ms_per_frame": 1.0, "stages": stage_times(bench),
+             "studies": study_times(bench), "dag": dag_span(bench)}
+    speed_figure(speed, tmp_path / "speed.pdf")
+    assert (tmp_path / "speed.pdf").stat().st_size > 0

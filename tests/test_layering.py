@@ -1,0 +1,107 @@
+"""No stage imports a later one: data flows geometry -> fea -> render -> dataset ->
+train -> evaluate -> paper, and an import against that flow is a defect.
+
+The ranks are defined here once. A module may import finray modules of its own rank
+or lower. The top-level modules that are not stages get the rank of what they import:
+
+- ``logs``, ``precision``, ``paper_reference``: import nothing of finray; shared
+  helpers (rank 0).
+- ``config``: validates every section, so it imports geometry (shapes), render and
+  dataset (their parameters): above dataset, below train. No stage below it may
+  import it (the FEA studies do, from ``benchmarks``).
+- ``model``, ``train``: the train stage; ``predict`` runs a trained model on camera
+  frames (dataset's image ops, render's image I/O) and is what evaluate scores.
+- ``recording``: a real rig's takes -> shards, the dataset stage's counterpart.
+- ``benchmarks``: the studies, a consumer of every stage like evaluate; no stage and
+  not evaluate imports it. ``cli``: the entry point, on top.
+"""
+import ast
+from pathlib import Path
+
+import pytest
+
+SRC = Path(__file__).resolve().parents[1] / "src" / "finray"
+
+RANK = {
+    "__init__": 0, "logs": 0, "precision": 0, "paper_reference": 0,
+    "geometry": 10,
+    "fea": 20,
+    "render": 30,
+    "dataset": 40, "recording": 40,
+    "config": 45,
+    "model": 50, "train": 50, "predict": 50,
+    "evaluate": 60,
+    "benchmarks": 70,
+    "cli": 80,
+}
+
+
+def _unit(parts: list[str]) -> str:
+    """The rank key of module ``finray.<parts>``: its sub-package or top-level module
+    (``__init__`` for names of the package itself, e.g. ``__version__``)."""
+    if parts and ((SRC / parts[0]).is_dir() or (SRC / f"{parts[0]}.py").is_file()):
+        return parts[0]
+    return "__init__"
+
+
+def finray_imports(source: str, module: str) -> list[tuple[int, str]]:
+    """(line, dotted target) of every import of a finray module in ``source``, the text
+    of module ``module`` (e.g. ``finray.render.scene``), relative imports resolved."""
+    package = module.split(".")[:-1]  # a module's package (for __init__: the package)
+    out = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package[:len(package) - node.level + 1]
+                names = [node.module] if node.module else [a.name for a in node.names]
+                out += [(node.lineno, ".".join(base + [n])) for n in names]
+            elif node.module and node.module.split(".")[0] == "finray":
+                out.append((node.lineno, node.module))
+        elif isinstance(node, ast.Import):
+            out += [(node.lineno, a.name) for a in node.names if a.name.split(".")[0] == "finray"]
+    return out
+
+
+def upward_imports(source: str, module: str) -> list[str]:
+    """The imports of ``source`` (module ``module``) that reach a higher rank."""
+    own = _unit(module.split(".")[1:])
+    if own not in RANK:
+        return [f"{module}: the unit '{own}' has no rank"]
+    bad = []
+    for line, target in finray_imports(source, module):
+        unit = _unit(target.split(".")[1:])
+        if unit not in RANK:
+            bad.append(f"{module}:{line}: imports {target}, whose unit '{unit}' has no rank")
+        elif RANK[unit] > RANK[own]:
+            bad.append(f"{module}:{line}: {own} (rank {RANK[own]}) imports {target} "
+                       f"({unit}, rank {RANK[unit]})")
+    return bad
+
+
+def _modules():
+    for f in sorted(SRC.rglob("*.py")):
+        parts = f.relative_to(SRC.parent).with_suffix("").parts
+        yield f, ".".join(parts)
+
+
+def test_every_unit_has_a_rank():
+    units = {_unit(list(m.split(".")[1:])) for _, m in _modules()}
+    assert units - set(RANK) == set(), "rank the new units in tests/test_layering.py"
+
+
+def test_no_stage_imports_a_later_one():
+    bad = [b for f, m in _modules() for b in upward_imports(f.read_text(), m)]
+    assert bad == []
+
+
+@pytest.mark.parametrize("module, source, n_bad", [
+    ("finray.render.bench", "from ..dataset.shards import FramePreparer\n", 1),
+    ("finray.fea.studies", "from ..config import validate_config\nfrom .simulate import x\n", 1),
+    ("finray.geometry.mesh", "import finray.train\nfrom finray.geometry import finger\n", 1),
+    ("finray.dataset.__init__", "from .shards import load_shard\n", 0),
+    ("finray.train", "from .dataset import load_frames\nfrom .evaluate import metrics\n", 1),
+    ("finray.cli", "from . import __version__\nfrom .benchmarks import speed\n", 0),
+    ("finray.evaluate.speed", "from ..benchmarks.pareto import pareto_front\n", 1),
+])
+def test_the_check_finds_upward_imports(module, source, n_bad):
+    assert len(upward_imports(source, module)) == n_bad

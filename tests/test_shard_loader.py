@@ -1,0 +1,63 @@
+"""One shard reader: training (load_split) and evaluation (load_test_set) read the same
+frames through finray.dataset.load_frames."""
+import json
+
+import numpy as np
+import pytest
+
+from finray.dataset import FRAME_COLUMNS, load_frames, load_shard
+from finray.dataset.shards import save_npz
+from finray.evaluate.predictions import load_test_set
+from finray.train import load_split
+
+
+def _shard(path, scene_id, n, seed):
+    rng = np.random.default_rng(seed)
+    arrays = {}
+    for h, w in ((8, 4), (16, 8)):
+        arrays[f"input_{h}x{w}"] = rng.integers(0, 256, (n, h, w), dtype=np.uint8)
+        arrays[f"stress_{h}x{w}"] = rng.normal(size=(n, h, w)).astype(np.float32)
+        arrays[f"mask_{h}x{w}"] = rng.random((n, h, w)) > 0.5
+    scene = {"scene_id": scene_id, "object": scene_id.split("_")[0], "material": "steel",
+             "height_mm": 30.0, "pitch_deg": 0.0, "split": "train", "splits": ["train"]}
+    arrays.update(frame=np.arange(n, dtype=np.int32), fea_frame=np.linspace(0, 20, n),
+                  displacement_mm=np.linspace(0, 10, n), fx_N=-np.linspace(0, 5, n) * (seed + 1),
+                  fy_N=np.zeros(n), meta=np.array(json.dumps({"scene": scene})))
+    save_npz(path, arrays)
+    return path
+
+
+@pytest.fixture()
+def shards(tmp_path):
+    return [_shard(tmp_path / "b.npz", "square_s10", 5, 1),
+            _shard(tmp_path / "a.npz", "circle_d5", 4, 0)]
+
+
+def test_load_frames_reads_one_size_as_stored(shards):
+    a, t = load_frames(shards, (16, 8), every=2)
+    d0, d1 = load_shard(shards[0]), load_shard(shards[1])
+    for key, stored in (("images", "input_16x8"), ("stress", "stress_16x8"), ("mask", "mask_16x8")):
+        np.testing.assert_array_equal(a[key], np.concatenate([d0[stored][::2], d1[stored][::2]]))
+    assert a["images"].dtype == np.uint8 and a["stress"].dtype == np.float32 and a["mask"].dtype == bool
+    assert list(t.columns) == FRAME_COLUMNS
+    assert t["scene_id"].tolist() == ["square_s10"] * 3 + ["circle_d5"] * 2  # the order given
+    assert t["frame"].tolist() == [0, 2, 4, 0, 2]
+    np.testing.assert_array_equal(t["fx_N"], a["fx_N"])
+    with pytest.raises(ValueError, match="no shards given"):
+        load_frames([], (16, 8))
+
+
+def test_training_and_evaluation_read_the_same_frames(shards):
+    tr = load_split(shards, (8, 4))
+    arrays, table = load_test_set(shards, (8, 4))
+    # evaluation sorts the paths (a.npz first); training keeps the given order
+    order = np.r_[5:9, 0:5]
+    np.testing.assert_array_equal(tr["images"][order, 0], arrays["images"] / np.float32(255))
+    assert tr["images"].dtype == np.float32 and tr["images"].shape == (9, 1, 8, 4)
+    np.testing.assert_array_equal(tr["stress"][order, 0], arrays["stress"])
+    np.testing.assert_array_equal(tr["mask"][order], arrays["mask"])
+    np.testing.assert_array_equal(tr["fx_N"][order, 0], arrays["fx_N"].astype(np.float32))
+    np.testing.assert_array_equal(tr["scene_id"][order], table["scene_id"])
+    np.testing.assert_array_equal(tr["displacement_mm"][order], table["displacement_mm"])
+    assert tr["scene_id"].dtype.kind == "U"
+    assert table["object"].tolist() == ["circle"] * 4 + ["square"] * 5
