@@ -87,7 +87,8 @@ READERS: list[tuple[str, set[str]]] = [
     ("render.*", _RENDER),
     ("dataset.sizes", _RENDER),
     ("dataset.crop_y_mm", _SEGMENT | {"evaluate_experiment"}),
-    ("dataset.occlusion_levels", {"dataset_examples", "train_model", "evaluate_experiment"}),
+    ("dataset.occlusion_levels", {"dataset_examples", "train_model", "evaluate_experiment",
+                                  "summary"}),  # the manuscript quotes them
     ("dataset.noise_levels", {"dataset_examples"}),
     ("dataset.occluder_value", {"dataset_examples"}),
     ("dataset.pitch_object", {"render_scene", "render_benchmark", "dataset_manifest",
@@ -99,7 +100,8 @@ READERS: list[tuple[str, set[str]]] = [
     ("train.models.*", {"train_model"}),
     ("train.epochs", {"train_model"}),
     ("train.lr", {"train_model"}),
-    ("train.alpha_*", {"train_model"}),
+    ("train.alpha_*", {"train_model", "summary"}),  # the manuscript states the loss
+    ("train.batch_size", {"train_model", "train_pareto", "summary"}),
     ("train.*", {"train_model", "train_pareto"}),
     ("evaluate.seed", {"evaluate_baseline", "evaluate_experiment"}),
     ("evaluate.usable_nrmse_pct", {"figure_viewpoint", "summary"}),
