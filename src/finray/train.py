@@ -395,6 +395,9 @@ def load_split(shards, size: tuple[int, int], every: int = 1) -> dict[str, np.nd
                                               "displacement_mm")}
     for path in shards:
         d = load_shard(path)
+        if not d["has_stress"]:
+            raise ValueError(f"{path} has no stress map (a lab recording): it cannot be "
+                             "trained on by the stress + force loss")
         x = d[f"input_{k}"][sel]
         parts["images"].append(x[:, None].astype(np.float32) / 255.0)
         parts["stress"].append(d[f"stress_{k}"][sel][:, None].astype(np.float32))

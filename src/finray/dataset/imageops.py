@@ -230,16 +230,28 @@ class EmptyMaskError(ValueError):
 
 
 def base_anchored_box(mask: np.ndarray, base_width_mm: float, crop_x_mm: tuple[float, float],
-                      crop_y_mm: tuple[float, float]) -> tuple[float, float, float, float]:
+                      crop_y_mm: tuple[float, float], base_rows: int = 1
+                      ) -> tuple[float, float, float, float]:
     """The training window ``(col0, row0, col1, row1)`` in pixel edges, anchored on the
     finger itself: the lowest row of ``mask`` is the clamped base, its width is
     ``base_width_mm``, which fixes the scale (px/mm); the window ``crop_x_mm`` x
     ``crop_y_mm`` (mm from the base's left edge and bottom) is cut around it. Any
-    image size and position works (the predictor and lab recordings use it)."""
+    image size and position works (the predictor and lab recordings use it).
+
+    ``base_rows`` > 1: the base is the widest of the lowest ``base_rows`` rows (the
+    lowest such), so that a ragged bottom row (a compressed video's colour blocks at
+    the clamp) does not set the scale; 1 (the predictor, renders): the lowest row."""
     rows = np.flatnonzero(mask.any(axis=1))
     if len(rows) == 0:
         raise EmptyMaskError("no finger found in the image (empty segmentation)")
     bottom = rows[-1]
+    if base_rows > 1:
+        low = mask[max(bottom - base_rows + 1, 0):bottom + 1]
+        has = low.any(axis=1)
+        first = np.where(has, low.argmax(axis=1), 0)
+        last = np.where(has, low.shape[1] - low[:, ::-1].argmax(axis=1), 0)
+        width = last - first
+        bottom = bottom - int(np.argmax(width[::-1]))  # the lowest of the widest
     cols = np.flatnonzero(mask[bottom])
     left, right = cols[0], cols[-1] + 1  # pixel edges of the base
     ppm = (right - left) / base_width_mm

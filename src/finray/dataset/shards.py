@@ -24,6 +24,11 @@ pitch_deg, scene_id), sizes, crop, render and dataset parameters, and
 ``support_iou_min``: the lowest IoU over the frames of the segmented image and the
 stress support at render resolution (pixel alignment, >= 0.98 at pitch 0).
 
+A lab recording's shard (:func:`finray.recording.ingest`) has the same ``input_HxW``,
+``mask_HxW`` and per-frame values (``fx_N``: the sensor's push force; ``fea_frame``,
+``displacement_mm``, ``fy_N``: NaN; also ``t_s`` and ``crop_box_px``) but no stress
+map: ``meta["has_stress"]`` is false and :func:`load_shard` fills ``stress_HxW`` with NaN.
+
 Corruptions (noise, occlusion) are not baked in: they are drawn at use time
 from :func:`~finray.dataset.augment.augment_seed` so any sample can be replayed.
 """
@@ -329,10 +334,19 @@ def render_shard(result_npz: str | Path, render_dir: str | Path, out_npz: str | 
 
 
 def load_shard(path: str | Path) -> dict:
-    """All arrays of a shard, with ``meta`` decoded to a dict."""
+    """All arrays of a shard, with ``meta`` decoded to a dict, and ``has_stress``.
+
+    A shard without stress maps (a lab recording, :mod:`finray.recording`:
+    ``meta["has_stress"]`` false) gets ``stress_HxW`` arrays of NaN, so that its
+    frames stack with simulated ones and any stress metric on them is NaN, never a
+    made-up number; training refuses them (:func:`finray.train.load_split`)."""
     with np.load(path, allow_pickle=False) as f:
         d = {k: f[k] for k in f.files}
     d["meta"] = json.loads(str(d["meta"]))
+    d["has_stress"] = bool(d["meta"].get("has_stress", True))
+    if not d["has_stress"]:
+        for name in [k for k in d if k.startswith("input_")]:
+            d["stress_" + name[len("input_"):]] = np.full(d[name].shape, np.nan, np.float32)
     return d
 
 
