@@ -89,13 +89,14 @@ def render_frame(bg, ppm, origin_px, defl_mm, drop_mm, height_mm=30.0, obj_r_mm=
     obj = np.zeros((H, W), bool)
     rr, cc = disk((r0 - height_mm * ppm, c0 + cx_mm * ppm), obj_r_mm * ppm, shape=(H, W))
     obj[rr, cc] = True
-    img = bg.copy()
     shade = 1.0 - 0.15 * np.linspace(0, 1, H)[:, None, None]  # light from above
-    img = np.where(finger[..., None], FINGER_RGB * shade, img)
-    img = np.where(clamp[..., None], CLAMP_RGB + 0.3 * (bg - 140), img)
-    img = np.where(obj[..., None], OBJECT_RGB * shade, img)
+    img = np.clip(np.rint(bg), 0, 255).astype(np.uint8)
+    for region, colour in ((finger, FINGER_RGB * shade), (clamp, CLAMP_RGB + 0.3 * (bg - 140)),
+                           (obj, OBJECT_RGB * shade)):
+        rows, cols = np.nonzero(region)
+        img[rows, cols] = np.clip(np.rint(np.broadcast_to(colour, bg.shape)[rows, cols]), 0, 255)
     truth = finger & ~clamp & ~obj
-    return np.clip(np.rint(img), 0, 255).astype(np.uint8), truth
+    return img, truth
 
 
 def write_take(folder, *, fps=30.0, duration_s=3.0, size=(480, 360), ppm=None, offset_s=-1000.047,

@@ -203,9 +203,11 @@ def ingest(take: str | Path, out_dir: str | Path, params: IngestParams | None = 
         "sync": sync, "n_frames": int(labelled.sum()), "n_frames_take": len(table),
         "scale": scale, "support_iou_min": None,
     }
-    arrays = {f"input_{key}": np.stack(v)[keep] for key, v in inputs.items()}
-    arrays.update({f"mask_{key}": (a >= 128).astype(np.uint8) for key, a in
-                   [(k_[6:], v) for k_, v in arrays.items()]})
+    arrays = {}
+    for key, v in inputs.items():
+        arrays[f"input_{key}"] = np.stack(v)[keep]
+        # covered at least half (the soft value x255 rounds to 128 or more)
+        arrays[f"mask_{key}"] = (arrays[f"input_{key}"] >= 128).astype(np.uint8)
     sel = table[labelled]
     n = len(sel)
     arrays.update(
