@@ -263,6 +263,46 @@ def _run_predict(args) -> int:
     return 0
 
 
+INGEST_HELP = """\
+Ingest a lab take (one folder: a video or frames/ + frames.csv, the sensor's
+forces.csv, take.json; see the README's "Lab recordings") into a dataset shard.
+The finger is colour-segmented (take.json's finger_colour, or learned from the
+first frames), cropped in the same base-anchored window as predict, and the
+sensor clock is aligned to the camera's by cross-correlating the push force with
+the finger's deformation. Writes shard.npz (force labels from the sensor, no stress
+map), frames.csv, sync.json (offset_s, uncertainty_s), ingest.json and qa.png.
+Progress on stdout; bad input stops with one line on stderr (exit code 2).
+
+example:
+  finray ingest lab/rhombus_h20 --out results/ingest/rhombus_h20
+"""
+
+
+def _ingest_parser(sub) -> None:
+    p = sub.add_parser("ingest", help="lab take (video + force log) -> dataset shard",
+                       description=INGEST_HELP,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("take", type=Path, help="take folder (video or frames/, forces.csv, take.json)")
+    p.add_argument("--out", type=Path, required=True, help="output directory")
+    p.add_argument("--config", type=Path, default=None,
+                   help="YAML config whose dataset sizes and crop (mm) and finger base width "
+                        "(mm) to use (default: config/config.yaml of the source tree)")
+    p.set_defaults(func=_run_ingest)
+
+
+def _run_ingest(args) -> int:
+    from .dataset.shards import DatasetParams
+    from .recording import IngestParams, ingest
+
+    raw = _raw_config(args.config)
+    d = DatasetParams.from_config(raw.get("dataset"))
+    base = float((raw.get("finger") or {}).get("base_width_mm", 30.0))
+    params = IngestParams(sizes=d.sizes, crop_x_mm=d.crop_x_mm, crop_y_mm=d.crop_y_mm,
+                          base_width_mm=base)
+    ingest(args.take, args.out, params, log=lambda m: print(m, flush=True))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="finray",
@@ -273,6 +313,7 @@ def build_parser() -> argparse.ArgumentParser:
     _geometry_parser(sub)
     _simulate_parser(sub)
     _predict_parser(sub)
+    _ingest_parser(sub)
     return parser
 
 
@@ -288,6 +329,10 @@ def main(argv: list[str] | None = None) -> int:
         from .predict import InputError
 
         bad_input += (InputError,)
+    if args.command == "ingest":
+        from .recording import TakeError
+
+        bad_input += (TakeError,)
     try:
         return args.func(args)
     except (ConfigError, GeometryError) as exc:

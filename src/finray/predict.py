@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from .dataset.imageops import area_resample, segment
+from .dataset.imageops import EmptyMaskError, base_anchored_box, segment, silhouette_input
 
 BACKENDS = ("auto", "onnx", "torchscript")
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
@@ -115,17 +115,12 @@ class Predictor:
             self._has_force = hasattr(self.model, "force")  # exports before the force path
 
     def crop_box(self, mask: np.ndarray) -> tuple[float, float, float, float]:
-        """Training window in pixel edges ``(col0, row0, col1, row1)`` from the mask."""
-        rows = np.flatnonzero(mask.any(axis=1))
-        if len(rows) == 0:
-            raise FrameError("no finger found in the image (empty segmentation)")
-        bottom = rows[-1]
-        cols = np.flatnonzero(mask[bottom])
-        left, right = cols[0], cols[-1] + 1  # pixel edges of the base
-        ppm = (right - left) / self.base_width_mm
-        base_edge = bottom + 1
-        return (left + self.crop_x_mm[0] * ppm, base_edge - self.crop_y_mm[1] * ppm,
-                left + self.crop_x_mm[1] * ppm, base_edge - self.crop_y_mm[0] * ppm)
+        """Training window in pixel edges ``(col0, row0, col1, row1)`` from the mask
+        (:func:`~finray.dataset.imageops.base_anchored_box`)."""
+        try:
+            return base_anchored_box(mask, self.base_width_mm, self.crop_x_mm, self.crop_y_mm)
+        except EmptyMaskError as exc:
+            raise FrameError(str(exc)) from None
 
     def segment(self, frame: np.ndarray) -> np.ndarray:
         """Finger mask (H, W) bool, as in the dataset stage."""
@@ -137,8 +132,7 @@ class Predictor:
     def network_input(self, mask: np.ndarray) -> np.ndarray:
         """Network input (1, 1, H, W) float32 in [0, 1] from the mask: the 8-bit soft
         silhouette of the training window, as in the training data."""
-        soft = area_resample(mask, self.crop_box(mask), self.size, fast=True)
-        x = np.rint(np.clip(soft, 0, 1) * 255.0).astype(np.float32) / 255.0
+        x = silhouette_input(mask, self.crop_box(mask), self.size).astype(np.float32) / 255.0
         return x[None, None]
 
     def preprocess(self, frame: np.ndarray) -> tuple[torch.Tensor, np.ndarray]:

@@ -394,7 +394,7 @@ def load_split(shards, size: tuple[int, int], every: int = 1) -> dict[str, np.nd
     ``every``-th frame of each shard (see :func:`finray.dataset.load_frames`)."""
     from .dataset import load_frames
 
-    a, table = load_frames(shards, size, every)
+    a, table = load_frames(shards, size, every, require_stress=True)
     return {"images": a["images"][:, None].astype(np.float32) / np.float32(255.0),
             "stress": a["stress"][:, None].astype(np.float32), "mask": a["mask"],
             "fx_N": a["fx_N"][:, None].astype(np.float32),

@@ -135,6 +135,18 @@ def segment(image: np.ndarray, threshold: str | float = "isodata", foreground: s
         mask = g < t
     else:
         raise ValueError(f"foreground must be 'bright' or 'dark', not {foreground!r}")
+    return clean_mask(mask, min_object_frac, max_hole_frac, keep_largest)
+
+
+def clean_mask(mask: np.ndarray, min_object_frac: float = 1e-3, max_hole_frac: float = 2e-4,
+               keep_largest: bool = True) -> np.ndarray:
+    """The morphology of :func:`segment` on a thresholded mask (H, W) bool, in place
+    (and returned): drop specks (4-connected) of at most ``min_object_frac`` of the
+    image, fill holes (4-connected) of at most ``max_hole_frac``, keep the largest
+    8-connected component if ``keep_largest``; the work is done inside the
+    foreground's bounding box plus a margin (see :func:`segment`)."""
+    from scipy import ndimage as ndi
+
     rows = np.flatnonzero(mask.any(axis=1))
     if len(rows) == 0:
         return mask
@@ -211,3 +223,46 @@ def area_resample(image: np.ndarray, box_px: tuple[float, float, float, float],
     if img.ndim == 2:
         return wy @ img @ wx.T
     return np.einsum("ij,jkc,lk->ilc", wy, img, wx, optimize=True)
+
+
+class EmptyMaskError(ValueError):
+    """A mask without foreground: no finger to anchor a crop on."""
+
+
+def base_anchored_box(mask: np.ndarray, base_width_mm: float, crop_x_mm: tuple[float, float],
+                      crop_y_mm: tuple[float, float], base_rows: int = 1
+                      ) -> tuple[float, float, float, float]:
+    """The training window ``(col0, row0, col1, row1)`` in pixel edges, anchored on the
+    finger itself: the lowest row of ``mask`` is the clamped base, its width is
+    ``base_width_mm``, which fixes the scale (px/mm); the window ``crop_x_mm`` x
+    ``crop_y_mm`` (mm from the base's left edge and bottom) is cut around it. Any
+    image size and position works (the predictor and lab recordings use it).
+
+    ``base_rows`` > 1: the base is the widest of the lowest ``base_rows`` rows (the
+    lowest such), so that a ragged bottom row (a compressed video's colour blocks at
+    the clamp) does not set the scale; 1 (the predictor, renders): the lowest row."""
+    rows = np.flatnonzero(mask.any(axis=1))
+    if len(rows) == 0:
+        raise EmptyMaskError("no finger found in the image (empty segmentation)")
+    bottom = rows[-1]
+    if base_rows > 1:
+        low = mask[max(bottom - base_rows + 1, 0):bottom + 1]
+        has = low.any(axis=1)
+        first = np.where(has, low.argmax(axis=1), 0)
+        last = np.where(has, low.shape[1] - low[:, ::-1].argmax(axis=1), 0)
+        width = last - first
+        bottom = bottom - int(np.argmax(width[::-1]))  # the lowest of the widest
+    cols = np.flatnonzero(mask[bottom])
+    left, right = cols[0], cols[-1] + 1  # pixel edges of the base
+    ppm = (right - left) / base_width_mm
+    base_edge = bottom + 1
+    return (left + crop_x_mm[0] * ppm, base_edge - crop_y_mm[1] * ppm,
+            left + crop_x_mm[1] * ppm, base_edge - crop_y_mm[0] * ppm)
+
+
+def silhouette_input(mask: np.ndarray, box_px, out_shape: tuple[int, int]) -> np.ndarray:
+    """The network input (H, W) uint8 of a mask: the soft silhouette of the window
+    ``box_px`` area-averaged to ``out_shape``, x255 rounded (as in the training
+    shards' ``input_HxW``)."""
+    soft = area_resample(mask, box_px, out_shape, fast=True)
+    return np.rint(np.clip(soft, 0, 1) * 255.0).astype(np.uint8)

@@ -24,6 +24,11 @@ pitch_deg, scene_id), sizes, crop, render and dataset parameters, and
 ``support_iou_min``: the lowest IoU over the frames of the segmented image and the
 stress support at render resolution (pixel alignment, >= 0.98 at pitch 0).
 
+A lab recording's shard (:func:`finray.recording.ingest`) has the same ``input_HxW``,
+``mask_HxW`` and per-frame values (``fx_N``: the sensor's push force; ``fea_frame``,
+``displacement_mm``, ``fy_N``: NaN; also ``t_s`` and ``crop_box_px``) but no stress
+map: ``meta["has_stress"]`` is false and :func:`load_shard` fills ``stress_HxW`` with NaN.
+
 Corruptions (noise, occlusion) are not baked in: they are drawn at use time
 from :func:`~finray.dataset.augment.augment_seed` so any sample can be replayed.
 """
@@ -329,10 +334,19 @@ def render_shard(result_npz: str | Path, render_dir: str | Path, out_npz: str | 
 
 
 def load_shard(path: str | Path) -> dict:
-    """All arrays of a shard, with ``meta`` decoded to a dict."""
+    """All arrays of a shard, with ``meta`` decoded to a dict, and ``has_stress``.
+
+    A shard without stress maps (a lab recording, :mod:`finray.recording`:
+    ``meta["has_stress"]`` false) gets ``stress_HxW`` arrays of NaN, so that its
+    frames stack with simulated ones and any stress metric on them is NaN, never a
+    made-up number; training refuses them (:func:`finray.train.load_split`)."""
     with np.load(path, allow_pickle=False) as f:
         d = {k: f[k] for k in f.files}
     d["meta"] = json.loads(str(d["meta"]))
+    d["has_stress"] = bool(d["meta"].get("has_stress", True))
+    if not d["has_stress"]:
+        for name in [k for k in d if k.startswith("input_")]:
+            d["stress_" + name[len("input_"):]] = np.full(d[name].shape, np.nan, np.float32)
     return d
 
 
@@ -341,14 +355,16 @@ FRAME_COLUMNS = ["scene_id", "object", "material", "height_mm", "pitch_deg", "fr
                  "displacement_mm", "fx_N"]
 
 
-def load_frames(shard_paths, size: tuple[int, int], every: int = 1):
+def load_frames(shard_paths, size: tuple[int, int], every: int = 1, require_stress: bool = False):
     """The frames of shards at one input size, in the order given: arrays and a
     per-frame table (the one shard reader of training, evaluation and the studies).
 
     Arrays, as stored: ``images`` (N, H, W) uint8 (the soft silhouette x255),
     ``stress`` (N, H, W) float32 log-stress, ``mask`` (N, H, W) bool, ``fx_N`` (N,) in N.
     Table (pandas): :data:`FRAME_COLUMNS`. ``every``: keep every ``every``-th frame of
-    each shard (evenly over the push). Only the arrays of ``size`` are read."""
+    each shard (evenly over the push). Only the arrays of ``size`` are read. A shard
+    without a stress map (a lab recording) gives NaN stress, or a ``ValueError`` with
+    ``require_stress``."""
     import pandas as pd
 
     k = size_key(size)
@@ -357,9 +373,17 @@ def load_frames(shard_paths, size: tuple[int, int], every: int = 1):
     rows = []
     for path in shard_paths:
         with np.load(path, allow_pickle=False) as f:
-            sc = json.loads(str(f["meta"]))["scene"]
-            arrays["images"].append(f[f"input_{k}"][sel])
-            arrays["stress"].append(f[f"stress_{k}"][sel])
+            meta = json.loads(str(f["meta"]))
+            sc = meta["scene"]
+            x = f[f"input_{k}"][sel]
+            arrays["images"].append(x)
+            if meta.get("has_stress", True):
+                arrays["stress"].append(f[f"stress_{k}"][sel])
+            elif require_stress:
+                raise ValueError(f"{path} has no stress map (a lab recording): it cannot be "
+                                 "trained on by the stress + force loss")
+            else:
+                arrays["stress"].append(np.full(x.shape, np.nan, np.float32))
             arrays["mask"].append(f[f"mask_{k}"][sel].astype(bool))
             arrays["fx_N"].append(f["fx_N"][sel])
             frame, disp = f["frame"][sel], f["displacement_mm"][sel]

@@ -1,0 +1,245 @@
+"""A lab take on disk (the recording format) and its checked contents.
+
+One folder per take:
+
+- the video: one file PyAV decodes (``.mp4``, ``.avi``, ``.mov``, ``.mkv``, ``.webm``;
+  or the file ``take.json`` names under ``video``), frame times from the stream's time
+  stamps; or a folder ``frames/`` of PNG/JPEG images with ``frames.csv`` beside it
+  (columns ``frame``: the file name in ``frames/``, ``t_s``: camera time, s);
+- ``forces.csv``: the sensor's log, ``t_s`` (its own clock, s) and any of ``fx_N``,
+  ``fy_N``, ``fz_N`` (N), at its own rate;
+- ``take.json``: ``object``, ``contact_height_mm``, ``push_axis`` (the sensor column
+  along the push, with its sign: ``"fz"``, ``"-fz"``), ``camera`` (``{}``,
+  ``{"px_per_mm": ..}`` or ``{"intrinsics": {"fx", "fy", "cx", "cy", ...}}``, px) and,
+  optionally, ``finger_colour`` (see :mod:`finray.recording.colour`).
+
+Every check fails with :class:`TakeError`, whose text is one line naming the file.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm")
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
+FORCE_COLUMNS = ("fx_N", "fy_N", "fz_N")
+#: Fewest sensor samples and frames a take may have (a clock offset needs a shape).
+MIN_SAMPLES = 10
+
+
+class TakeError(ValueError):
+    """A take that cannot be ingested; ``str`` is one line."""
+
+
+def _one_line(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return f"{type(exc).__name__}: {text[0] if text else ''}".rstrip(": ")
+
+
+_NUMBER = {"type": "number"}
+_RANGE3 = {"type": "array", "items": _NUMBER, "minItems": 3, "maxItems": 3}
+COLOUR_NAMES = ("red", "orange", "yellow", "green", "cyan", "blue", "purple", "magenta")
+
+TAKE_SCHEMA = {
+    "type": "object",
+    "required": ["object", "contact_height_mm", "push_axis"],
+    "properties": {
+        "object": {"type": "string", "minLength": 1},
+        "contact_height_mm": {"type": "number", "exclusiveMinimum": 0},
+        "push_axis": {"type": "string", "pattern": "^[+-]?f[xyz]$"},
+        "camera": {
+            "type": "object",
+            "properties": {
+                "px_per_mm": {"type": "number", "exclusiveMinimum": 0},
+                "intrinsics": {
+                    "type": "object", "required": ["fx", "fy", "cx", "cy"],
+                    "properties": {k: _NUMBER for k in ("fx", "fy", "cx", "cy")},
+                },
+            },
+            "additionalProperties": True,
+        },
+        "finger_colour": {"oneOf": [
+            {"type": "string", "enum": list(COLOUR_NAMES)},
+            {"type": "object", "required": ["space", "lo", "hi"],
+             "properties": {"space": {"enum": ["hsv", "hcv", "lab"]}, "lo": _RANGE3, "hi": _RANGE3},
+             "additionalProperties": False},
+        ]},
+        "video": {"type": "string", "minLength": 1},
+    },
+    "additionalProperties": True,  # a rig may note more (operator, emulated, ...)
+}
+
+
+def read_take_json(path: Path) -> dict:
+    """``take.json`` checked against :data:`TAKE_SCHEMA`; ``camera`` defaults to ``{}``."""
+    import jsonschema
+
+    if not path.is_file():
+        raise TakeError(f"{path} is missing (object, contact_height_mm, push_axis, camera)")
+    try:
+        meta = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise TakeError(f"{path} is not JSON ({_one_line(exc)})") from None
+    err = jsonschema.exceptions.best_match(jsonschema.Draft202012Validator(TAKE_SCHEMA)
+                                           .iter_errors(meta))
+    if err is not None:
+        where = "/".join(str(p) for p in err.absolute_path) or "top level"
+        raise TakeError(f"{path}: {where}: {err.message}")
+    meta.setdefault("camera", {})
+    return meta
+
+
+def _times(values: np.ndarray, name: str) -> np.ndarray:
+    """``values`` as strictly increasing finite seconds, or a TakeError naming the line
+    (line 1 is the header)."""
+    t = np.asarray(values, dtype=np.float64)
+    bad = np.flatnonzero(~np.isfinite(t))
+    if len(bad):
+        raise TakeError(f"{name}: t_s is not a number at line {bad[0] + 2}")
+    step = np.diff(t)
+    back = np.flatnonzero(step <= 0)
+    if len(back):
+        i = back[0] + 1
+        raise TakeError(f"{name}: time is not increasing at line {i + 2} "
+                        f"(t_s {t[i]:g} after {t[i - 1]:g})")
+    return t
+
+
+def _read_csv(path: Path, required: tuple[str, ...]):
+    import pandas as pd
+
+    if not path.is_file():
+        raise TakeError(f"{path} is missing")
+    try:
+        df = pd.read_csv(path, skipinitialspace=True)
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+        raise TakeError(f"{path} is not a readable CSV ({_one_line(exc)})") from None
+    df.columns = [str(c).strip() for c in df.columns]
+    for col in required:
+        if col not in df.columns:
+            raise TakeError(f"{path}: no column {col!r} (columns: {', '.join(df.columns)})")
+    if len(df) < MIN_SAMPLES:
+        raise TakeError(f"{path}: too few samples ({len(df)} rows; at least {MIN_SAMPLES})")
+    return df
+
+
+def read_forces(path: Path, push_axis: str) -> tuple[np.ndarray, np.ndarray]:
+    """Sensor times (s, its clock) and the push force (N, signed by ``push_axis``) of
+    ``forces.csv``."""
+    import pandas as pd
+
+    sign = -1.0 if push_axis.startswith("-") else 1.0
+    col = push_axis.lstrip("+-") + "_N"
+    df = _read_csv(path, ("t_s", col))
+    t = _times(pd.to_numeric(df["t_s"], errors="coerce").to_numpy(), str(path))
+    f = pd.to_numeric(df[col], errors="coerce").to_numpy(dtype=np.float64)
+    bad = np.flatnonzero(~np.isfinite(f))
+    if len(bad):
+        raise TakeError(f"{path}: {col} is not a number at line {bad[0] + 2}")
+    return t, sign * f
+
+
+@dataclass
+class FrameSource:
+    """The frames of a take: ``kind`` ("video" or "frames"), ``path``, ``n_frames`` (as
+    the container or frames.csv says; a video may deliver fewer) and ``rate_hz``
+    (nominal). Iterate for ``(index, t_s, rgb (H, W, 3) uint8 | None)``; ``None``: a
+    frame that cannot be read (kept, so that nothing is lost)."""
+
+    kind: str
+    path: Path
+    n_frames: int
+    rate_hz: float
+    _times: np.ndarray | None = None
+    _files: list | None = None
+
+    def __iter__(self):
+        return self._video() if self.kind == "video" else self._folder()
+
+    def _folder(self):
+        from PIL import Image
+
+        for k, (t, f) in enumerate(zip(self._times, self._files)):
+            try:
+                with Image.open(f) as im:
+                    rgb = np.asarray(im.convert("RGB"))
+            except Exception:  # any decoder's error on a bad file is this frame's
+                rgb = None
+            yield k, float(t), rgb
+
+    def _video(self):
+        import av
+
+        try:
+            container = av.open(str(self.path))
+        except (av.FFmpegError, OSError) as exc:
+            raise TakeError(f"{self.path} is not a readable video ({_one_line(exc)})") from None
+        with container:
+            stream = container.streams.video[0]
+            stream.thread_type = "AUTO"
+            start = stream.start_time or 0
+            k = 0
+            try:
+                for packet in container.demux(stream):
+                    try:
+                        frames = packet.decode()
+                    except av.FFmpegError:
+                        continue  # a corrupt packet: its frame is lost, the rest goes on
+                    for fr in frames:
+                        t = ((fr.pts - start) * fr.time_base if fr.pts is not None
+                             else k / self.rate_hz)
+                        yield k, float(t), fr.to_ndarray(format="rgb24")
+                        k += 1
+            except av.FFmpegError as exc:
+                if k == 0:
+                    raise TakeError(f"{self.path} is not a readable video "
+                                    f"({_one_line(exc)})") from None
+                # a stream that cannot be read on: the frames so far are kept
+
+
+def open_frames(take: Path, meta: dict) -> FrameSource:
+    """The take's video (``meta["video"]`` or the one video file in ``take``) or its
+    ``frames/`` folder with ``frames.csv``."""
+    import av
+
+    if meta.get("video"):
+        videos = [take / meta["video"]]
+        if not videos[0].is_file():
+            raise TakeError(f"{videos[0]} (the video of take.json) is missing")
+    else:
+        videos = sorted(p for p in take.iterdir() if p.suffix.lower() in VIDEO_SUFFIXES)
+    if len(videos) > 1:
+        raise TakeError(f"{take}: {len(videos)} videos ({', '.join(p.name for p in videos)}); "
+                        "name the take's in take.json under 'video'")
+    if videos:
+        path = videos[0]
+        try:
+            with av.open(str(path)) as c:
+                if not c.streams.video:
+                    raise TakeError(f"{path} has no video stream")
+                s = c.streams.video[0]
+                rate = float(s.average_rate or s.guessed_rate or 0)
+                n = int(s.frames or 0)
+                if not n and s.duration and rate:
+                    n = int(round(float(s.duration * s.time_base) * rate))
+        except (av.FFmpegError, OSError) as exc:
+            raise TakeError(f"{path} is not a readable video ({_one_line(exc)})") from None
+        if not rate:
+            raise TakeError(f"{path}: the video stream has no frame rate")
+        return FrameSource("video", path, n, rate)
+    folder = take / "frames"
+    if not folder.is_dir():
+        raise TakeError(f"{take}: no video ({', '.join(VIDEO_SUFFIXES)}) and no frames/ folder")
+    import pandas as pd
+
+    df = _read_csv(take / "frames.csv", ("frame", "t_s"))
+    t = _times(pd.to_numeric(df["t_s"], errors="coerce").to_numpy(), str(take / "frames.csv"))
+    files = [folder / str(name).strip() for name in df["frame"]]
+    missing = [f.name for f in files if not f.is_file()]
+    if missing:
+        raise TakeError(f"{take / 'frames.csv'}: {len(missing)} frames not in {folder} "
+                        f"(first {missing[0]})")
+    return FrameSource("frames", folder, len(files), float(1.0 / np.median(np.diff(t))), t, files)
