@@ -11,7 +11,9 @@ or lower. The top-level modules that are not stages get the rank of what they im
   import it (the FEA studies do, from ``benchmarks``).
 - ``model``, ``train``: the train stage; ``predict`` runs a trained model on camera
   frames (dataset's image ops, render's image I/O) and is what evaluate scores.
-- ``recording``: a real rig's takes -> shards, the dataset stage's counterpart.
+- ``lab``: the emulated rig: FEA results through a camera into takes (render's level
+  and up: rank 35). ``recording``: a real rig's takes -> shards, the dataset stage's
+  counterpart; it must never import ``lab`` (ingest must not see the emulator's truth).
 - ``benchmarks``: the studies, a consumer of every stage like evaluate; no stage and
   not evaluate imports it. ``cli``: the entry point, on top.
 """
@@ -27,6 +29,7 @@ RANK = {
     "geometry": 10,
     "fea": 20,
     "render": 30,
+    "lab": 35,
     "dataset": 40, "recording": 40,
     "config": 45,
     "model": 50, "train": 50, "predict": 50,
@@ -91,6 +94,16 @@ def test_every_unit_has_a_rank():
 
 def test_no_stage_imports_a_later_one():
     bad = [b for f, m in _modules() for b in upward_imports(f.read_text(), m)]
+    assert bad == []
+
+
+def test_ingest_never_sees_the_emulator():
+    """A real rig's takes go through the same code: recording imports nothing of lab
+    (whose takes carry the truth beside them), nor does predict or train."""
+    bad = [f"{m}:{line}: {target}" for f, m in _modules()
+           if _unit(m.split(".")[1:]) in ("recording", "predict", "train", "model")
+           for line, target in finray_imports(f.read_text(), m)
+           if _unit(target.split(".")[1:]) == "lab"]
     assert bad == []
 
 

@@ -50,43 +50,46 @@ ROOT = Path(__file__).resolve().parents[1]
 SMOKE = ROOT / "config" / "smoke.yaml"
 SCHEMA = ROOT / "workflow" / "schemas" / "config.schema.yaml"
 #: mappings whose entries are the user's (walked from the smoke config, not the schema)
-MAPS = {("objects",), ("materials",), ("train", "models")}
+MAPS = {("objects",), ("materials",), ("train", "models"), ("lab", "objects")}
 
 # ------------------------------------------------------------------------- readers
 #: key pattern (fnmatch, first match wins) -> every rule whose jobs see a change of it:
 #: their params change, their set of input files changes, or the change adds jobs of
 #: that rule. Downstream rules that merely get updated input files are not listed.
 _STUDIES = {"fea_pareto", "fea_stability"}
-_GEOMETRY = {"geometry_finger", "geometry_object"} | _STUDIES  # the finger's shape
+_LAB_GEOMETRY = {"lab_finger", "lab_object"}  # the emulated rig's as-built finger
+_GEOMETRY = {"geometry_finger", "geometry_object"} | _STUDIES | _LAB_GEOMETRY  # the finger's shape
 _RENDER = {"render_scene", "render_benchmark"}
 _SEGMENT = _RENDER | {"dataset_examples", "train_model"}  # crop and segmentation
 #: what lists every scene or every training shard (a new or moved scene changes its input)
 _LISTS = {"fea_figures", "dataset_manifest", "evaluate_baseline", "train_model", "train_pareto",
           "inference_latency"}
 READERS: list[tuple[str, set[str]]] = [
-    ("finger.material", _GEOMETRY | {"fea_scene", "summary"}),
+    ("finger.material", _GEOMETRY | {"fea_scene", "summary", "lab_fea"}),
     ("finger.extrusion_mm", _GEOMETRY | _RENDER | {"fea_scene", "train_model",
-                                                   "evaluate_experiment", "summary"}),
-    ("finger.base_width_mm", _GEOMETRY | {"train_model"}),
+                                                   "evaluate_experiment", "summary",
+                                                   "lab_fea", "lab_take"}),
+    ("finger.base_width_mm", _GEOMETRY | {"train_model", "lab_ingest"}),
     ("finger.ribs.count", _GEOMETRY | {"summary"}),
     ("finger.ribs.angle_step_deg", _GEOMETRY | {"summary"}),
     ("finger.*", _GEOMETRY),
     ("mesh.size_mm", _GEOMETRY | {"summary"}),
     ("mesh.min_angle_deg", _GEOMETRY),
-    ("mesh.*", {"geometry_finger"} | _STUDIES),  # order, arc chords: the finger only
+    ("mesh.*", {"geometry_finger", "lab_finger"} | _STUDIES),  # order, arc chords: the finger only
     ("placement.gap_mm", {"geometry_object"} | _STUDIES),
     ("heights_mm", {"geometry_object", "fea_scene", "render_scene", "geometry_gallery",
                     "dataset_examples", "evaluate_experiment", "figure_material_generalisation",
                     "render_benchmark", "summary"} | _LISTS),
     ("fea.friction", {"fea_scene", "summary"} | _STUDIES),
     ("fea.push_mm", {"fea_scene", "summary"} | _STUDIES),
-    ("fea.*", {"fea_scene"} | _STUDIES),
+    ("fea.*", {"fea_scene", "lab_fea"} | _STUDIES),  # (friction and push: the lab's own)
     ("render.pitches_deg", {"render_scene", "dataset_manifest", "dataset_examples",
                             "evaluate_experiment"}),  # the new pitch's view
     ("render.window_y_mm", _RENDER | {"train_model", "evaluate_experiment"}),  # pitch axis
     ("render.*", _RENDER),
-    ("dataset.sizes", _RENDER),
-    ("dataset.crop_y_mm", _SEGMENT | {"evaluate_experiment"}),
+    ("dataset.sizes", _RENDER | {"lab_ingest"}),
+    ("dataset.crop_y_mm", _SEGMENT | {"evaluate_experiment", "lab_ingest"}),
+    ("dataset.crop_x_mm", _SEGMENT | {"lab_ingest"}),
     ("dataset.occlusion_levels", {"dataset_examples", "train_model", "evaluate_experiment",
                                   "summary"}),  # the manuscript quotes them
     ("dataset.noise_levels", {"dataset_examples"}),
@@ -95,7 +98,7 @@ READERS: list[tuple[str, set[str]]] = [
                               "dataset_examples", "evaluate_experiment"}),
     ("dataset.*", _SEGMENT),
     ("train.input_size", {"train_model", "train_pareto", "evaluate_baseline",
-                          "evaluate_experiment", "summary"}),
+                          "evaluate_experiment", "summary", "lab_qa"}),
     ("train.base_channels", {"train_model", "train_pareto", "summary"}),
     ("train.models.*", {"train_model"}),
     ("train.epochs", {"train_model"}),
@@ -111,8 +114,8 @@ READERS: list[tuple[str, set[str]]] = [
     ("benchmarks.latency_repeats", {"inference_latency"}),
     ("benchmarks.train_*", {"train_pareto"}),
     # the finger's material: every scene (and the studies, which use it too)
-    ("materials.ninjaflex.youngs_modulus_MPa", {"fea_scene", "summary"} | _STUDIES),
-    ("materials.ninjaflex.*", {"fea_scene"} | _STUDIES),
+    ("materials.ninjaflex.youngs_modulus_MPa", {"fea_scene", "summary", "lab_fea"} | _STUDIES),
+    ("materials.ninjaflex.*", {"fea_scene", "lab_fea"} | _STUDIES),
     ("materials.neoprene.rigid", {"geometry_object", "fea_scene", "fea_stability"}),
     ("materials.neoprene.*", {"fea_scene", "fea_stability"}),
     ("materials.steel.rigid", {"geometry_object", "fea_scene"} | _STUDIES),
@@ -139,6 +142,17 @@ READERS: list[tuple[str, set[str]]] = [
                                         "fea_figures", "inference_latency"}),
     ("objects.*.materials", {"geometry_object", "fea_scene", "render_scene"} | _LISTS),
     ("objects.*", {"geometry_object"}),  # the shape
+    # the emulated lab rig: read by the lab's rules only (never by training or predict)
+    ("lab.seed", {"lab_take"}),
+    ("lab.objects.*", {"lab_object"}),  # the shape
+    ("lab.heights_mm", {"lab_object", "lab_fea", "lab_take", "lab_ingest", "lab_qa"}),
+    # (the summary quotes how the takes were emulated: as built, motion, camera, sensor)
+    ("lab.as_built.thickness_delta_mm", _LAB_GEOMETRY | {"summary"}),
+    ("lab.as_built.*", {"lab_fea", "summary"}),
+    ("lab.motion.gap_mm", {"lab_object", "lab_take", "summary"}),
+    ("lab.motion.push_mm", {"lab_fea", "lab_take", "summary"}),
+    ("lab.scene.*", {"lab_take"}),
+    ("lab.*", {"lab_take", "summary"}),  # motion, camera, sensor
 ]
 
 #: keys no job reads, with the reason (a change re-plans nothing)
@@ -203,6 +217,11 @@ NEW_VALUES = {
     "objects.square_s10_a30.materials": ["steel", "neoprene"],
     "objects.ring_d15.materials": ["steel"],
     "objects.ellipse_16x9.materials": ["steel", "neoprene"],
+    "lab.objects.cylinder.type": lambda cfg: cfg["lab"]["objects"]["cylinder"].update(
+        type="square", side_mm=15.0),
+    "lab.scene.finger_colour": "orange",
+    "lab.scene.lights": [{"position_mm": [-200.0, 300.0, 300.0], "intensity": 0.8}],
+    "lab.camera.video_pix_fmt": "yuv420p",
 }
 
 

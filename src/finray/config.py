@@ -114,7 +114,31 @@ def validate_config(config: dict, base_dir: str | Path = ".") -> dict:
                 place_object(shape, finger, h, cfg["placement"]["gap_mm"], f"objects.{name}")
         except GeometryError as exc:
             raise ConfigError(exc.key, str(exc).split(": ", 1)[1]) from None
+    _check_lab(cfg, finger)
     return cfg
+
+
+def _check_lab(cfg: dict, finger: FingerParams) -> None:
+    """The emulated rig's objects fit the finger at its heights, its motion fits its take."""
+    from .lab.as_built import as_built_finger
+    from .lab.motion import GripperMotion
+
+    lab = cfg["lab"]
+    try:
+        GripperMotion.from_config(lab["motion"])
+    except ValueError as exc:
+        raise ConfigError("lab.motion", str(exc).split(": ", 1)[-1]) from None
+    if lab["motion"]["push_mm"] + lab["motion"]["gap_mm"] > finger.base_width_mm:
+        raise ConfigError("lab.motion.push_mm", "the push goes through the finger")
+    built = FingerParams.from_config(as_built_finger(cfg["finger"], lab["as_built"]))
+    try:
+        check_ribs(built)
+        for name, spec in lab["objects"].items():
+            shape = object_shape(spec, cfg["mesh"]["size_mm"], f"lab.objects.{name}")
+            for h in lab["heights_mm"]:
+                place_object(shape, built, h, lab["motion"]["gap_mm"], f"lab.objects.{name}")
+    except GeometryError as exc:
+        raise ConfigError(exc.key, str(exc).split(": ", 1)[1]) from None
 
 
 def _check_stage_sections(cfg: dict) -> None:

@@ -130,12 +130,15 @@ rule summary:
         fea_scenes=f"{RESULTS}/benchmarks/fea_scenes.csv",
         histories=expand(f"{TRAIN}/{{model}}/history.json", model=model_names()),
         manifest=f"{DATASET}/manifest.csv",  # the frames behind training vs the FEA states
+        lab_qa=f"{RESULTS}/lab/qa.json",
+        lab_takes=f"{RESULTS}/lab/qa.csv",
     output:
         json=f"{RESULTS}/summary.json",
     params:
         usable_nrmse_pct=config["evaluate"]["usable_nrmse_pct"],
         setup=canonical(setup_summary(config)),
         paper=canonical(paper_reference()["values"]),  # a changed reference value reruns the summary
+        lab=section("lab", keys=("as_built", "motion", "camera", "sensor")),  # how the takes were emulated
         evaluate=lambda w, input: os.path.dirname(os.path.dirname(input.experiments[0])),
     log:
         f"{RESULTS}/logs/paper/summary.log",

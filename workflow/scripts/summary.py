@@ -1,7 +1,7 @@
 import json
 from pathlib import Path
 
-from finray.evaluate.summary import build_summary
+from finray.evaluate.summary import build_summary, lab_summary
 from finray.logs import log_to
 
 with log_to(snakemake.log[0]):
@@ -13,6 +13,8 @@ with log_to(snakemake.log[0]):
                       fea_scenes_csv=snakemake.input.fea_scenes,
                       manifest_csv=snakemake.input.manifest)
     s["setup"] = snakemake.params.setup  # the set-up constants, from the config that ran
+    s["lab"] = lab_summary(snakemake.input.lab_qa, snakemake.input.lab_takes,
+                           snakemake.params.lab)  # emulated takes, not recordings
     s["paper"] = snakemake.params.paper  # the paper's reference numbers (finray/paper_reference.yaml)
     with open(snakemake.output.json, "w") as f:
         json.dump(s, f, indent=1)

@@ -230,8 +230,8 @@ class EmptyMaskError(ValueError):
 
 
 def base_anchored_box(mask: np.ndarray, base_width_mm: float, crop_x_mm: tuple[float, float],
-                      crop_y_mm: tuple[float, float], base_rows: int = 1
-                      ) -> tuple[float, float, float, float]:
+                      crop_y_mm: tuple[float, float], base_rows: int = 1,
+                      base_band: float = 0.0) -> tuple[float, float, float, float]:
     """The training window ``(col0, row0, col1, row1)`` in pixel edges, anchored on the
     finger itself: the lowest row of ``mask`` is the clamped base, its width is
     ``base_width_mm``, which fixes the scale (px/mm); the window ``crop_x_mm`` x
@@ -240,11 +240,14 @@ def base_anchored_box(mask: np.ndarray, base_width_mm: float, crop_x_mm: tuple[f
 
     ``base_rows`` > 1: the base is the widest of the lowest ``base_rows`` rows (the
     lowest such), so that a ragged bottom row (a compressed video's colour blocks at
-    the clamp) does not set the scale; 1 (the predictor, renders): the lowest row."""
+    the clamp) does not set the scale; 1 (the predictor, renders): the lowest row.
+    ``base_band``: at least this fraction of the mask's height in rows (a camera that is
+    rolled or looks down sees the base's bottom edge slanted over several rows)."""
     rows = np.flatnonzero(mask.any(axis=1))
     if len(rows) == 0:
         raise EmptyMaskError("no finger found in the image (empty segmentation)")
     bottom = rows[-1]
+    base_rows = max(int(base_rows), int(np.ceil(base_band * (rows[-1] - rows[0] + 1))))
     if base_rows > 1:
         low = mask[max(bottom - base_rows + 1, 0):bottom + 1]
         has = low.any(axis=1)

@@ -163,6 +163,13 @@ def training_summary(h: dict, manifest_csv=None) -> dict:
             "step_cpu_ms": h.get("step_cpu_ms"), "cpu": h.get("cpu", "")}
 
 
+def lab_summary(qa_json, qa_csv, lab_setup: dict) -> dict:
+    """The emulated lab takes (:mod:`finray.evaluate.lab_takes`): the QA over all takes,
+    one record per take, and the emulator's set-up (``lab`` config, less the scene)."""
+    return {"emulated": True, "qa": json.loads(Path(qa_json).read_text()),
+            "takes": pd.read_csv(qa_csv).to_dict("records"), "setup": lab_setup}
+
+
 def build_summary(evaluate_dir, experiments, baseline_fit, speed_json, fea_pareto_csv,
                   histories: dict[str, str], usable_nrmse_pct: float, config: dict | None = None,
                   fea_scenes_csv=None, manifest_csv=None) -> dict:

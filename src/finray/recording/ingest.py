@@ -14,7 +14,8 @@ Outputs in ``out_dir``: ``shard.npz`` (training format, no stress map:
 ``meta["has_stress"]`` false), ``frames.csv`` (every frame, with its status),
 ``sync.json`` (the offset and its uncertainty), ``ingest.json`` (summary, timings) and
 ``qa.png`` (frames with their masks; force against camera time with the image signal
-overlaid after alignment).
+overlaid after alignment) and, with ``write_masks``, ``masks.npz`` (every frame's
+finger mask, to check the segmentation).
 """
 from __future__ import annotations
 
@@ -44,20 +45,28 @@ class IngestParams:
     crop_x_mm: tuple[float, float] = (-5.0, 35.0)
     crop_y_mm: tuple[float, float] = (0.0, 80.0)
     base_width_mm: float = 30.0
-    #: The base is the widest of the lowest rows of the mask (see base_anchored_box).
+    #: The base is the widest of the lowest rows of the mask (see base_anchored_box):
+    #: at least ``base_rows``, and at least ``base_band`` of the mask's height (the
+    #: finger's 3 mm base plate is 0.0375 of its 80 mm).
     base_rows: int = 4
+    base_band: float = 0.03
     #: Subsampling (rows and columns) of the frame for finding the finger.
     stride: int = 4
     #: Frames the finger's colour is learned from when take.json gives none.
     learn_frames: int = 5
     min_object_frac: float = 1e-3
-    max_hole_frac: float = 2e-4
+    #: Holes up to this fraction of the frame are filled (a compressed video's specks);
+    #: the slits between ribs seen through the extrusion are larger and kept.
+    max_hole_frac: float = 1e-5
     #: Largest relative deviation of a frame's base width (px) from the take's median.
     max_scale_dev: float = 0.1
     min_r: float = 0.5
     alpha: float = 0.05
     seed: int = 0
     qa_frames: int = 6
+    #: Also write ``masks.npz``: every frame's full-resolution finger mask, bit-packed
+    #: (``bits`` (F, H, ceil(W/8)) uint8, ``frame``, ``shape``; frames without one: empty).
+    write_masks: bool = False
 
 
 def ingest(take: str | Path, out_dir: str | Path, params: IngestParams | None = None,
@@ -94,6 +103,7 @@ def ingest(take: str | Path, out_dir: str | Path, params: IngestParams | None = 
     big = max(p.sizes, key=lambda s: s[0] * s[1])
     crop_w_mm = p.crop_x_mm[1] - p.crop_x_mm[0]
     rows, inputs, boxes, thumbs = [], {size_key(s): [] for s in p.sizes}, [], []
+    packed = []  # (frame, bits) with write_masks
     ref = ref_edges = ppm0 = None
     n_total = max(src.n_frames, 1)
     thumb_every = max(1, n_total // 60)
@@ -108,8 +118,12 @@ def ingest(take: str | Path, out_dir: str | Path, params: IngestParams | None = 
             mask = segment_finger(rgb, colour, p.stride, p.min_object_frac, p.max_hole_frac)
             if mask is None:
                 row["status"] = "no_finger"
+        if p.write_masks and rgb is not None:
+            packed.append((k, np.packbits(mask if mask is not None else
+                                          np.zeros(rgb.shape[:2], bool), axis=-1), rgb.shape[:2]))
         if mask is not None:
-            box = base_anchored_box(mask, p.base_width_mm, p.crop_x_mm, p.crop_y_mm, p.base_rows)
+            box = base_anchored_box(mask, p.base_width_mm, p.crop_x_mm, p.crop_y_mm, p.base_rows,
+                                    p.base_band)
             ins = {size_key(s): silhouette_input(mask, box, s) for s in p.sizes}
             ppm = (box[2] - box[0]) / crop_w_mm
             left, base_edge = box[0] - p.crop_x_mm[0] * ppm, box[3] + p.crop_y_mm[0] * ppm
@@ -221,6 +235,10 @@ def ingest(take: str | Path, out_dir: str | Path, params: IngestParams | None = 
             "edge_shift_mm", "shape_change_px", "centroid_dx_mm"]
     table[cols].to_csv(out_dir / "frames.csv", index=False, float_format="%.6g")
     (out_dir / "sync.json").write_text(json.dumps(sync, indent=1))
+    if p.write_masks:
+        np.savez_compressed(out_dir / "masks.npz", bits=np.stack([b for _, b, _ in packed]),
+                            frame=np.array([k for k, _, _ in packed], np.int32),
+                            shape=np.array([len(packed), *packed[0][2]]))
     qa_figure(out_dir / "qa.png", table, t_force, force, sync, thumbs, p.qa_frames, take.name)
     counts = {s: int((table["status"] == s).sum()) for s in STATUSES}
     summary = {"take": str(take), "video": str(src.path), "kind": src.kind,

@@ -1,0 +1,183 @@
+# The emulated lab rig (config `lab:`): an as-built finger's FEA, takes in the recording
+# format (results/lab/<take>/), `finray ingest` of each take, and the QA against the
+# emulator's truth. Only the rules of this file read `lab:`; ingest reads the take only.
+import zlib
+
+from finray.lab.as_built import as_built_fea, as_built_finger, as_built_material
+
+LAB = f"{RESULTS}/lab"
+
+
+def lab_takes():
+    """Every take's name: <object>_h<height>."""
+    return [f"{o}_h{h:g}" for o in sorted(config["lab"]["objects"]) for h in config["lab"]["heights_mm"]]
+
+
+def lab_finger():
+    return canonical(as_built_finger(config["finger"], config["lab"]["as_built"]))
+
+
+def lab_object_spec(wildcards):
+    return canonical(config["lab"]["objects"][wildcards.object])
+
+
+def lab_polygon_input(wildcards):
+    spec = config["lab"]["objects"][wildcards.object]
+    return [spec["path"]] if spec["type"] == "polygon_file" else []
+
+
+def lab_take_seed(wildcards):
+    """The take's seed: lab.seed and its name (adding a take leaves the others alone)."""
+    return config["lab"]["seed"] + zlib.crc32(f"{wildcards.object}_h{wildcards.height}".encode()) % 100000
+
+
+rule lab_finger:
+    output:
+        npz=f"{LAB}/geometry/finger.npz",
+        vtu=f"{LAB}/geometry/finger.vtu",
+        summary=f"{LAB}/geometry/finger.json",
+        surface=f"{LAB}/geometry/finger_surface.ply",
+        surface_npz=f"{LAB}/geometry/finger_surface.npz",
+    params:
+        finger=lab_finger(),
+        mesh=section("mesh"),
+    log:
+        f"{RESULTS}/logs/lab/finger.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/lab/finger.tsv"
+    threads: 1
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/geometry_finger.py"
+
+
+rule lab_object:
+    input:
+        finger=f"{LAB}/geometry/finger.json",
+        polygon=lab_polygon_input,
+    output:
+        npz=f"{LAB}/geometry/objects/{{object}}_h{{height}}.npz",
+        vtu=f"{LAB}/geometry/objects/{{object}}_h{{height}}.vtu",
+    params:
+        spec=lab_object_spec,
+        deformable=False,  # printed PLA: rigid against the finger
+        finger=lab_finger(),
+        mesh=section("mesh", keys=("size_mm", "min_angle_deg")),
+        placement=canonical({"gap_mm": config["lab"]["motion"]["gap_mm"]}),
+    log:
+        f"{RESULTS}/logs/lab/{{object}}_h{{height}}_object.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/lab/{{object}}_h{{height}}_object.tsv"
+    threads: 1
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/geometry_object.py"
+
+
+rule lab_fea:
+    input:
+        finger=f"{LAB}/geometry/finger.npz",
+        object=f"{LAB}/geometry/objects/{{object}}_h{{height}}.npz",
+    output:
+        result=f"{LAB}/fea/{{object}}_h{{height}}/result.npz",
+        forces=f"{LAB}/fea/{{object}}_h{{height}}/forces.csv",
+        summary=f"{LAB}/fea/{{object}}_h{{height}}/summary.json",
+    params:
+        fea=canonical(as_built_fea(config["fea"], config["lab"]["as_built"], config["lab"]["motion"])),
+        finger=canonical({k: config["finger"][k] for k in ("material", "extrusion_mm")}),
+        finger_material=canonical(as_built_material(config["materials"][config["finger"]["material"]],
+                                                    config["lab"]["as_built"])),
+        failure_report=f"{LAB}/fea/failed/{{object}}_h{{height}}.json",
+    log:
+        f"{RESULTS}/logs/lab/{{object}}_h{{height}}_fea.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/lab/{{object}}_h{{height}}_fea.tsv"
+    threads: 1
+    resources:
+        runtime=30,
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/lab_fea.py"
+
+
+rule lab_take:
+    input:
+        result=f"{LAB}/fea/{{object}}_h{{height}}/result.npz",
+    output:
+        video=f"{LAB}/{{object}}_h{{height}}/take.mp4",
+        forces=f"{LAB}/{{object}}_h{{height}}/forces.csv",
+        take=f"{LAB}/{{object}}_h{{height}}/take.json",
+        masks=f"{LAB}/{{object}}_h{{height}}/truth/masks.npz",
+        frames=f"{LAB}/{{object}}_h{{height}}/truth/frames.csv",
+        truth=f"{LAB}/{{object}}_h{{height}}/truth/truth.json",
+    params:
+        lab=section("lab", keys=("motion", "camera", "scene", "sensor")),
+        seed=lab_take_seed,
+        extrusion_mm=config["finger"]["extrusion_mm"],
+    log:
+        f"{RESULTS}/logs/lab/{{object}}_h{{height}}_take.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/lab/{{object}}_h{{height}}_take.tsv"
+    threads: 1
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/lab_take.py"
+
+
+rule lab_ingest:
+    input:
+        video=f"{LAB}/{{object}}_h{{height}}/take.mp4",
+        forces=f"{LAB}/{{object}}_h{{height}}/forces.csv",
+        take=f"{LAB}/{{object}}_h{{height}}/take.json",
+    output:
+        shard=f"{LAB}/ingest/{{object}}_h{{height}}/shard.npz",
+        frames=f"{LAB}/ingest/{{object}}_h{{height}}/frames.csv",
+        sync=f"{LAB}/ingest/{{object}}_h{{height}}/sync.json",
+        summary=f"{LAB}/ingest/{{object}}_h{{height}}/ingest.json",
+        qa=f"{LAB}/ingest/{{object}}_h{{height}}/qa.png",
+        masks=f"{LAB}/ingest/{{object}}_h{{height}}/masks.npz",
+    params:
+        # what a real rig's take would be ingested with: the dataset's crop and the
+        # nominal finger, never lab:
+        dataset=section("dataset", keys=("sizes", "crop_x_mm", "crop_y_mm")),
+        base_width_mm=config["finger"]["base_width_mm"],
+    log:
+        f"{RESULTS}/logs/lab/{{object}}_h{{height}}_ingest.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/lab/{{object}}_h{{height}}_ingest.tsv"
+    threads: 1
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/lab_ingest.py"
+
+
+rule lab_qa:
+    input:
+        takes=[f"{LAB}/{t}/truth/truth.json" for t in lab_takes()],
+        masks=[f"{LAB}/{t}/truth/masks.npz" for t in lab_takes()],
+        truth_frames=[f"{LAB}/{t}/truth/frames.csv" for t in lab_takes()],
+        ingested=[f"{LAB}/ingest/{t}/ingest.json" for t in lab_takes()],
+        shards=[f"{LAB}/ingest/{t}/shard.npz" for t in lab_takes()],
+        ingest_masks=[f"{LAB}/ingest/{t}/masks.npz" for t in lab_takes()],
+        model=f"{TRAIN}/plain/model.ts",
+    output:
+        takes=f"{LAB}/qa.csv",
+        frames=f"{LAB}/qa_frames.csv",
+        summary=f"{LAB}/qa.json",
+        figure=f"{LAB}/qa.png",
+    params:
+        size=config["train"]["input_size"],
+    log:
+        f"{RESULTS}/logs/lab/qa.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/lab/qa.tsv"
+    threads: 1
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/lab_qa.py"
