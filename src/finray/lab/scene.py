@@ -15,15 +15,12 @@ lands on :meth:`~finray.lab.camera.PinholeCamera.project`'s pixel (tested).
 """
 from __future__ import annotations
 
-import os
+import numpy as np
 
-os.environ.setdefault("LP_NUM_THREADS", "1")  # one core per job (see render.pvrender)
-
-import numpy as np  # noqa: E402
-
-from ..geometry.mesh import TriMesh  # noqa: E402
-from ..geometry.surface import extrude  # noqa: E402
-from .camera import PinholeCamera  # noqa: E402
+from ..geometry.mesh import TriMesh
+from ..geometry.surface import extrude
+from ..render import pvrender  # noqa: F401  (one core per job, EGL without X: set on import)
+from .camera import PinholeCamera
 
 
 def _faces(tri: np.ndarray) -> np.ndarray:

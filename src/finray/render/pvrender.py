@@ -13,13 +13,17 @@ turned away from the camera) saves a third of the software renderer's time.
 
 Mesa's software renderer (llvmpipe) starts one thread per core unless
 ``LP_NUM_THREADS`` says otherwise; this module sets it to 1 if unset (set it
-before the first plotter is created to change it), so one job uses one core.
+before the first plotter is created to change it), so one job uses one core. Without
+an X display, VTK is pointed at EGL (``VTK_DEFAULT_OPENGL_WINDOW``), unless set.
 """
 from __future__ import annotations
 
 import os
 
 os.environ.setdefault("LP_NUM_THREADS", "1")
+if not os.environ.get("DISPLAY"):
+    # no X server: straight to EGL (VTK would try X first and warn on stderr)
+    os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
 
 import numpy as np  # noqa: E402
 
