@@ -144,20 +144,41 @@ class LensDistortion:
         return np.take(lab.reshape(-1), self.near[r0:r1, c0:c1])
 
 
-def add_sensor_noise(img: np.ndarray, read_dn: float, shot_gain_dn: float,
-                     rng: np.random.Generator) -> np.ndarray:
-    """Photon shot and read noise on an 8-bit-scale image (float, H x W x 3): Gaussian
-    with variance ``shot_gain_dn * I + read_dn^2`` (DN^2), rounded to uint8."""
-    sd = np.sqrt(shot_gain_dn * np.clip(img, 0, None) + read_dn * read_dn)
-    noisy = img + sd * rng.standard_normal(img.shape, dtype=np.float32)
-    return np.clip(np.rint(noisy), 0, 255).astype(np.uint8)
+class SensorNoise:
+    """Photon shot and read noise on 8-bit-scale frames (float32, H x W x 3): Gaussian
+    with variance ``shot_gain_dn * I + read_dn^2`` (DN^2), rounded to uint8.
+
+    The unit normals come from a bank of four frames' worth of draws, read at a random
+    offset per frame (a fresh draw per pixel costs more than the rest of a frame's
+    processing): every frame's noise is white, and frames do not repeat one another."""
+
+    def __init__(self, shape, read_dn: float, shot_gain_dn: float, rng: np.random.Generator):
+        self.n = int(np.prod(shape))
+        self.shape = tuple(shape)
+        self.read2, self.gain = float(read_dn) ** 2, float(shot_gain_dn)
+        self.rng = rng
+        self.bank = rng.standard_normal(4 * self.n, dtype=np.float32)
+
+    def sigma(self, img: np.ndarray) -> np.ndarray:
+        """The noise's standard deviation (DN) of a noiseless image (float32)."""
+        return np.sqrt(self.gain * np.clip(img, 0, None) + self.read2, dtype=np.float32)
+
+    def apply(self, img: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+        """``img`` plus noise of ``sigma`` (same shape, float32) -> uint8."""
+        off = int(self.rng.integers(0, 3 * self.n))
+        out = self.bank[off:off + self.n].reshape(self.shape) * sigma
+        out += img
+        np.rint(out, out=out)
+        np.clip(out, 0, 255, out=out)
+        return out.astype(np.uint8)
 
 
 class VideoWriter:
-    """H.264 (``.mp4``) through PyAV, at ``fps`` with ``crf`` and ``pix_fmt``."""
+    """H.264 (``.mp4``) through PyAV, at ``fps`` with ``crf`` and ``pix_fmt``; x264's
+    ``ultrafast`` preset (a camera's real-time encoder trades size for speed too)."""
 
     def __init__(self, path: str | Path, width: int, height: int, fps: float, crf: int = 20,
-                 pix_fmt: str = "yuv444p", preset: str = "veryfast"):
+                 pix_fmt: str = "yuv444p", preset: str = "ultrafast"):
         from fractions import Fraction
 
         import av
@@ -165,7 +186,8 @@ class VideoWriter:
         self.container = av.open(str(path), "w")
         self.stream = s = self.container.add_stream("libx264", rate=Fraction(fps).limit_denominator(1000))
         s.width, s.height, s.pix_fmt = int(width), int(height), pix_fmt
-        s.options = {"crf": str(int(crf)), "preset": preset}
+        # one encoder thread: a job has one core
+        s.options = {"crf": str(int(crf)), "preset": preset, "threads": "1"}
 
     def write(self, rgb: np.ndarray) -> None:
         import av

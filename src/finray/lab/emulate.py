@@ -27,7 +27,7 @@ import numpy as np
 
 from ..geometry.mesh import TriMesh
 from ..render.result import load_fea_result
-from .camera import LensDistortion, PinholeCamera, VideoWriter, add_sensor_noise
+from .camera import LensDistortion, PinholeCamera, SensorNoise, VideoWriter
 from .motion import GripperMotion
 from .scene import LabScene
 from .sensor import ForceSensor, write_forces_csv
@@ -99,6 +99,8 @@ def emulate_take(result_npz, take_dir, lab: dict, *, object_name: str, height_mm
         # once, and each frame re-renders and re-processes only the box they can reach.
         pin = scene.render_colour().astype(np.float32)  # the pinhole image, full frame
         still = _optics(lens.image(pin), psf)
+        noise = SensorNoise(still.shape, cam_cfg["read_noise_dn"], cam_cfg["shot_gain_dn"], rng)
+        sigma = noise.sigma(still)
         pin_mask = np.zeros((H, W), bool)
         v0, v1, u0, u1 = _moving_box(scene, fea, camera)
         scene.set_window(u0, v0, u1 - u0, v1 - v0)
@@ -123,9 +125,11 @@ def emulate_take(result_npz, take_dir, lab: dict, *, object_name: str, height_mm
             mask = np.zeros((H, W), bool)
             mask[b1[0]:b1[1], b1[2]:b1[3]] = lens.labels(pin_mask, b1)
             bits[k], mask_px[k] = np.packbits(mask, axis=-1), mask.sum()
-            frame = still.copy()
-            frame[b2[0]:b2[1], b2[2]:b2[3]] = _optics(lens.image(pin, b3), psf)[inner]
-            video.write(add_sensor_noise(frame, cam_cfg["read_noise_dn"], cam_cfg["shot_gain_dn"], rng))
+            frame, sig = still.copy(), sigma.copy()
+            box = (slice(b2[0], b2[1]), slice(b2[2], b2[3]))
+            frame[box] = _optics(lens.image(pin, b3), psf)[inner]
+            sig[box] = noise.sigma(frame[box])
+            video.write(noise.apply(frame, sig))
             if (k + 1) / n >= next_report:
                 log(f"  frame {k + 1}/{n} ({time.perf_counter() - t_wall:.1f} s)")
                 next_report += 0.1
