@@ -112,6 +112,13 @@ def lab_qa(take_dirs, ingest_dirs, model_path, size, model_name: str = "plain"):
         "force_vs_true": force_metrics(scored["true_force_N"], scored["pred_N"]),
         "sensor_vs_true": force_metrics(scored["true_force_N"], scored["sensor_label_N"]),
     }
+    # the frames without contact (true force below 1 % of the largest): what the model
+    # makes of the unloaded finger
+    rest = scored["true_force_N"] < 0.01 * scored["true_force_N"].max()
+    summary["rest_frames"] = int(rest.sum())
+    summary["rest_pred_mean_N"] = float(scored.loc[rest, "pred_N"].mean()) if rest.any() else None
+    summary["contact_vs_true"] = (force_metrics(scored.loc[~rest, "true_force_N"], scored.loc[~rest, "pred_N"])
+                                  if (~rest).any() else None)
     return per_take, per_frame, summary
 
 
