@@ -117,6 +117,8 @@ def lab_qa(take_dirs, ingest_dirs, model_path, size, model_name: str = "plain"):
     rest = scored["true_force_N"] < 0.01 * scored["true_force_N"].max()
     summary["rest_frames"] = int(rest.sum())
     summary["rest_pred_mean_N"] = float(scored.loc[rest, "pred_N"].mean()) if rest.any() else None
+    sq = (scored["pred_N"] - scored["true_force_N"]) ** 2
+    summary["rest_share_of_squared_error_pct"] = float(100 * sq[rest].sum() / sq.sum()) if sq.sum() > 0 else None
     summary["contact_vs_true"] = (force_metrics(scored.loc[~rest, "true_force_N"], scored.loc[~rest, "pred_N"])
                                   if (~rest).any() else None)
     return per_take, per_frame, summary
