@@ -219,6 +219,7 @@ def build_summary(evaluate_dir, experiments, baseline_fit, speed_json, fea_paret
 #: Where the summary's keys are names from the config or the data (conditions, groups,
 #: materials, stages, pitches) rather than fixed keys: see :func:`key_structure`.
 NAMED = [("experiments", "*"), ("experiments", "*", "*", "*", "groups"),
+         ("experiments", "*", "*", "*", "*", "groups"),  # camera / shard_rendered groups
          ("speed", "fea_seconds_per_scene"), ("speed", "stages"), ("speed", "studies"), ("pitch_augmentation_iou",),
          ("setup", "occlusion_levels")]
 
