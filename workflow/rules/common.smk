@@ -3,12 +3,15 @@ import os
 import sys
 from dataclasses import fields
 
+import zlib
+
 import yaml
 from snakemake.utils import update_config
 
 from finray.config import ConfigError, object_is_meshed, scenes, validate_config
 from finray.dataset import pitch_object, scene_splits
 from finray.dataset.shards import SHARD_KEYS
+from finray.lab.as_built import as_built_fea, as_built_finger, as_built_material
 from finray.render import RenderParams
 
 DEFAULT_CONFIGFILE = os.path.join(workflow.basedir, "config", "config.yaml")
@@ -314,3 +317,30 @@ def all_targets():
     ] + expand("paper/figures/{name}.pdf", name=FIGURES) + expand(
         f"{TRAIN}/{{model}}/model.ts", model=model_names()
     ) + object_geometry_files()
+
+
+# ------------------------------------------------------------- the emulated lab rig
+LAB = f"{RESULTS}/lab"
+
+
+def lab_takes():
+    """Every take's name: <object>_h<height>."""
+    return [f"{o}_h{h:g}" for o in sorted(config["lab"]["objects"]) for h in config["lab"]["heights_mm"]]
+
+
+def lab_finger():
+    return canonical(as_built_finger(config["finger"], config["lab"]["as_built"]))
+
+
+def lab_object_spec(wildcards):
+    return canonical(config["lab"]["objects"][wildcards.object])
+
+
+def lab_polygon_input(wildcards):
+    spec = config["lab"]["objects"][wildcards.object]
+    return [spec["path"]] if spec["type"] == "polygon_file" else []
+
+
+def lab_take_seed(wildcards):
+    """The take's seed: lab.seed and its name (adding a take leaves the others alone)."""
+    return config["lab"]["seed"] + zlib.crc32(f"{wildcards.object}_h{wildcards.height}".encode()) % 100000

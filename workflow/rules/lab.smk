@@ -1,35 +1,6 @@
 # The emulated lab rig (config `lab:`): an as-built finger's FEA, takes in the recording
 # format (results/lab/<take>/), `finray ingest` of each take, and the QA against the
 # emulator's truth. Only the rules of this file read `lab:`; ingest reads the take only.
-import zlib
-
-from finray.lab.as_built import as_built_fea, as_built_finger, as_built_material
-
-LAB = f"{RESULTS}/lab"
-
-
-def lab_takes():
-    """Every take's name: <object>_h<height>."""
-    return [f"{o}_h{h:g}" for o in sorted(config["lab"]["objects"]) for h in config["lab"]["heights_mm"]]
-
-
-def lab_finger():
-    return canonical(as_built_finger(config["finger"], config["lab"]["as_built"]))
-
-
-def lab_object_spec(wildcards):
-    return canonical(config["lab"]["objects"][wildcards.object])
-
-
-def lab_polygon_input(wildcards):
-    spec = config["lab"]["objects"][wildcards.object]
-    return [spec["path"]] if spec["type"] == "polygon_file" else []
-
-
-def lab_take_seed(wildcards):
-    """The take's seed: lab.seed and its name (adding a take leaves the others alone)."""
-    return config["lab"]["seed"] + zlib.crc32(f"{wildcards.object}_h{wildcards.height}".encode()) % 100000
-
 
 rule lab_finger:
     output:
