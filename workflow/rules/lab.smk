@@ -1,6 +1,7 @@
 # The emulated lab rig (config `lab:`): an as-built finger's FEA, takes in the recording
 # format (results/lab/<take>/), `finray ingest` of each take, and the QA against the
-# emulator's truth. Only the rules of this file read `lab:`; ingest reads the take only.
+# emulator's truth. Only these rules and the summary (which says how the takes were
+# made) read `lab:`; ingest reads the take only.
 
 rule lab_finger:
     output:
