@@ -93,6 +93,26 @@ def test_frame_folder_ingests_and_crops_like_the_predictor(png, tmp_path, capsys
         np.testing.assert_array_equal(s["input_64x32"][10 * k], silhouette_input(m, box, (64, 32)))
 
 
+def test_a_sideways_camera_is_turned_by_take_json(png, tmp_path, capsys):
+    """Frames filmed with the finger lying on its side (turned 90 deg clockwise) and
+    ``rotate_deg: 90`` in take.json give the upright take's shard."""
+    from PIL import Image
+
+    d, _ = png
+    side = tmp_path / "side"
+    shutil.copytree(d / "take", side)
+    for f in sorted((side / "frames").iterdir()):
+        Image.fromarray(np.rot90(np.asarray(Image.open(f)), -1)).save(f)
+    meta = json.loads((side / "take.json").read_text())
+    (side / "take.json").write_text(json.dumps({**meta, "rotate_deg": 90}))
+    rc, cap = ingest_cli(side, tmp_path / "out_side", capsys)
+    assert rc == 0, cap.err
+    rc, cap = ingest_cli(d / "take", tmp_path / "out_up", capsys)
+    assert rc == 0, cap.err
+    a, b = load_shard(tmp_path / "out_side" / "shard.npz"), load_shard(tmp_path / "out_up" / "shard.npz")
+    np.testing.assert_array_equal(a["input_64x32"], b["input_64x32"])
+
+
 def test_60_fps_take_and_4_2_0_chroma(tmp_path, capsys):
     truth = write_take(tmp_path / "take", fps=60.0, offset_s=-3.21, **SMALL)
     rc, cap = ingest_cli(tmp_path / "take", tmp_path / "out", capsys)

@@ -11,7 +11,9 @@ One folder per take:
 - ``take.json``: ``object``, ``contact_height_mm``, ``push_axis`` (the sensor column
   along the push, with its sign: ``"fz"``, ``"-fz"``), ``camera`` (``{}``,
   ``{"px_per_mm": ..}`` or ``{"intrinsics": {"fx", "fy", "cx", "cy", ...}}``, px) and,
-  optionally, ``finger_colour`` (see :mod:`finray.recording.colour`).
+  optionally, ``finger_colour`` (see :mod:`finray.recording.colour`) and ``rotate_deg``
+  (0, 90, 180 or 270: each frame is turned this much counter-clockwise before anything
+  else, so that the finger's base is at the bottom, as ingest expects).
 
 Every check fails with :class:`TakeError`, whose text is one line naming the file.
 """
@@ -68,6 +70,7 @@ TAKE_SCHEMA = {
              "additionalProperties": False},
         ]},
         "video": {"type": "string", "minLength": 1},
+        "rotate_deg": {"enum": [0, 90, 180, 270]},
     },
     "additionalProperties": True,  # a rig may note more (operator, emulated, ...)
 }
@@ -147,7 +150,8 @@ class FrameSource:
     """The frames of a take: ``kind`` ("video" or "frames"), ``path``, ``n_frames`` (as
     the container or frames.csv says; a video may deliver fewer) and ``rate_hz``
     (nominal). Iterate for ``(index, t_s, rgb (H, W, 3) uint8 | None)``; ``None``: a
-    frame that cannot be read (kept, so that nothing is lost)."""
+    frame that cannot be read (kept, so that nothing is lost). ``rotate_deg``: each
+    frame turned counter-clockwise by this much (take.json's ``rotate_deg``)."""
 
     kind: str
     path: Path
@@ -155,9 +159,15 @@ class FrameSource:
     rate_hz: float
     _times: np.ndarray | None = None
     _files: list | None = None
+    rotate_deg: int = 0
 
     def __iter__(self):
-        return self._video() if self.kind == "video" else self._folder()
+        frames = self._video() if self.kind == "video" else self._folder()
+        turns = (int(self.rotate_deg) // 90) % 4
+        if not turns:
+            return frames
+        return ((k, t, None if rgb is None else np.ascontiguousarray(np.rot90(rgb, turns)))
+                for k, t, rgb in frames)
 
     def _folder(self):
         from PIL import Image
@@ -229,7 +239,7 @@ def open_frames(take: Path, meta: dict) -> FrameSource:
             raise TakeError(f"{path} is not a readable video ({_one_line(exc)})") from None
         if not rate:
             raise TakeError(f"{path}: the video stream has no frame rate")
-        return FrameSource("video", path, n, rate)
+        return FrameSource("video", path, n, rate, rotate_deg=int(meta.get("rotate_deg", 0)))
     folder = take / "frames"
     if not folder.is_dir():
         raise TakeError(f"{take}: no video ({', '.join(VIDEO_SUFFIXES)}) and no frames/ folder")
@@ -242,4 +252,5 @@ def open_frames(take: Path, meta: dict) -> FrameSource:
     if missing:
         raise TakeError(f"{take / 'frames.csv'}: {len(missing)} frames not in {folder} "
                         f"(first {missing[0]})")
-    return FrameSource("frames", folder, len(files), float(1.0 / np.median(np.diff(t))), t, files)
+    return FrameSource("frames", folder, len(files), float(1.0 / np.median(np.diff(t))), t, files,
+                       rotate_deg=int(meta.get("rotate_deg", 0)))
