@@ -4,8 +4,8 @@
 
 - ``take.mp4`` (H.264, the camera's frames), ``forces.csv`` (the sensor's log on its
   own clock) and ``take.json`` (object, contact height, push axis, the camera's
-  intrinsics as a RealSense reports them, the finger's colour) -- what a real rig
-  writes, and all that ``finray ingest`` reads;
+  intrinsics as a RealSense reports them; the finger's colour when ``lab.scene`` names
+  one) -- what a real rig writes, and all that ``finray ingest`` reads;
 - ``truth/`` for QA only: ``masks.npz`` (the true finger mask of every frame, bit-
   packed), ``frames.csv`` (per frame: camera time, push, true push force averaged over
   the frame's interval) and ``truth.json`` (the clock offset, its drift over the take,
@@ -25,7 +25,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ..geometry.mesh import TriMesh
 from ..render.result import load_fea_result
 from .camera import LensDistortion, PinholeCamera, SensorNoise, VideoWriter
 from .motion import GripperMotion
