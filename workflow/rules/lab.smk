@@ -58,7 +58,7 @@ rule lab_fea:
         summary=f"{LAB}/fea/{{object}}_h{{height}}/summary.json",
     params:
         fea=canonical(as_built_fea(config["fea"], config["lab"]["as_built"], config["lab"]["motion"])),
-        finger=canonical({k: config["finger"][k] for k in ("material", "extrusion_mm")}),
+        finger=finger_fea_params(),
         finger_material=canonical(as_built_material(config["materials"][config["finger"]["material"]],
                                                     config["lab"]["as_built"])),
         failure_report=f"{LAB}/fea/failed/{{object}}_h{{height}}.json",

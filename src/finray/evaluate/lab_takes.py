@@ -19,18 +19,19 @@ import pandas as pd
 from .metrics import force_metrics
 
 
-def _unpack(npz) -> np.ndarray:
+def _unpack(npz) -> tuple[np.ndarray, dict]:
+    """A bit-packed mask file: the masks (F, H, W) bool and its other arrays."""
     with np.load(npz) as f:
-        bits, shape = f["bits"], f["shape"]
-    return np.unpackbits(bits, axis=-1)[..., :int(shape[-1])].astype(bool)
+        rest = {k: f[k] for k in f.files if k != "bits"}
+        bits = f["bits"]
+    return np.unpackbits(bits, axis=-1)[..., :int(rest["shape"][-1])].astype(bool), rest
 
 
 def mask_iou(ingest_dir, take_dir) -> pd.DataFrame:
     """Per frame: IoU of ingest's colour mask with the true mask (``masks.npz`` of both)."""
-    with np.load(Path(ingest_dir) / "masks.npz") as f:
-        frames = f["frame"]
-    got = _unpack(Path(ingest_dir) / "masks.npz")
-    true = _unpack(Path(take_dir) / "truth" / "masks.npz")[frames]
+    got, meta = _unpack(Path(ingest_dir) / "masks.npz")
+    frames = meta["frame"]
+    true = _unpack(Path(take_dir) / "truth" / "masks.npz")[0][frames]
     inter = (got & true).sum(axis=(1, 2))
     union = (got | true).sum(axis=(1, 2))
     return pd.DataFrame({"frame": frames, "iou": inter / np.maximum(union, 1),
@@ -65,18 +66,17 @@ def take_qa(take_dir, ingest_dir) -> tuple[dict, pd.DataFrame]:
     return qa, table
 
 
-def model_forces(shards, model_path, size) -> pd.DataFrame:
-    """A model's force (N) on every frame of lab shards (shard path): take, frame, pred_N."""
+def model_forces(shards: dict, model_path, size) -> pd.DataFrame:
+    """A model's force (N) on every frame of lab shards ``{take: shard}`` (shard path):
+    take, frame, pred_N."""
     from ..dataset import load_frames
     from ..predict import Predictor
     from .predictions import predict_images
 
     net = Predictor(model_path, threads=1, backend="torchscript")
     parts = []
-    for shard in shards:
+    for take, shard in shards.items():
         a, table = load_frames([shard], tuple(size))
-        with np.load(shard) as f:
-            take = Path(json.loads(str(f["meta"]))["take"]).name
         pred, _ = predict_images(net, a["images"])
         parts.append(pd.DataFrame({"take": take, "frame": table["frame"].to_numpy(), "pred_N": pred}))
     return pd.concat(parts, ignore_index=True)
@@ -91,7 +91,8 @@ def lab_qa(take_dirs, ingest_dirs, model_path, size, model_name: str = "plain"):
         frames.append(table.assign(take=qa["take"]))
     per_take = pd.DataFrame(rows)
     per_frame = pd.concat(frames, ignore_index=True)
-    pred = model_forces([Path(d) / "shard.npz" for d in ingest_dirs], model_path, size)
+    pred = model_forces({q: Path(d) / "shard.npz" for q, d in zip(per_take["take"], ingest_dirs)},
+                        model_path, size)
     per_frame = per_frame.merge(pred, on=["take", "frame"], how="left")
     scored = per_frame.dropna(subset=["pred_N", "sensor_label_N"])
     for col, what in (("sensor_label_N", "sensor"), ("true_force_N", "true")):

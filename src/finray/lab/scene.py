@@ -19,12 +19,8 @@ import numpy as np
 
 from ..geometry.mesh import TriMesh
 from ..geometry.surface import extrude
-from ..render import pvrender  # noqa: F401  (one core per job, EGL without X: set on import)
+from ..render.pvrender import vtk_cells  # (importing it: one core per job, EGL without X)
 from .camera import PinholeCamera
-
-
-def _faces(tri: np.ndarray) -> np.ndarray:
-    return np.column_stack([np.full(len(tri), tri.shape[1]), tri]).ravel()
 
 
 def prism(outline_xy: np.ndarray, z0: float, z1: float):
@@ -69,7 +65,7 @@ class LabScene:
         self.label.set_background((0.0, 0.0, 0.0))
 
         half = 0.5 * extrusion_mm
-        self.finger = pv.PolyData(self.surface.points.copy(), _faces(self.surface.faces))
+        self.finger = pv.PolyData(self.surface.points.copy(), vtk_cells(self.surface.faces))
         x0, x1 = float(finger.points[:, 0].min()), float(finger.points[:, 0].max())
         c = look["clamp_mm"]  # below the base, a little wider and deeper than the finger
         self.clamp_ref = pv.Box((x0 - c[0], x1 + c[0], -c[1], 0.0, -half - c[2], half + c[2]))

@@ -37,7 +37,8 @@ from .raster import to_uint8  # noqa: E402
 CAMERA_DISTANCE_MM = 1000.0
 
 
-def _faces(tri: np.ndarray) -> np.ndarray:
+def vtk_cells(tri: np.ndarray) -> np.ndarray:
+    """VTK's flat cell array ``[n, i0, ..., n, ...]`` of (M, n) index rows."""
     return np.column_stack([np.full(len(tri), tri.shape[1]), tri]).ravel()
 
 
@@ -63,7 +64,7 @@ class PyVistaRenderer:
         pl.render_window.SetMultiSamples(0)
         pl.set_background(p.background_rgb)
         pl.add_light(pv.Light(light_type="headlight", intensity=1.0))
-        self.poly = pv.PolyData(self.surface.points.copy(), _faces(self.surface.faces))
+        self.poly = pv.PolyData(self.surface.points.copy(), vtk_cells(self.surface.faces))
         actor = pl.add_mesh(self.poly, color=p.finger_rgb, ambient=p.ambient, diffuse=p.diffuse,
                             specular=0.0, smooth_shading=False, show_edges=False)
         actor.GetProperty().BackfaceCullingOn()
@@ -77,10 +78,10 @@ class PyVistaRenderer:
             pts[:k, 2], pts[k:, 2] = zf, -zf
             a, b = object_edges[:, 0], object_edges[:, 1]
             quads = np.column_stack([a, b, b + k, a + k])
-            self.object_poly = pv.PolyData(pts, _faces(quads))
+            self.object_poly = pv.PolyData(pts, vtk_cells(quads))
             pl.add_mesh(self.object_poly, color=p.object_rgb, ambient=p.ambient,
                         diffuse=p.diffuse, specular=0.0)
-            self.object_lines = pv.PolyData(pts[:k].copy(), lines=_faces(object_edges))
+            self.object_lines = pv.PolyData(pts[:k].copy(), lines=vtk_cells(object_edges))
             pl.add_mesh(self.object_lines, color=p.object_rgb, line_width=2 * self.ss,
                         lighting=False)
         pl.enable_parallel_projection()
