@@ -10,6 +10,7 @@ import torch
 from finray.dataset import DatasetParams, render_shard
 from finray.evaluate.camera import camera_test_set, rendered_subset
 from finray.evaluate.experiments import run_experiment
+from finray.evaluate.metrics import force_metrics
 from finray.evaluate.predictions import load_test_set
 from finray.evaluate.summary import camera_agreement, experiment_summary
 from finray.model import FinRayNet, NetConfig
@@ -42,10 +43,11 @@ def scene(tmp_path_factory):
         indices.append(d / "index.json")
         shards.append(tmp / f"h{h:g}.npz")
     torch.manual_seed(0)
-    net = FinRayNet(NetConfig(in_channels=1, base_channels=4, height=SIZE[0], width=SIZE[1]))
-    net.set_force_normalisation([3.0], [2.0])
+    net = FinRayNet(NetConfig(in_channels=1, base_channels=4, height=SIZE[0], width=SIZE[1],
+                              n_forces=2))
+    net.set_force_normalisation([3.0, -0.5], [2.0, 0.4])
     net.eval()
-    export_torchscript(net, tmp / "model.ts", PREPROCESS)
+    export_torchscript(net, tmp / "model.ts", PREPROCESS, ["fx_N", "fy_N"])
     return {"tmp": tmp, "indices": indices, "shards": shards, "model": tmp / "model.ts"}
 
 
@@ -74,6 +76,15 @@ def test_camera_rows_beside_the_shard_rows(scene, tmp_path):
     assert s["camera"]["groups"]["ellipse_16x9"]["n"] == 6
     agree = camera_agreement(out)["all"]["plain"]
     assert agree["n_frames"] == 6 and agree["max_abs_diff_N"] < 1e-4
+    assert set(camera_agreement(out)["all"]) == {"plain"}  # fx only, not pred_fy_*
+    # the force vector: fy and the magnitude scored from frames.csv's columns
+    shard = frames[frames["path"] == "shard"]
+    want = force_metrics(shard["fy_N"], shard["pred_fy_plain"])
+    assert s["all"]["fy_mse_N2"] == pytest.approx(want["mse_N2"])
+    mag = force_metrics(np.hypot(shard["fx_N"], shard["fy_N"]),
+                        np.hypot(shard["pred_plain"], shard["pred_fy_plain"]))
+    assert s["all"]["mag_nrmse_pct"] == pytest.approx(mag["nrmse_pct"])
+    assert s["camera"]["all"]["fy_rmse_N"] >= 0
 
 
 def test_camera_path_reads_the_rendered_images(scene, tmp_path):

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from finray.evaluate.metrics import force_metrics, stress_metrics
+from finray.evaluate.metrics import force_metrics, force_vector_metrics, stress_metrics
 
 
 def test_force_metrics_by_hand():
@@ -19,6 +19,18 @@ def test_force_metrics_by_hand():
 def test_force_metrics_bad_input():
     with pytest.raises(ValueError):
         force_metrics([1, 2], [1])
+
+
+def test_force_vector_metrics_of_fy_and_the_magnitude():
+    fx, fy = np.array([3.0, 4.0, 0.0]), np.array([-4.0, -3.0, 0.0])
+    exact = force_vector_metrics(fx, fy, fx, fy)
+    assert exact["fy_mse_N2"] == 0.0 and exact["mag_mse_N2"] == 0.0
+    assert exact["fy_max_true_N"] == 4.0 and exact["mag_max_true_N"] == 5.0  # |(3, -4)| = 5
+    # fy off by 0.3 N on the first frame: fy MSE 0.03 N^2; magnitude |(3, -4.3)| - 5
+    out = force_vector_metrics(fx, fy, fx, fy + np.array([-0.3, 0.0, 0.0]))
+    assert out["fy_mse_N2"] == pytest.approx(0.09 / 3)
+    assert out["mag_rmse_N"] == pytest.approx(abs(np.hypot(3.0, 4.3) - 5.0) / np.sqrt(3))
+    assert out["fy_nrmse_pct"] == pytest.approx(100 * np.sqrt(0.03) / 4.0)
 
 
 def test_stress_metrics_mask_and_ssim():

@@ -5,6 +5,7 @@ import csv
 import numpy as np
 import pytest
 import torch
+from PIL import Image
 
 from finray.cli import main
 from finray.model import FinRayNet, NetConfig
@@ -170,6 +171,30 @@ def blank(path):
 
     Image.fromarray(np.full((120, 80, 3), 90, np.uint8)).save(path)
     return path
+
+
+def test_a_two_force_model_writes_fx_and_fy(render_png, tmp_path, capsys):
+    """A model of the force vector (fx, fy): ``forces()`` names both, forces.csv has a
+    column each, the CLI prints both."""
+    torch.manual_seed(1)
+    net = FinRayNet(NetConfig(in_channels=1, base_channels=4, height=64, width=32, n_forces=2))
+    net.set_force_normalisation([3.0, -0.6], [2.0, 0.5])
+    net.eval()
+    export_torchscript(net, tmp_path / "model.ts", PREPROCESS, ["fx_N", "fy_N"])
+    p = Predictor(tmp_path / "model.ts", backend="torchscript")
+    assert p.force_names == ["fx_N", "fy_N"]
+    frame = np.asarray(Image.open(render_png).convert("RGB"))
+    f = p.forces(frame)
+    assert list(f) == ["fx_N", "fy_N"] and f["fx_N"] == pytest.approx(p.force(frame), abs=1e-5)
+    assert main(["predict", str(render_png), "--model", str(tmp_path / "model.ts"), "--out",
+                 str(tmp_path / "out"), "--backend", "torchscript"]) == 0
+    rows = list(csv.DictReader(open(tmp_path / "out" / "forces.csv")))
+    assert list(rows[0]) == ["frame", "fx_N", "fy_N"]
+    assert float(rows[0]["fy_N"]) == pytest.approx(f["fy_N"], abs=1e-4)
+    assert f"fy {f['fy_N']:.4f} N" in capsys.readouterr().out
+    with pytest.raises(ValueError, match="2 force names for a model with 1"):
+        export_torchscript(FinRayNet(NetConfig(in_channels=1, base_channels=4)), tmp_path / "x.ts",
+                           PREPROCESS, ["fx_N", "fy_N"])
 
 
 def test_cli_predict_bad_input_is_one_line(exported, render_png, tmp_path, capsys):

@@ -221,7 +221,7 @@ PREDICT_HELP = """\
 Predict the contact force (N) and the stress map of each frame of an image, a folder
 of images or a video (PyAV). The finger is segmented and cropped as in the dataset
 stage, anchored on its clamped base, so camera frames of any size work. Writes
-forces.csv (frame,fx_N; a row as each frame completes) and, per frame,
+forces.csv (frame,fx_N,fy_N: the model's force outputs; a row as each frame completes) and, per frame,
 <name>_stress.exr (log10(1 + sigma / 1 kPa)) and <name>_stress.png. A frame that
 cannot be predicted (corrupt, no finger) is reported on stderr and skipped, the
 others are written (exit code 1); bad input stops with one line (exit code 2).
@@ -247,12 +247,18 @@ def _predict_parser(sub) -> None:
     p.set_defaults(func=_run_predict)
 
 
+def _force_line(row: dict) -> str:
+    """``<frame>\tfx 1.2345 N\tfy -0.2345 N`` of a predicted row."""
+    return "\t".join([row["frame"], *(f"{k.removesuffix('_N')} {v:.4f} N"
+                                       for k, v in row.items() if k != "frame")])
+
+
 def _run_predict(args) -> int:
     from .predict import predict_files
 
     out = predict_files(args.model, args.source, args.out, args.threads, args.backend,
                         args.force_only,
-                        on_frame=lambda r: print(f"{r['frame']}\t{r['fx_N']:.4f} N", flush=True),
+                        on_frame=lambda r: print(_force_line(r), flush=True),
                         on_skip=lambda name, msg: print(f"finray predict: skipped {msg}",
                                                         file=sys.stderr, flush=True))
     if out["skipped"]:

@@ -72,6 +72,9 @@ class Predictor:
             raise InputError(f"{meta_path} is not the model's JSON settings ({_one_line(exc)})"
                              ) from None
         self.size = (self.meta["height"], self.meta["width"])
+        #: Names of the force outputs, in order (``fx_N`` first; exports before the force
+        #: vector had ``fx_N`` only).
+        self.force_names = list(self.meta.get("forces") or ["fx_N"])
         pre = self.meta.get("preprocess", {})
         self.base_width_mm = pre.get("base_width_mm", 30.0)
         self.crop_x_mm = tuple(pre.get("crop_x_mm", (-5.0, 35.0)))
@@ -166,6 +169,12 @@ class Predictor:
         """Force (N, along the push) and the log-stress map (H, W) of one frame."""
         stress, force = self.run(self.network_input(self.segment(frame)))
         return float(force[0, 0]), stress[0, 0]
+
+    def forces(self, frame: np.ndarray) -> dict[str, float]:
+        """Every force output (N) of one frame by name (:attr:`force_names`, e.g.
+        ``fx_N``, ``fy_N``), without the stress map."""
+        f = self.run_force(self.network_input(self.segment(frame)))[0]
+        return {n: float(v) for n, v in zip(self.force_names, f)}
 
     def force(self, frame: np.ndarray) -> float:
         """Force (N, along the push) of one frame, without the stress map (faster)."""
@@ -353,12 +362,12 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
                   force_only: bool = False, on_frame=None, on_skip=None) -> dict:
     """Predict every frame of ``source`` (image, folder of images or video) into
     ``out_dir``: ``forces.csv`` (``frame,fx_N``; a row appended and flushed as each
-    frame completes) and, per frame unless ``force_only``, the stress map as EXR and
-    as a coloured PNG.
+    frame completes; also ``fy_N`` for a model that predicts it) and, per frame unless
+    ``force_only``, the stress map as EXR and as a coloured PNG.
 
     A frame that cannot be predicted (unreadable, not an image, no finger) is skipped:
     ``on_skip(name, message)`` is called and the run goes on. ``on_frame(row)`` gets
-    each row ``{"frame", "fx_N"}`` as it completes. Returns ``{"rows": [...],
+    each row ``{"frame", "fx_N"[, "fy_N"]}`` as it completes. Returns ``{"rows": [...],
     "skipped": [(name, message), ...]}``. Raises :class:`InputError` for a missing
     model or source, for a single image that cannot be predicted, and when no frame
     at all could be.
@@ -377,16 +386,19 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
     out_dir.mkdir(parents=True, exist_ok=True)
     rows, skipped = [], []
     with open(out_dir / "forces.csv", "w") as table:
-        table.write("frame,fx_N\n")
+        table.write(",".join(["frame", *p.force_names]) + "\n")
         table.flush()
         for name, frame in frames:
             try:
                 if isinstance(frame, FrameError):
                     raise frame
+                x = p.network_input(p.segment(frame))
                 if force_only:
-                    force = p.force(frame)
+                    fvec = p.run_force(x)[0]
                 else:
-                    force, stress = p(frame)
+                    stress, fvec = p.run(x)
+                    stress, fvec = stress[0, 0], fvec[0]
+                force = float(fvec[0])
             except FrameError as exc:
                 msg = f"{name}: {exc}"
                 if one_image:
@@ -402,8 +414,8 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
                 s = np.clip(stress / max(float(stress.max()), 1e-6), 0, 1)
                 write_png(out_dir / f"{stem}_stress.png",
                           (cm.inferno(s)[..., :3] * 255).astype(np.uint8))
-            row = {"frame": name, "fx_N": force}
-            table.write(f"{name},{force:.6g}\n")
+            row = {"frame": name, **{n: float(v) for n, v in zip(p.force_names, fvec)}}
+            table.write(",".join([name, *(f"{row[n]:.6g}" for n in p.force_names)]) + "\n")
             table.flush()  # a long video's forces can be read while it runs
             rows.append(row)
             if on_frame is not None:

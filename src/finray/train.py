@@ -1,8 +1,9 @@
 """Training of :class:`~finray.model.FinRayNet` on the CPU.
 
 Loss (the paper's eq. 1): ``alpha_stress * MSE(stress) + alpha_force * MSE(force)``,
-the force normalised by the training set's mean and standard deviation (stored in the
-model, so that its outputs are in N). Adam, seeded and deterministic: two runs with
+each force component (``fx`` along the push, ``fy`` across it, as the paper's two-output
+head) normalised by the training set's mean and standard deviation (stored in the
+model, so that its outputs are in N), the MSE taken over the components. Adam, seeded and deterministic: two runs with
 the same data and seed give identical losses.
 
 Speed on the CPU: ``channels_last`` memory, one intra-op thread per job when other jobs
@@ -51,7 +52,8 @@ class History:
     train_stress_mse: list = field(default_factory=list)
     train_force_mse: list = field(default_factory=list)
     val_loss: list = field(default_factory=list)
-    val_force_rmse_N: list = field(default_factory=list)
+    val_force_rmse_N: list = field(default_factory=list)  # of the first force component (fx)
+    val_force_rmse_components_N: list = field(default_factory=list)  # per epoch, every component
     wall_time_s: list = field(default_factory=list)
     epoch_time_s: list = field(default_factory=list)  # training loop + validation (s)
     precision: str = ""  # "bfloat16" or "float32", as resolved from TrainConfig.bf16
@@ -193,7 +195,9 @@ def evaluate(model: FinRayNet, images: torch.Tensor, stress: torch.Tensor, force
     return {
         "loss": cfg.alpha_stress * s_mse + cfg.alpha_force * f_mse,
         "stress_mse": s_mse, "force_mse_normalised": f_mse,
-        "force_rmse_N": float(((f_pred - force_N) ** 2).mean().sqrt()),
+        # the first component (fx, the headline force); every component's beside it
+        "force_rmse_N": float(((f_pred[:, 0] - force_N[:, 0]) ** 2).mean().sqrt()),
+        "force_rmse_components_N": ((f_pred - force_N) ** 2).mean(0).sqrt().tolist(),
         "force_pred_N": f_pred,
     }
 
@@ -297,6 +301,7 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
             ev = evaluate(model, vx, vs, vf, cfg)
             hist.val_loss.append(ev["loss"])
             hist.val_force_rmse_N.append(ev["force_rmse_N"])
+            hist.val_force_rmse_components_N.append(ev["force_rmse_components_N"])
             msg += f", val loss {ev['loss']:.5f}, val force RMSE {ev['force_rmse_N']:.4f} N"
             score = ev["loss"]
         else:
@@ -328,12 +333,14 @@ def load_checkpoint(path: str | Path) -> tuple[FinRayNet, dict]:
     return model, ck
 
 
-def export_torchscript(model: FinRayNet, path: str | Path, preprocess: dict | None = None) -> None:
+def export_torchscript(model: FinRayNet, path: str | Path, preprocess: dict | None = None,
+                       forces: list[str] | None = None) -> None:
     """Trace the model (eval mode, float32) to TorchScript: ``forward`` gives (stress,
     force N), ``force`` the force (N) alone (no stress decoder); frozen.
 
-    ``path + '.json'`` keeps the network's settings and the preprocessing (crop window,
-    base width, segmentation) that :class:`finray.predict.Predictor` needs."""
+    ``path + '.json'`` keeps the network's settings, the names of the force outputs
+    (``forces``, e.g. ``["fx_N", "fy_N"]``; default ``fx_N`` and on) and the preprocessing
+    (crop window, base width, segmentation) that :class:`finray.predict.Predictor` needs."""
     model = copy.deepcopy(model).float().eval().to(memory_format=torch.contiguous_format)
     c = model.cfg
     example = torch.rand(1, c.in_channels, c.height, c.width)
@@ -341,7 +348,10 @@ def export_torchscript(model: FinRayNet, path: str | Path, preprocess: dict | No
         ts = torch.jit.trace_module(model, {"forward": example, "force": example})
         ts = torch.jit.freeze(ts, preserved_attrs=["force"])
     ts.save(str(path))
-    Path(str(path) + ".json").write_text(json.dumps({**model.config_dict(),
+    names = list(forces or [FORCE_COMPONENTS[c] for c in list(FORCE_COMPONENTS)[:c.n_forces]])
+    if len(names) != c.n_forces:
+        raise ValueError(f"{len(names)} force names for a model with {c.n_forces} force outputs")
+    Path(str(path) + ".json").write_text(json.dumps({**model.config_dict(), "forces": names,
                                                       "preprocess": preprocess or {}}, indent=1))
 
 
@@ -387,17 +397,27 @@ def force_onnx_path(path: str | Path) -> Path:
 # ----------------------------------------------------------------------------------
 # Data from the dataset stage
 # ----------------------------------------------------------------------------------
-def load_split(shards, size: tuple[int, int], every: int = 1) -> dict[str, np.ndarray]:
+#: Force components a model can predict -> the shards' per-frame arrays (N): along the
+#: push (the FEA's x, the headline force) and across it (y, friction).
+FORCE_COMPONENTS = {"fx": "fx_N", "fy": "fy_N"}
+
+def load_split(shards, size: tuple[int, int], every: int = 1,
+               forces: tuple[str, ...] = ("fx",)) -> dict[str, np.ndarray]:
     """The frames of shards at one input size as network tensors (arrays): ``images``
     (N, 1, H, W) in [0, 1], ``stress`` (N, 1, H, W), ``mask`` (N, H, W) bool, ``fx_N``
-    (N, 1), and per-frame ``scene_id``, ``displacement_mm``. ``every``: keep every
-    ``every``-th frame of each shard (see :func:`finray.dataset.load_frames`)."""
+    (N, 1), ``force_N`` (N, len(forces)): the components ``forces`` (``fx``, ``fy``) in N,
+    and per-frame ``scene_id``, ``displacement_mm``. ``every``: keep every ``every``-th
+    frame of each shard (see :func:`finray.dataset.load_frames`)."""
     from .dataset import load_frames
 
     a, table = load_frames(shards, size, every, require_stress=True)
+    bad = [c for c in forces if c not in FORCE_COMPONENTS]
+    if bad:
+        raise ValueError(f"train.forces: unknown component(s) {bad}; known: {list(FORCE_COMPONENTS)}")
     return {"images": a["images"][:, None].astype(np.float32) / np.float32(255.0),
             "stress": a["stress"][:, None].astype(np.float32), "mask": a["mask"],
             "fx_N": a["fx_N"][:, None].astype(np.float32),
+            "force_N": np.column_stack([a[FORCE_COMPONENTS[c]] for c in forces]).astype(np.float32),
             "scene_id": np.array(table["scene_id"].tolist()),
             "displacement_mm": table["displacement_mm"].to_numpy()}
 
@@ -413,13 +433,18 @@ def validation_scenes(scene_ids, fraction: float, seed: int) -> set[str]:
 def train_from_shards(shards, out_dir: str | Path, net_cfg: NetConfig, cfg: TrainConfig,
                       augment: AugmentConfig | None, val_fraction: float = 0.1,
                       occlusion_levels: dict | None = None, preprocess: dict | None = None,
-                      log=print) -> dict:
-    """Train on the shards, keep the best model by validation loss and write
+                      forces: tuple[str, ...] = ("fx",), log=print) -> dict:
+    """Train on the shards (force components ``forces``, ``fx`` first; ``net_cfg.n_forces``
+    is set to match), keep the best model by validation loss and write
     ``model.pt``, ``model.ts`` (TorchScript), ``model.onnx`` and ``model.force.onnx``
     (ONNX), ``history.json`` and ``curves.png``."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    data = load_split(shards, (net_cfg.height, net_cfg.width))
+    forces = tuple(forces)
+    if not forces or forces[0] != "fx":
+        raise ValueError(f"train.forces must start with fx (the headline force), got {list(forces)}")
+    net_cfg = replace(net_cfg, n_forces=len(forces))
+    data = load_split(shards, (net_cfg.height, net_cfg.width), forces=forces)
     val_ids = validation_scenes(data["scene_id"], val_fraction, cfg.seed)
     is_val = np.isin(data["scene_id"], list(val_ids))
     tr = {k: v[~is_val] for k, v in data.items()}
@@ -428,16 +453,17 @@ def train_from_shards(shards, out_dir: str | Path, net_cfg: NetConfig, cfg: Trai
         f"validation frames {len(va['images'])} from {len(val_ids)} scenes")
     aug = TrainAugment(augment, occlusion_levels) if augment is not None else None
     t0 = time.perf_counter()
-    model, hist = train(tr["images"], tr["stress"], tr["fx_N"],
-                        (va["images"], va["stress"], va["fx_N"]) if len(va["images"]) else None,
+    model, hist = train(tr["images"], tr["stress"], tr["force_N"],
+                        (va["images"], va["stress"], va["force_N"]) if len(va["images"]) else None,
                         net_cfg, cfg, aug, log=log)
     seconds = time.perf_counter() - t0
     extra = {"train_config": asdict(cfg), "augment": asdict(augment) if augment else None,
              "cpu": cpu_name(), "torch_threads": torch.get_num_threads(),
              "validation_scenes": sorted(val_ids), "n_train": int(len(tr["images"])),
-             "n_val": int(len(va["images"])), "train_seconds": seconds}
+             "n_val": int(len(va["images"])), "train_seconds": seconds,
+             "forces": [FORCE_COMPONENTS[c] for c in forces]}
     save_checkpoint(model, hist, out_dir / "model.pt", extra)
-    export_torchscript(model, out_dir / "model.ts", preprocess)
+    export_torchscript(model, out_dir / "model.ts", preprocess, extra["forces"])
     export_onnx(model, out_dir / "model.onnx")
     (out_dir / "history.json").write_text(json.dumps({**asdict(hist), **extra}, indent=1))
     training_curves(hist, out_dir / "curves.png")

@@ -352,7 +352,7 @@ def load_shard(path: str | Path) -> dict:
 
 #: The per-frame table of :func:`load_frames`.
 FRAME_COLUMNS = ["scene_id", "object", "material", "height_mm", "pitch_deg", "frame",
-                 "displacement_mm", "fx_N"]
+                 "displacement_mm", "fx_N", "fy_N"]
 
 
 def load_frames(shard_paths, size: tuple[int, int], every: int = 1, require_stress: bool = False):
@@ -360,7 +360,8 @@ def load_frames(shard_paths, size: tuple[int, int], every: int = 1, require_stre
     per-frame table (the one shard reader of training, evaluation and the studies).
 
     Arrays, as stored: ``images`` (N, H, W) uint8 (the soft silhouette x255),
-    ``stress`` (N, H, W) float32 log-stress, ``mask`` (N, H, W) bool, ``fx_N`` (N,) in N.
+    ``stress`` (N, H, W) float32 log-stress, ``mask`` (N, H, W) bool, ``fx_N`` and
+    ``fy_N`` (N,) in N (along the push and across it; NaN where a recording has none).
     Table (pandas): :data:`FRAME_COLUMNS`. ``every``: keep every ``every``-th frame of
     each shard (evenly over the push). Only the arrays of ``size`` are read. A shard
     without a stress map (a lab recording) gives NaN stress, or a ``ValueError`` with
@@ -369,7 +370,7 @@ def load_frames(shard_paths, size: tuple[int, int], every: int = 1, require_stre
 
     k = size_key(size)
     sel = slice(0, None, max(1, int(every)))
-    arrays: dict[str, list] = {"images": [], "stress": [], "mask": [], "fx_N": []}
+    arrays: dict[str, list] = {"images": [], "stress": [], "mask": [], "fx_N": [], "fy_N": []}
     rows = []
     for path in shard_paths:
         with np.load(path, allow_pickle=False) as f:
@@ -386,11 +387,13 @@ def load_frames(shard_paths, size: tuple[int, int], every: int = 1, require_stre
                 arrays["stress"].append(np.full(x.shape, np.nan, np.float32))
             arrays["mask"].append(f[f"mask_{k}"][sel].astype(bool))
             arrays["fx_N"].append(f["fx_N"][sel])
+            arrays["fy_N"].append(f["fy_N"][sel])
             frame, disp = f["frame"][sel], f["displacement_mm"][sel]
         rows.append(pd.DataFrame({
             "scene_id": sc["scene_id"], "object": sc.get("object"), "material": sc.get("material"),
             "height_mm": float(sc.get("height_mm", np.nan)), "pitch_deg": float(sc["pitch_deg"]),
-            "frame": frame, "displacement_mm": disp, "fx_N": arrays["fx_N"][-1]},
+            "frame": frame, "displacement_mm": disp, "fx_N": arrays["fx_N"][-1],
+            "fy_N": arrays["fy_N"][-1]},
             columns=FRAME_COLUMNS))
     if not rows:
         raise ValueError("no shards given")

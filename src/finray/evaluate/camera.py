@@ -36,7 +36,7 @@ def camera_test_set(index_paths, predictor: Predictor) -> tuple[dict, pd.DataFra
     x255, exact: it is 8-bit), ``stress`` (N, H, W) float32 log-stress, ``mask``
     (N, H, W) bool (silhouette covers >= half the pixel), ``fx_N`` (N,) N; a table
     with scene_id, object, material, height_mm, pitch_deg, frame, displacement_mm,
-    fx_N. Raises ValueError naming the file for a frame the predictor cannot read."""
+    fx_N, fy_N. Raises ValueError naming the file for a frame the predictor cannot read."""
     images, stress, masks, rows = [], [], [], []
     for path in sorted(str(p) for p in index_paths):
         render_dir = Path(path).parent
@@ -63,7 +63,8 @@ def camera_test_set(index_paths, predictor: Predictor) -> tuple[dict, pd.DataFra
             rows.append({"scene_id": sid, "object": sc.get("object"), "material": sc.get("material"),
                          "height_mm": float(sc.get("height_mm", np.nan)),
                          "pitch_deg": sc["pitch_deg"], "frame": int(fr["frame"]),
-                         "displacement_mm": float(fr["displacement_mm"]), "fx_N": float(fr["fx_N"])})
+                         "displacement_mm": float(fr["displacement_mm"]), "fx_N": float(fr["fx_N"]),
+                         "fy_N": float(fr["fy_N"])})
     if not rows:
         raise ValueError("no rendered frame has files (render.files_per_scene is 0?)")
     table = pd.DataFrame(rows)

@@ -32,17 +32,26 @@ import pandas as pd
 
 from .baseline import RidgeBaseline
 from .camera import PATH_KEYS, camera_test_set, rendered_subset, shared_preprocessing
-from .metrics import force_metrics, stress_metrics
+from .metrics import force_metrics, force_vector_metrics, stress_metrics
 from ..predict import Predictor
 from .predictions import load_test_set, occlude, predict_images
 
 def _predict_all(images_u8, models: dict[str, Predictor], baseline: RidgeBaseline | None):
+    """``({predictor: forces (N, k) N, fx first}, {network: stress maps})``."""
     preds, maps = {}, {}
     for name, m in models.items():
         preds[name], maps[name] = predict_images(m, images_u8)
     if baseline is not None:
-        preds["baseline"] = baseline.predict_images(images_u8.astype(np.float32) / 255.0)
+        preds["baseline"] = baseline.predict_images(images_u8.astype(np.float32) / 255.0)[:, None]
     return preds, maps
+
+
+def _add_predictions(frames: pd.DataFrame, preds: dict) -> None:
+    """``pred_<p>`` (fx, N) per predictor, and ``pred_fy_<p>`` for those predicting fy."""
+    for p, v in preds.items():
+        frames[f"pred_{p}"] = v[:, 0]
+        if v.shape[1] > 1:
+            frames[f"pred_fy_{p}"] = v[:, 1]
 
 
 def _metric_rows(frames: pd.DataFrame, group_col: str | None, condition: str,
@@ -58,6 +67,9 @@ def _metric_rows(frames: pd.DataFrame, group_col: str | None, condition: str,
             row = {"condition": condition, "path": path, "frames": subset, "group": gname,
                    "predictor": p,
                    **force_metrics(frames["fx_N"][sel], frames[f"pred_{p}"][sel])}
+            if f"pred_fy_{p}" in frames:
+                row.update(force_vector_metrics(frames["fx_N"][sel], frames["fy_N"][sel],
+                                                frames[f"pred_{p}"][sel], frames[f"pred_fy_{p}"][sel]))
             if stress is not None and p in stress["pred"]:
                 row.update(stress_metrics(stress["true"][sel], stress["pred"][p][sel], stress["mask"][sel]))
             rows.append(row)
@@ -94,8 +106,7 @@ def _camera_rows(render_indices, nets, base, tab, fr, stress, maps, group_col, c
     cfr = ctab.copy()
     cfr.insert(0, fr.columns[0], cname)  # the condition column
     cfr.insert(1, "path", "camera")
-    for p, v in preds.items():
-        cfr[f"pred_{p}"] = v
+    _add_predictions(cfr, preds)
     frames_out.append(cfr)
     rows = _metric_rows(fr[sel].reset_index(drop=True), group_col, cname, predictors,
                         {"true": stress["true"][sel], "mask": stress["mask"][sel],
@@ -150,8 +161,7 @@ def run_experiment(out_dir, shard_paths, size, models: dict[str, str], baseline_
         preds, maps = _predict_all(images, nets, base)
         fr = tab.copy()
         fr.insert(0, condition_col, cname)
-        for p, v in preds.items():
-            fr[f"pred_{p}"] = v
+        _add_predictions(fr, preds)
         stress = {"true": arrays["stress"][sel], "mask": arrays["mask"][sel], "pred": maps}
         rows += _metric_rows(fr, group_col, cname, predictors, stress)
         fr.insert(1, "path", "shard")
@@ -165,7 +175,7 @@ def run_experiment(out_dir, shard_paths, size, models: dict[str, str], baseline_
                            **{f"stress_{k}": v[ex] for k, v in maps.items()},
                            "label": tab[group_col or "scene_id"].to_numpy()[ex].astype(str),
                            "fx_N": tab["fx_N"].to_numpy()[ex],
-                           **{f"pred_{k}": v[ex] for k, v in preds.items()}}
+                           **{f"pred_{k}": v[ex, 0] for k, v in preds.items()}}
     metrics = pd.DataFrame(rows)
     pd.concat(frames_out, ignore_index=True).to_csv(out_dir / "frames.csv", index=False,
                                                     float_format="%.6g")

@@ -32,7 +32,7 @@ def _save(fig, out_pdf, out_png=None):
 
 
 def _predictors(frames: pd.DataFrame) -> list[str]:
-    return [c[5:] for c in frames.columns if c.startswith("pred_")]
+    return [c[5:] for c in frames.columns if c.startswith("pred_") and not c.startswith("pred_fy_")]
 
 
 def _force_panel(ax, g: pd.DataFrame, predictors, metrics: pd.DataFrame | None = None,

@@ -78,7 +78,8 @@ def model_forces(shards: dict, model_path, size) -> pd.DataFrame:
     for take, shard in shards.items():
         a, table = load_frames([shard], tuple(size))
         pred, _ = predict_images(net, a["images"])
-        parts.append(pd.DataFrame({"take": take, "frame": table["frame"].to_numpy(), "pred_N": pred}))
+        parts.append(pd.DataFrame({"take": take, "frame": table["frame"].to_numpy(),
+                                   "pred_N": pred[:, 0]}))  # fx: the sensor's push force
     return pd.concat(parts, ignore_index=True)
 
 

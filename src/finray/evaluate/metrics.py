@@ -1,7 +1,8 @@
 """Error metrics of the paper and ours (forces in N, stresses as log-stress maps).
 
 Force: MSE (N^2, the paper's metric), RMSE (N), NRMSE (% of the largest |true force|
-of the set, so that sets of different force scales compare), R^2. Stress: MSE of the
+of the set, so that sets of different force scales compare), R^2; of fx (along the
+push, the headline), and of fy and the magnitude for a two-output model. Stress: MSE of the
 log-stress inside the finger mask and SSIM (scikit-image) of the maps.
 """
 from __future__ import annotations
@@ -28,6 +29,16 @@ def force_metrics(true_N, pred_N) -> dict:
         "max_abs_error_N": float(np.max(np.abs(err))),
         "max_true_N": scale,
     }
+
+
+def force_vector_metrics(fx_true, fy_true, fx_pred, fy_pred) -> dict:
+    """Metrics of the across-the-push component (``fy_*``) and of the magnitude
+    ``|F| = sqrt(fx^2 + fy^2)`` (``mag_*``): MSE (N^2), RMSE (N), NRMSE (% of the
+    largest |true| of the set), R^2, as :func:`force_metrics`."""
+    fy = force_metrics(fy_true, fy_pred)
+    mag = force_metrics(np.hypot(fx_true, fy_true), np.hypot(fx_pred, fy_pred))
+    keys = ("mse_N2", "rmse_N", "nrmse_pct", "r2", "max_true_N")
+    return {**{f"fy_{k}": fy[k] for k in keys}, **{f"mag_{k}": mag[k] for k in keys}}
 
 
 def stress_metrics(true_maps, pred_maps, masks) -> dict:

@@ -31,13 +31,14 @@ def occlude(images: np.ndarray, table: pd.DataFrame, level: str, seed: int,
 
 
 def predict_images(predictor, images: np.ndarray, batch: int = 256) -> tuple[np.ndarray, np.ndarray]:
-    """Force (N,) in N and log-stress maps (N, H, W) of network inputs (N, H, W), uint8
-    or [0, 1] floats, through :meth:`finray.predict.Predictor.run` in batches."""
+    """Forces (N, n_forces) in N (the predictor's ``force_names``: ``fx_N`` first) and
+    log-stress maps (N, H, W) of network inputs (N, H, W), uint8 or [0, 1] floats,
+    through :meth:`finray.predict.Predictor.run` in batches."""
     x = np.asarray(images)
     scale = 255.0 if x.dtype == np.uint8 else 1.0
     forces, maps = [], []
     for i in range(0, len(x), batch):
         stress, force = predictor.run(x[i:i + batch, None].astype(np.float32) / scale)
-        forces.append(force[:, 0])
+        forces.append(force)
         maps.append(stress[:, 0])
     return np.concatenate(forces), np.concatenate(maps)

@@ -11,7 +11,9 @@ from ..paper_reference import paper_reference
 from .camera import PATH_KEYS
 from .experiments import headline_rows, usable_range
 
-KEEP = ("n", "mse_N2", "rmse_N", "nrmse_pct", "r2", "max_true_N", "stress_mse_log", "ssim")
+KEEP = ("n", "mse_N2", "rmse_N", "nrmse_pct", "r2", "max_true_N", "stress_mse_log", "ssim",
+        *(f"{c}_{k}" for c in ("fy", "mag") for k in ("mse_N2", "rmse_N", "nrmse_pct", "r2",
+                                                       "max_true_N")))
 
 
 def _clean(d: dict) -> dict:
@@ -52,7 +54,8 @@ def camera_agreement(exp_dir) -> dict:
     out: dict = {}
     for c, g in both.groupby(key[0], sort=False):
         out[str(c)] = {}
-        for p in (col[5:] for col in f.columns if col.startswith("pred_")):
+        for p in (col[5:] for col in f.columns
+                  if col.startswith("pred_") and not col.startswith("pred_fy_")):
             d = g[f"pred_{p}_camera"].to_numpy() - g[f"pred_{p}_shard"].to_numpy()
             out[str(c)][p] = {"n_frames": int(len(d)), "max_abs_diff_N": float(abs(d).max()),
                               "rms_diff_N": float((d ** 2).mean() ** 0.5)}
