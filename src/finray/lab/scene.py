@@ -9,9 +9,10 @@ Two plotters share the geometry: the colour view, and a label view where the fin
 white and unlit and everything else black, whose pixels are the true finger mask
 (what is finger and not hidden by the object or the clamp).
 
-The VTK camera is set from :class:`~finray.lab.camera.PinholeCamera`: vertical view
-angle from ``fy``, the principal point by the window centre, so that a world point
-lands on :meth:`~finray.lab.camera.PinholeCamera.project`'s pixel (tested).
+The VTK camera is set from :class:`~finray.render.camera.PinholeCamera` by
+:func:`~finray.render.camera.set_vtk_camera`: vertical view angle from ``fy``, the
+principal point by the window centre, so that a world point lands on
+:meth:`~finray.render.camera.PinholeCamera.project`'s pixel (tested).
 """
 from __future__ import annotations
 
@@ -19,8 +20,8 @@ import numpy as np
 
 from ..geometry.mesh import TriMesh
 from ..geometry.surface import extrude
+from ..render.camera import PinholeCamera, set_vtk_camera
 from ..render.pvrender import vtk_cells  # (importing it: one core per job, EGL without X)
-from .camera import PinholeCamera
 
 
 def prism(outline_xy: np.ndarray, z0: float, z1: float):
@@ -117,15 +118,7 @@ class LabScene:
         self._pixels = None
 
     def _set_camera(self, pl) -> None:
-        cam, c = pl.camera, self.camera
-        u0, v0, w, h = self.window
-        cam.position, cam.focal_point = c.position, c.target
-        cam.up = tuple(np.asarray(c.up))
-        cam.view_angle = float(np.degrees(2 * np.arctan(0.5 * h / c.fy)))
-        # the principal point in the window (OpenCV pixel centres: display = pixel + 0.5)
-        cx, cy = c.cx - u0, c.cy - v0
-        cam.SetWindowCenter(-2.0 * (cx + 0.5 - 0.5 * w) / w, 2.0 * (cy + 0.5 - 0.5 * h) / h)
-        cam.clipping_range = (10.0, self.far_mm)
+        set_vtk_camera(pl.camera, self.camera, self.window, (10.0, self.far_mm))
 
     def _grab(self, pl) -> np.ndarray:
         from vtkmodules.util.numpy_support import vtk_to_numpy

@@ -8,18 +8,23 @@ Public API (see each module's docstring):
   them) + ``index.json`` in a directory, every frame to an ``on_frame`` consumer
 - :class:`Rasterizer` (front view, numba) and :class:`~finray.render.pvrender.PyVistaRenderer`
   (any pitch)
+- :class:`PinholeCamera` (:mod:`~finray.render.camera`) and, through it, perspective views:
+  :class:`PerspectiveRaster` (coverage, numba) and
+  :class:`~finray.render.pvrender.PyVistaPerspective` (shaded image)
 
 Their speed is measured by :func:`finray.benchmarks.render.benchmark`.
 """
+from .camera import PinholeCamera, set_vtk_camera
 from .imageio import read_exr, read_png, write_exr, write_png
 from .params import RenderParams, inverse_stress_transform, stress_transform
+from .perspective import PerspectiveRaster
 from .raster import Rasterizer, composite
 from .result import FEAResult, ResultError, load_fea_result, resample_frames
 from .scene import SceneRenderer, load_render_index, read_render_frame, render_scene
 
 __all__ = [
-    "FEAResult", "Rasterizer", "RenderParams", "ResultError", "SceneRenderer",
+    "FEAResult", "PerspectiveRaster", "PinholeCamera", "Rasterizer", "RenderParams", "ResultError", "SceneRenderer",
     "composite", "inverse_stress_transform", "load_fea_result", "load_render_index",
     "read_exr", "read_png", "read_render_frame", "render_scene", "resample_frames",
-    "stress_transform", "write_exr", "write_png",
+    "set_vtk_camera", "stress_transform", "write_exr", "write_png",
 ]

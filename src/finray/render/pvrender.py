@@ -4,8 +4,9 @@ One :class:`PyVistaRenderer` (one plotter, one OpenGL context) serves a whole jo
 each frame only updates the surface points and re-renders. Multisampling is off
 (on the software renderer it costs 3-4x); anti-aliasing comes from rendering at
 ``supersample`` times the resolution and area-averaging down, as in the 2D
-rasteriser. Parallel (orthographic) projection, the camera framing of
-:class:`~finray.render.params.RenderParams`, a single headlight.
+rasteriser. :class:`PyVistaRenderer`: parallel (orthographic) projection, the camera
+framing of :class:`~finray.render.params.RenderParams`; :class:`PyVistaPerspective`:
+any :class:`~finray.render.camera.PinholeCamera`, pixel for pixel. A single headlight.
 
 Back faces are culled: the extruded surface is closed and outward-oriented, so a
 back face is always hidden behind a front face, and not drawing them (the caps
@@ -29,6 +30,7 @@ import numpy as np  # noqa: E402
 
 from ..geometry.mesh import TriMesh  # noqa: E402
 from ..geometry.surface import extrude  # noqa: E402
+from .camera import PinholeCamera, set_vtk_camera  # noqa: E402
 from .params import RenderParams  # noqa: E402
 from .raster import to_uint8  # noqa: E402
 
@@ -131,6 +133,83 @@ class PyVistaRenderer:
         """RGB image (H, W, 3) uint8: the fine frame area-averaged down."""
         fine = self.render_fine(points2d, object_points2d)
         return to_uint8(block_mean_u8(fine, self.ss) / 255.0)
+
+    def close(self) -> None:
+        self.plotter.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+class PyVistaPerspective:
+    """Off-screen perspective renderer of one finger mesh, extruded, for a job: the
+    finger alone in ``finger_rgb`` on ``background_rgb``, lit by a headlight with the
+    ``ambient`` and ``diffuse`` terms of :class:`RenderParams` (as :class:`PyVistaRenderer`).
+
+    ``render(points2d, camera)`` draws the pinhole image (no lens distortion) of any
+    :class:`~finray.render.camera.PinholeCamera`, which may change between calls: at
+    ``supersample`` (default ``params.supersample``) x its resolution through
+    :meth:`~finray.render.camera.PinholeCamera.scaled`, then area-averaged down.
+    """
+
+    def __init__(self, mesh: TriMesh, params: RenderParams | None = None,
+                 extrusion_mm: float = 20.0, supersample: int | None = None):
+        import pyvista as pv
+
+        pv.OFF_SCREEN = True
+        self.params = p = params or RenderParams()
+        self.surface = extrude(mesh, extrusion_mm)
+        self.n_nodes = len(mesh.points)
+        self.ss = int(supersample or p.supersample)
+        self.size = (64, 64)  # (W, H) in pixels; set per camera
+        self.plotter = pl = pv.Plotter(off_screen=True, window_size=self.size, lighting="none")
+        pl.render_window.SetMultiSamples(0)
+        pl.set_background(p.background_rgb)
+        pl.add_light(pv.Light(light_type="headlight", intensity=1.0))
+        self.poly = pv.PolyData(self.surface.points.copy(), vtk_cells(self.surface.faces))
+        actor = pl.add_mesh(self.poly, color=p.finger_rgb, ambient=p.ambient, diffuse=p.diffuse,
+                            specular=0.0, smooth_shading=False, show_edges=False)
+        actor.GetProperty().BackfaceCullingOn()
+        # the first show() sets up the render window (and may reset the camera);
+        # frames after it set the camera and only call render()
+        pl.show(auto_close=False)
+        self._pixels = None
+
+    def render_fine(self, points2d: np.ndarray, camera: PinholeCamera) -> np.ndarray:
+        """The supersampled RGB frame (H*ss, W*ss, 3) uint8 of ``camera``, row 0 at the top."""
+        from vtkmodules.util.numpy_support import vtk_to_numpy
+        from vtkmodules.vtkCommonCore import vtkUnsignedCharArray
+
+        points2d = np.asarray(points2d, dtype=np.float64)
+        if points2d.shape != (self.n_nodes, 2):
+            raise ValueError(f"expected {self.n_nodes} nodes (N, 2), got shape {points2d.shape}")
+        pts = self.surface.deformed(points2d)
+        z = camera.to_camera(pts)[:, 2]
+        if not z.min() > 0.0:
+            raise ValueError(f"the finger reaches behind the camera (nearest point {z.min():.1f} mm "
+                             "along its axis); move the camera away")
+        fine = camera.scaled(self.ss)
+        size = (fine.width, fine.height)
+        if size != self.size:
+            self.plotter.window_size = size
+            self.size = size
+            self._pixels = None
+        self.poly.points = pts
+        # near and far planes around the finger (depth resolution is relative to them)
+        set_vtk_camera(self.plotter.camera, fine, clipping=(0.5 * z.min(), 2.0 * z.max()))
+        self.plotter.render()
+        w, h = self.size
+        if self._pixels is None:
+            self._pixels = vtkUnsignedCharArray()
+        self.plotter.render_window.GetPixelData(0, 0, w - 1, h - 1, 0, self._pixels, 0)
+        return vtk_to_numpy(self._pixels).reshape(h, w, 3)[::-1]
+
+    def render(self, points2d: np.ndarray, camera: PinholeCamera) -> np.ndarray:
+        """RGB image (camera.height, camera.width, 3) uint8 of deformed 2D nodes (N, 2) mm."""
+        return to_uint8(block_mean_u8(self.render_fine(points2d, camera), self.ss) / 255.0)
 
     def close(self) -> None:
         self.plotter.close()

@@ -1,0 +1,152 @@
+"""Coverage of the extruded finger seen through a pinhole camera (numba), the fast
+counterpart of :class:`~finray.render.pvrender.PyVistaPerspective` for training views.
+
+The closed, outward-oriented surface of :func:`~finray.geometry.surface.extrude` is
+deformed per frame (front and back caps, side walls), its vertices are projected with
+the camera's pinhole (:meth:`~finray.render.camera.PinholeCamera.project`; lens
+distortion is not applied: this is the pinhole image, as the pyvista path draws it),
+and the faces turned away from the camera are culled. A ray that meets a closed
+surface enters it through a face that faces the camera, so the silhouette is the union
+of the camera-facing faces' projections: coverage needs no depth test (depth would
+only matter for shading or for what covers what inside the silhouette).
+
+Each pixel is sampled on a regular ``supersample x supersample`` grid at the sub-pixel
+centres (the samples of a render at ``supersample`` x the resolution, see
+:meth:`~finray.render.camera.PinholeCamera.scaled`); a sample is set if it lies in any
+camera-facing triangle (edge functions, inclusive; the two triangles sharing an edge
+get exactly opposite edge values, so a sample on it is in at least one: no cracks),
+and a pixel's coverage is its count of set samples / supersample^2. The work is
+confined to the smallest pixel window holding the projected surface.
+"""
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from ..geometry.mesh import TriMesh
+from ..geometry.surface import extrude
+from .camera import PinholeCamera
+from .raster import _edge_coeffs
+
+#: The most samples a coverage window may hold (a finger filling a camera's view at
+#: supersample 4 needs a few million; more is a camera inside or at the finger).
+MAX_SAMPLES = 1 << 28
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _cover_kernel(su, sv, faces, buf):
+    """Set ``buf`` (hf, wf) uint8 to 1 at the samples inside a camera-facing face.
+
+    su, sv: the vertices' projections in sample coordinates (sample centres at
+    integers). A face (outward normal, counter-clockwise seen from outside) faces the
+    camera iff its projection is clockwise in this y-down frame: signed area < 0.
+    """
+    hf, wf = buf.shape
+    for t in range(faces.shape[0]):
+        a = faces[t, 0]
+        b = faces[t, 1]
+        c = faces[t, 2]
+        area = (su[b] - su[a]) * (sv[c] - sv[a]) - (sv[b] - sv[a]) * (su[c] - su[a])
+        if area >= 0.0:  # turned away (or edge-on: it covers nothing)
+            continue
+        x0 = max(int(math.ceil(min(su[a], su[b], su[c]))), 0)
+        x1 = min(int(math.floor(max(su[a], su[b], su[c]))), wf - 1)
+        y0 = max(int(math.ceil(min(sv[a], sv[b], sv[c]))), 0)
+        y1 = min(int(math.floor(max(sv[a], sv[b], sv[c]))), hf - 1)
+        if x0 > x1 or y0 > y1:
+            continue
+        b, c = c, b  # positively oriented: inside <=> all three edge values >= 0
+        A0, B0, C0 = _edge_coeffs(su, sv, b, c)
+        A1, B1, C1 = _edge_coeffs(su, sv, c, a)
+        A2, B2, C2 = _edge_coeffs(su, sv, a, b)
+        for j in range(y0, y1 + 1):
+            sy = float(j)
+            r0 = B0 * sy + C0
+            r1 = B1 * sy + C1
+            r2 = B2 * sy + C2
+            for i in range(x0, x1 + 1):
+                sx = float(i)
+                inside = ((A0 * sx + r0 >= 0.0) & (A1 * sx + r1 >= 0.0)
+                          & (A2 * sx + r2 >= 0.0))
+                buf[j, i] |= inside
+
+
+@nb.njit(cache=True)
+def _count_kernel(buf, ss, cov):
+    """cov (h, w) = the number of set samples in each ss x ss block of buf / ss^2."""
+    h, w = cov.shape
+    inv = 1.0 / (ss * ss)
+    row = np.zeros(w, dtype=np.int32)
+    for r in range(h):
+        row[:] = 0
+        for k in range(ss):
+            line = buf[r * ss + k]
+            for q in range(w):
+                for m in range(ss):
+                    row[q] += line[q * ss + m]
+        for q in range(w):
+            cov[r, q] = row[q] * inv
+
+
+class PerspectiveRaster:
+    """Coverage of one finger mesh, extruded, through any pinhole camera (reuse per job)."""
+
+    def __init__(self, mesh: TriMesh, extrusion_mm: float = 20.0, supersample: int = 3):
+        if int(supersample) < 1:
+            raise ValueError(f"supersample must be >= 1, got {supersample}")
+        self.surface = extrude(mesh, extrusion_mm)
+        self.faces = np.ascontiguousarray(self.surface.faces, dtype=np.int64)
+        self.n_nodes = len(mesh.points)
+        self.supersample = int(supersample)
+        self._buf = np.zeros(0, dtype=np.uint8)  # the sample buffer, grown as needed
+
+    def coverage(self, points2d: np.ndarray, camera: PinholeCamera) -> tuple[np.ndarray, tuple[int, int]]:
+        """``(cov, (row0, col0))``: ``cov`` (h, w) float32 in [0, 1] is the fraction of each
+        camera pixel covered by the extruded finger of deformed 2D nodes (N, 2) mm, over
+        the smallest pixel window holding the whole projected surface plus a 1 px margin,
+        not clipped to the camera's frame; ``(row0, col0)`` is the window's top-left
+        pixel in the camera's pixel grid (may be negative or beyond the frame)."""
+        points2d = np.asarray(points2d, dtype=np.float64)
+        if points2d.shape != (self.n_nodes, 2):
+            raise ValueError(f"expected {self.n_nodes} nodes (N, 2), got shape {points2d.shape}")
+        pc = camera.to_camera(self.surface.deformed(points2d))
+        z = pc[:, 2]
+        if not z.min() > 0.0:
+            raise ValueError(f"the finger reaches behind the camera (nearest point {z.min():.1f} mm "
+                             "along its axis); move the camera away")
+        u = camera.fx * pc[:, 0] / z + camera.cx
+        v = camera.fy * pc[:, 1] / z + camera.cy
+        # pixel (i, j) spans u in [j - 0.5, j + 0.5): the pixels holding the extremes, +1
+        col0, col1 = int(np.floor(u.min() + 0.5)) - 1, int(np.floor(u.max() + 0.5)) + 1
+        row0, row1 = int(np.floor(v.min() + 0.5)) - 1, int(np.floor(v.max() + 0.5)) + 1
+        h, w = row1 - row0 + 1, col1 - col0 + 1
+        ss = self.supersample
+        n = h * w * ss * ss
+        if n > MAX_SAMPLES:
+            raise ValueError(f"the finger spans {h} x {w} px in this camera's view "
+                             f"(over {MAX_SAMPLES} samples at supersample {ss}); move the camera away")
+        if self._buf.size < n:
+            self._buf = np.zeros(n, dtype=np.uint8)
+        buf = self._buf[:n].reshape(h * ss, w * ss)
+        buf.fill(0)
+        # sample k of pixel j is at u = j - 0.5 + (k + 0.5) / ss: sample index j ss + k
+        su = (u - col0 + 0.5) * ss - 0.5
+        sv = (v - row0 + 0.5) * ss - 0.5
+        _cover_kernel(su, sv, self.faces, buf)
+        cov = np.empty((h, w), dtype=np.float32)
+        _count_kernel(buf, ss, cov)
+        return cov, (row0, col0)
+
+    def frame_coverage(self, points2d: np.ndarray, camera: PinholeCamera) -> np.ndarray:
+        """The coverage placed in the camera's full frame (camera.height, camera.width)
+        float32, clipped to it (0 where the finger is not)."""
+        cov, (row0, col0) = self.coverage(points2d, camera)
+        out = np.zeros((camera.height, camera.width), dtype=np.float32)
+        r0, c0 = max(row0, 0), max(col0, 0)
+        r1 = min(row0 + cov.shape[0], camera.height)
+        c1 = min(col0 + cov.shape[1], camera.width)
+        if r1 > r0 and c1 > c0:
+            out[r0:r1, c0:c1] = cov[r0 - row0:r1 - row0, c0 - col0:c1 - col0]
+        return out
