@@ -91,7 +91,7 @@ def test_scaled_camera_keeps_the_rays():
 CASES = [(d, pitch, yaw, roll) for d in (150.0, 400.0)
          for pitch, yaw, roll in ((0.0, 3.0, -2.0), (15.0, -4.0, 2.0), (30.0, 5.0, 3.0))]
 FRAME = (720, 1280)  # a portrait frame (width, height) px
-SS = 3
+SS = 2  # the camera views' and the viewpoint renders' supersampling
 
 
 @pytest.fixture(scope="module")
@@ -144,30 +144,45 @@ def _iou(a, b):
     return float((a & b).sum() / (a | b).sum())
 
 
-@pytest.mark.parametrize("case", CASES)
-def test_segmented_silhouettes_agree(renders, case):
-    """``segment`` of pyvista's image against the raster's half-coverage mask, at full
-    resolution and as the 64 x 32 network input (each through its own base-anchored box).
+def _in_frame(window, offset, cam):
+    out = np.zeros((cam.height, cam.width) + window.shape[2:], dtype=window.dtype)
+    r0, c0 = offset
+    rr, cc = max(r0, 0), max(c0, 0)
+    r1, c1 = min(r0 + window.shape[0], cam.height), min(c0 + window.shape[1], cam.width)
+    out[rr:r1, cc:c1] = window[rr - r0:r1 - r0, cc - c0:c1 - c0]
+    return out
 
-    Holes are not filled here: ``segment``'s ``max_hole_frac`` is a fraction of the
-    frame, and at 400 mm the finger's cavities are smaller than that in a full camera
-    frame, so it would close them (a property of the segmentation, not of the
-    renders). At 400 mm and pitch 0 the ribs are ~1.3 px wide and the isodata threshold
-    (midway between the classes' means) cuts the front face at ~42 % coverage: there
-    the silhouettes differ by more than at the other poses (reported, not asserted).
-    """
+
+@pytest.mark.parametrize("case", CASES)
+def test_segmented_silhouettes_agree(renders, finger, case):
+    """What the predictor makes of pyvista's frame -- ``segment`` of the whole image
+    (default settings), base-anchored crop, 64 x 32 input -- and what the camera views
+    make of the raster's shaded window (:meth:`PerspectiveRaster.image`, segmented
+    with the morphology's limits in pixels of the whole frame): IoU >= 0.98 at full
+    resolution and at 64 x 32. The shaded raster gives pyvista's grey levels (side
+    walls at a grazing angle darker), so the threshold cuts both at the same place."""
     from finray.dataset import segment
     from finray.dataset.imageops import base_anchored_box, silhouette_input
 
-    _, rgb, cov, _ = renders[case]
-    seg, half = segment(rgb, max_hole_frac=0.0), cov >= 0.5
+    mesh, pts = finger
+    _, rgb, _, cam = renders[case]
+    window, offset = PerspectiveRaster(mesh, 20.0, supersample=SS).image(pts, cam, RenderParams())
+    # the shaded raster is pyvista's image: most pixels equal to within 2 levels
+    placed = _in_frame(window, offset, cam)
+    placed[_in_frame(np.ones(window.shape[:2], bool), offset, cam) == 0] = to_uint8(
+        RenderParams().background_rgb)
+    differ = np.abs(placed.astype(int) - rgb.astype(int)).max(axis=-1) > 2
+    finger_px = (rgb != to_uint8(RenderParams().background_rgb)).any(axis=-1).sum()
+    print(f"case {case}: {differ.sum()} of {finger_px} finger pixels differ by > 2 levels")
+    assert differ.sum() <= 0.02 * finger_px
+    scale = cam.width * cam.height / (window.shape[0] * window.shape[1])
+    raster_mask = _in_frame(segment(window, min_object_frac=1e-3 * scale, max_hole_frac=2e-4 * scale),
+                            offset, cam)
+    pv_mask = segment(rgb)
     small = []
-    for m in (seg, half):
+    for m in (pv_mask, raster_mask):
         box = base_anchored_box(m, 30.0, (-5.0, 35.0), (0.0, 80.0), base_band=0.03)
         small.append(silhouette_input(m, box, (64, 32)) >= 128)
-    full_iou, small_iou = _iou(seg, half), _iou(*small)
+    full_iou, small_iou = _iou(pv_mask, raster_mask), _iou(*small)
     print(f"case {case}: IoU full {full_iou:.4f}, 64x32 {small_iou:.4f}")
-    if case[:2] != (400.0, 0.0):
-        assert full_iou >= 0.98 and small_iou >= 0.98
-    else:
-        assert full_iou >= 0.9 and small_iou >= 0.9
+    assert full_iou >= 0.98 and small_iou >= 0.98

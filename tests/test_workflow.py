@@ -97,7 +97,7 @@ def test_smoke_dataset_and_training(smoke_run):
     assert set(man.split) == {"train", "shape", "material", "pitch"}
     assert sorted(man[man.split == "pitch"].pitch_deg.unique()) == [0, 5, 10, 15, 20, 25, 30]
     assert man.fx_N.notna().all()
-    for model in ("plain", "occlusion"):
+    for model in ("plain", "occlusion", "camera"):
         d = smoke_run / "results" / "train" / model
         hist = json.loads((d / "history.json").read_text())
         assert len(hist["train_loss"]) == 2 and np.isfinite(hist["train_loss"]).all()
@@ -142,12 +142,19 @@ def test_smoke_evaluation_summary_and_paper(smoke_run):
 
     s = json.loads((smoke_run / "results" / "summary.json").read_text())
     exps = s["experiments"]
-    assert set(exps) == {"shape", "material", "occlusion", "pitch"}
+    assert set(exps) == {"shape", "material", "occlusion", "pitch", "viewpoint"}
     shape = exps["shape"]["all"]["plain"]["all"]
     assert shape["mse_N2"] == pytest.approx(shape["rmse_N"] ** 2, rel=1e-6)
     assert shape["nrmse_pct"] == pytest.approx(100 * shape["rmse_N"] / shape["max_true_N"], rel=1e-6)
     assert shape["r2"] <= 1 and np.isfinite(shape["stress_mse_log"]) and -1 <= shape["ssim"] <= 1
-    assert set(exps["shape"]["all"]) == {"plain", "baseline"}
+    assert set(exps["shape"]["all"]) == {"plain", "camera", "baseline"}
+    assert shape["fy_nrmse_pct"] > 0 and shape["mag_nrmse_pct"] > 0  # the force vector
+    # the viewpoint experiment: perspective renders of the held-out shape, three models
+    vp = s["viewpoint"]
+    assert set(vp["nrmse_pct"]) == {"plain", "pitch", "camera", "baseline"}
+    assert [float(p) for p in vp["nrmse_pct"]["camera"]] == [0, 5, 10, 15, 20, 25, 30]
+    assert vp["distances_mm"] == [200.0, 350.0] and vp["n_frames_per_pitch"] == 2 * 2 * 2  # heights, distances, frames
+    assert set(s["camera_model"]) == {"shape", "material"}
     assert list(exps["occlusion"]) == ["none", "low", "medium", "high"]
     assert set(exps["occlusion"]["high"]) == {"plain", "occlusion", "baseline"}
     assert [float(p) for p in exps["pitch"]] == [0, 5, 10, 15, 20, 25, 30]
@@ -160,7 +167,7 @@ def test_smoke_evaluation_summary_and_paper(smoke_run):
         cam = m[(m["path"] == "camera") & (m["group"] == "all")].set_index("predictor")
         same = m[(m["path"] == "shard") & (m["frames"] == "rendered") & (m["group"] == "all")
                  ].set_index("predictor")
-        assert set(cam.index) == {"plain", "baseline"} and (cam["n"] > 0).all()
+        assert set(cam.index) == {"plain", "camera", "baseline"} and (cam["n"] > 0).all()
         assert (cam["n"] == same["n"]).all()
         assert exps[exp]["all"]["plain"]["camera"]["all"]["n"] == cam.loc["plain", "n"]
         assert s["camera_path"][exp]["all"]["plain"]["n_frames"] == cam.loc["plain", "n"]
@@ -183,14 +190,15 @@ def test_smoke_evaluation_summary_and_paper(smoke_run):
 
 
 def test_one_figure_builds_only_what_it_needs(tmp_path):
-    """`snakemake paper/figures/shape_generalisation.pdf` plans the plain model and the
-    shape evaluation, not the other models, experiments or figures."""
+    """`snakemake paper/figures/shape_generalisation.pdf` plans the models it compares
+    (plain and camera) and the shape evaluation, not the other models, experiments or
+    figures."""
     r = snakemake("-n", "--configfile", str(ROOT / "config" / "smoke.yaml"), "--directory",
                   str(tmp_path), "paper/figures/shape_generalisation.pdf", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     jobs = dict(line.split()[:2] for line in r.stdout.splitlines()
                 if len(line.split()) == 2 and line.split()[1].isdigit())
-    assert jobs["train_model"] == "1" and jobs["evaluate_experiment"] == "1"
+    assert jobs["train_model"] == "2" and jobs["evaluate_experiment"] == "1"
     assert jobs["figure_shape_generalisation"] == "1"
     assert not {"figure_speed", "summary", "manuscript", "fea_pareto"} & set(jobs)
 

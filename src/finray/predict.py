@@ -80,6 +80,9 @@ class Predictor:
         self.crop_x_mm = tuple(pre.get("crop_x_mm", (-5.0, 35.0)))
         self.crop_y_mm = tuple(pre.get("crop_y_mm", (0.0, 80.0)))
         self.segment_kw = pre.get("segment", {})
+        #: the base is the widest row among the lowest base_band of the mask's height
+        #: (dataset.base_band; 0, the lowest row, for exports before it)
+        self.base_band = float(pre.get("base_band", 0.0))
         onnx_full = model_path.with_suffix(".onnx")
         onnx_force = model_path.with_suffix(".force.onnx")
         if backend == "auto":
@@ -121,7 +124,8 @@ class Predictor:
         """Training window in pixel edges ``(col0, row0, col1, row1)`` from the mask
         (:func:`~finray.dataset.imageops.base_anchored_box`)."""
         try:
-            return base_anchored_box(mask, self.base_width_mm, self.crop_x_mm, self.crop_y_mm)
+            return base_anchored_box(mask, self.base_width_mm, self.crop_x_mm, self.crop_y_mm,
+                                     base_band=self.base_band)
         except EmptyMaskError as exc:
             raise FrameError(str(exc)) from None
 

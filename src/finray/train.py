@@ -81,6 +81,10 @@ class AugmentConfig:
     occlusion_levels: tuple[str, ...] = ("low", "medium", "high")
     pitch_p: float = 0.0  # probability of a camera pitch (finray.dataset.viewpoint)
     pitch_max_deg: float = 30.0  # pitch drawn uniformly in [0, pitch_max_deg]
+    # probability that a sample is its frame's randomised camera view (the shards'
+    # camera_input_HxW, finray.dataset.camera_views) instead of the front view; the
+    # stress target stays the front view's map either way
+    camera_p: float = 0.0
     # geometry of the input for the pitch: set by the training script from the config
     mm_per_px: float = 1.25  # image-plane mm per input pixel
     pitch_centre_row: float = 31.5  # input row of the camera's rotation axis
@@ -98,8 +102,10 @@ def pitch_geometry(dataset: dict, render: dict, height_px: int, extrusion_mm: fl
 
 
 class TrainAugment:
-    """Random jitter (image and stress map alike), salt-and-pepper and occlusion
-    (image only), drawn from the training generator, so training stays replayable."""
+    """Random jitter (image and stress map alike), the camera view in place of the front
+    view (``camera_p``; the stress map stays unjittered: it is the front view's),
+    salt-and-pepper and occlusion (image only), drawn from the training generator, so
+    training stays replayable."""
 
     def __init__(self, cfg: AugmentConfig, occlusion_levels: dict | None = None):
         import kornia.augmentation as K
@@ -116,16 +122,22 @@ class TrainAugment:
                       if cfg.salt_pepper_p > 0 else None)
         self.occlusion_levels = occlusion_levels
 
-    def __call__(self, x: torch.Tensor, s: torch.Tensor, gen: torch.Generator):
+    def __call__(self, x: torch.Tensor, s: torch.Tensor, gen: torch.Generator,
+                 x_camera: torch.Tensor | None = None):
         from .dataset.augment import sample_augment
 
         # kornia draws from torch's global generator: seed it from ours (replayable)
         torch.manual_seed(int(torch.randint(0, 2**62, (1,), generator=gen)))
+        s_front = s
         if self.geometric:
             both = torch.cat([x, s], dim=1)
             for aug in self.geometric:
                 both = aug(both)
             x, s = both[:, :x.shape[1]], both[:, x.shape[1]:]
+        if x_camera is not None and self.cfg.camera_p > 0:
+            draw = (torch.rand(len(x), generator=gen) < self.cfg.camera_p).reshape(-1, 1, 1, 1)
+            x = torch.where(draw, x_camera, x)
+            s = torch.where(draw, s_front, s)
         if self.cfg.occlusion_p > 0:
             x = x.clone()
             draw = torch.rand(len(x), generator=gen) < self.cfg.occlusion_p
@@ -206,12 +218,15 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
           val: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
           net_cfg: NetConfig, cfg: TrainConfig,
           augment: Callable[[torch.Tensor, torch.Tensor, torch.Generator], tuple] | None = None,
-          log: Callable[[str], None] = print) -> tuple[FinRayNet, History]:
+          log: Callable[[str], None] = print,
+          camera_images: np.ndarray | None = None) -> tuple[FinRayNet, History]:
     """Train a network; returns the best model by validation loss and the history.
 
     ``images`` (N, C, H, W) float in [0, 1]; ``stress`` (N, 1, H, W) log-stress maps;
     ``force_N`` (N, n_forces). ``augment(x, s, generator) -> (x, s)`` is applied to each
-    training batch (on the fly, seeded by the training generator).
+    training batch (on the fly, seeded by the training generator); with
+    ``camera_images`` (N, C, H, W: each frame seen by its randomised camera) it is called
+    ``augment(x, s, generator, x_camera)`` and picks between the two views.
     """
     torch.set_num_threads(cfg.threads)
     gen = seed_everything(cfg.seed)
@@ -221,6 +236,10 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
     x_all = torch.as_tensor(images, dtype=torch.float32)
     s_all = torch.as_tensor(stress, dtype=torch.float32)
     f_all = torch.as_tensor(force_N, dtype=torch.float32).reshape(len(x_all), -1)
+    c_all = (torch.as_tensor(camera_images, dtype=torch.float32)
+             if camera_images is not None else None)
+    if c_all is not None and c_all.shape != x_all.shape:
+        raise ValueError(f"camera images {tuple(c_all.shape)} do not match the images {tuple(x_all.shape)}")
     if not (torch.isfinite(x_all).all() and torch.isfinite(s_all).all() and torch.isfinite(f_all).all()):
         raise ValueError("training data contain NaN or infinite values")
     model = FinRayNet(net_cfg)
@@ -260,7 +279,7 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
             idx = perm[b * cfg.batch_size:(b + 1) * cfg.batch_size]
             x, s, f = x_all[idx], s_all[idx], f_all[idx]
             if augment is not None:
-                x, s = augment(x, s, gen)
+                x, s = augment(x, s, gen) if c_all is None else augment(x, s, gen, c_all[idx])
             x = _prep(x, cfg.channels_last)
             with _autocast(bf16):
                 s_pred, f_pred = model.forward_normalised(x)
@@ -402,19 +421,23 @@ def force_onnx_path(path: str | Path) -> Path:
 FORCE_COMPONENTS = {"fx": "fx_N", "fy": "fy_N"}
 
 def load_split(shards, size: tuple[int, int], every: int = 1,
-               forces: tuple[str, ...] = ("fx",)) -> dict[str, np.ndarray]:
+               forces: tuple[str, ...] = ("fx",), camera: bool = False) -> dict[str, np.ndarray]:
     """The frames of shards at one input size as network tensors (arrays): ``images``
     (N, 1, H, W) in [0, 1], ``stress`` (N, 1, H, W), ``mask`` (N, H, W) bool, ``fx_N``
     (N, 1), ``force_N`` (N, len(forces)): the components ``forces`` (``fx``, ``fy``) in N,
-    and per-frame ``scene_id``, ``displacement_mm``. ``every``: keep every ``every``-th
-    frame of each shard (see :func:`finray.dataset.load_frames`)."""
+    and per-frame ``scene_id``, ``displacement_mm``; with ``camera`` also
+    ``camera_images`` (N, 1, H, W) in [0, 1]: each frame seen by its randomised camera.
+    ``every``: keep every ``every``-th frame of each shard (see
+    :func:`finray.dataset.load_frames`)."""
     from .dataset import load_frames
 
-    a, table = load_frames(shards, size, every, require_stress=True)
+    a, table = load_frames(shards, size, every, require_stress=True, camera=camera)
     bad = [c for c in forces if c not in FORCE_COMPONENTS]
     if bad:
         raise ValueError(f"train.forces: unknown component(s) {bad}; known: {list(FORCE_COMPONENTS)}")
-    return {"images": a["images"][:, None].astype(np.float32) / np.float32(255.0),
+    out = {} if not camera else {
+        "camera_images": a["camera_images"][:, None].astype(np.float32) / np.float32(255.0)}
+    return out | {"images": a["images"][:, None].astype(np.float32) / np.float32(255.0),
             "stress": a["stress"][:, None].astype(np.float32), "mask": a["mask"],
             "fx_N": a["fx_N"][:, None].astype(np.float32),
             "force_N": np.column_stack([a[FORCE_COMPONENTS[c]] for c in forces]).astype(np.float32),
@@ -444,7 +467,8 @@ def train_from_shards(shards, out_dir: str | Path, net_cfg: NetConfig, cfg: Trai
     if not forces or forces[0] != "fx":
         raise ValueError(f"train.forces must start with fx (the headline force), got {list(forces)}")
     net_cfg = replace(net_cfg, n_forces=len(forces))
-    data = load_split(shards, (net_cfg.height, net_cfg.width), forces=forces)
+    camera = augment is not None and augment.camera_p > 0
+    data = load_split(shards, (net_cfg.height, net_cfg.width), forces=forces, camera=camera)
     val_ids = validation_scenes(data["scene_id"], val_fraction, cfg.seed)
     is_val = np.isin(data["scene_id"], list(val_ids))
     tr = {k: v[~is_val] for k, v in data.items()}
@@ -452,10 +476,13 @@ def train_from_shards(shards, out_dir: str | Path, net_cfg: NetConfig, cfg: Trai
     log(f"training frames {len(tr['images'])} from {len(set(tr['scene_id']))} scenes, "
         f"validation frames {len(va['images'])} from {len(val_ids)} scenes")
     aug = TrainAugment(augment, occlusion_levels) if augment is not None else None
+    val = (va["images"], va["stress"], va["force_N"]) if len(va["images"]) else None
+    if camera and val is not None:  # validate on both views of the validation frames
+        val = (np.concatenate([va["images"], va["camera_images"]]), np.concatenate([va["stress"]] * 2),
+               np.concatenate([va["force_N"]] * 2))
     t0 = time.perf_counter()
-    model, hist = train(tr["images"], tr["stress"], tr["force_N"],
-                        (va["images"], va["stress"], va["force_N"]) if len(va["images"]) else None,
-                        net_cfg, cfg, aug, log=log)
+    model, hist = train(tr["images"], tr["stress"], tr["force_N"], val, net_cfg, cfg, aug, log=log,
+                        camera_images=tr.get("camera_images"))
     seconds = time.perf_counter() - t0
     extra = {"train_config": asdict(cfg), "augment": asdict(augment) if augment else None,
              "cpu": cpu_name(), "torch_threads": torch.get_num_threads(),

@@ -222,6 +222,14 @@ def render_scene_params(wildcards):
     })
 
 
+def scene_camera_views(wildcards):
+    """render.camera_views for the front view of a training scene (the camera model's
+    inputs), None for every other view."""
+    views = config["render"]["camera_views"]
+    train = config["objects"][wildcards.object]["split"] == "train"
+    return canonical(views) if train and float(wildcards.pitch) == 0 and views["enabled"] else None
+
+
 def shard_scene_params(wildcards):
     scene = render_scene_params(wildcards)
     is_pitch_object = wildcards.object == pitch_object(config)
@@ -254,7 +262,7 @@ def experiment_setup(wildcards):
     """Test shards, models and conditions of an experiment (see finray.evaluate)."""
     e = wildcards.experiment
     if e in ("shape", "material"):  # also scored through the camera path on the renders
-        return {"shards": shard_files(splits=[e], pitch=0.0), "models": eval_models("plain"),
+        return {"shards": shard_files(splits=[e], pitch=0.0), "models": eval_models("plain", "camera"),
                 "group_col": "object" if e == "shape" else "material", "conditions": None,
                 "renders": render_index_files(pitch=0.0, splits=[e])}
     if e == "occlusion":
@@ -262,8 +270,19 @@ def experiment_setup(wildcards):
                 "models": eval_models("plain", "occlusion"), "group_col": "object",
                 "conditions": [[lvl, {"occlusion": lvl}] for lvl in occlusion_level_order()],
                 "renders": []}
+    if e == "viewpoint":  # perspective renders of the held-out shapes (evaluate.viewpoint)
+        return {"shards": shard_files(splits=["shape"], pitch=0.0),
+                "models": eval_models("plain", "pitch", "camera"), "group_col": "distance_mm",
+                "conditions": [[f"{p:g}", {"pitch_deg": p}] for p in series_pitches()],
+                "renders": viewpoint_indices()}
     return {"shards": pitch_series_shards(), "models": eval_models("plain", "pitch"), "group_col": None,
             "conditions": [[f"{p:g}", {"pitch_deg": p}] for p in series_pitches()], "renders": []}
+
+
+def viewpoint_indices():
+    """index.json of the viewpoint experiment's renders: every held-out shape scene."""
+    return sorted(f"{RENDER}/viewpoint/{s.object}/{s.material}/h{s.height_mm:g}/index.json"
+                  for s in scenes(config) if s.split == "shape")
 
 
 def experiment_params(wildcards):

@@ -4,7 +4,7 @@
 from finray.train import pitch_geometry
 
 EVALUATE = f"{RESULTS}/evaluate"
-EXPERIMENTS = ["shape", "material", "occlusion", "pitch"]
+EXPERIMENTS = ["shape", "material", "occlusion", "pitch", "viewpoint"]
 
 
 wildcard_constraints:

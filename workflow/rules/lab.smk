@@ -137,6 +137,8 @@ rule lab_qa:
         shards=[f"{LAB}/ingest/{t}/shard.npz" for t in lab_takes()],
         ingest_masks=[f"{LAB}/ingest/{t}/masks.npz" for t in lab_takes()],
         model=f"{TRAIN}/plain/model.ts",
+        # also scored on the takes, where configured: the camera model
+        others=list(eval_models("camera").values()),
     output:
         takes=f"{LAB}/qa.csv",
         frames=f"{LAB}/qa_frames.csv",
@@ -144,6 +146,7 @@ rule lab_qa:
         figure=f"{LAB}/qa.png",
     params:
         size=config["train"]["input_size"],
+        others=list(eval_models("camera")),
     log:
         f"{RESULTS}/logs/lab/qa.log",
     benchmark:

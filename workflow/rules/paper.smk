@@ -88,7 +88,7 @@ rule figure_occlusion:
 
 rule figure_viewpoint:
     input:
-        metrics=f"{EVALUATE}/pitch/metrics.json",
+        metrics=f"{EVALUATE}/viewpoint/metrics.json",
     output:
         pdf=report(f"{PAPER}/figures/viewpoint.pdf", caption="../report/viewpoint.rst", category="Paper"),
         png=f"{PAPER}/figures/viewpoint.png",

@@ -1,7 +1,8 @@
 # Render + dataset stage: one job per rendered view renders every FEA frame (camera
 # image + log-stress maps), segments the camera image and writes the view's shard
 # in the same pass; only render.files_per_scene frames are also written as PNG + EXR
-# (figures, inspection) next to index.json.
+# (figures, inspection) next to index.json. A training scene's front view also gets
+# every frame seen by its randomised perspective camera (render.camera_views).
 
 
 rule render_scene:
@@ -15,6 +16,8 @@ rule render_scene:
         dataset=section("dataset", keys=SHARD_KEYS),
         extrusion_mm=config["finger"]["extrusion_mm"],
         scene=shard_scene_params,
+        camera_views=scene_camera_views,
+        base_width_mm=config["finger"]["base_width_mm"],
     log:
         f"{RESULTS}/logs/render/{{object}}_{{material}}_h{{height}}_p{{pitch}}.log",
     benchmark:
@@ -44,3 +47,27 @@ rule render_benchmark:
         "../../envs/finray.yaml"
     script:
         "../scripts/render_benchmark.py"
+
+
+rule viewpoint_render:
+    # The viewpoint experiment's test frames: pyvista perspective renders of a held-out
+    # scene at every pitch and distance (independent of the training views' raster).
+    input:
+        result=f"{FEA}/{{object}}/{{material}}/h{{height}}/result.npz",
+    output:
+        index=f"{RENDER}/viewpoint/{{object}}/{{material}}/h{{height}}/index.json",
+    params:
+        render=render_params(),
+        view=section("evaluate")["viewpoint"],
+        pitches=series_pitches(),
+        extrusion_mm=config["finger"]["extrusion_mm"],
+        scene=render_scene_params,
+    log:
+        f"{RESULTS}/logs/render/viewpoint_{{object}}_{{material}}_h{{height}}.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/render/viewpoint_{{object}}_{{material}}_h{{height}}.tsv"
+    threads: 1
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/viewpoint_render.py"

@@ -18,7 +18,8 @@ rule train_model:
     params:
         train=section("train", drop=("models",)),
         augment=model_augment,
-        dataset=section("dataset", keys=SEGMENT_KEYS + ("crop_x_mm", "crop_y_mm", "occlusion_levels")),
+        dataset=section("dataset", keys=SEGMENT_KEYS + ("crop_x_mm", "crop_y_mm", "occlusion_levels",
+                                                        "base_band")),
         render=section("render", keys=("window_y_mm",)),
         finger=section("finger", keys=("extrusion_mm", "base_width_mm")),
     log:

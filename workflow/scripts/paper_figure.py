@@ -22,8 +22,8 @@ with log_to(snakemake.log[0]):
             figures.condition_figure(exp_dir, out, "Occlusion of the held-out shapes",
                                      "occlusion level", example_net="occlusion")
         elif name == "viewpoint":
-            figures.condition_figure(exp_dir, out, "Camera pitch (held-out test object 1)",
-                                     "camera pitch (deg)", snakemake.params.usable_nrmse_pct,
-                                     example_net="pitch")
+            figures.condition_figure(exp_dir, out, "Camera pitch: perspective renders of the "
+                                     "held-out shapes (two distances)", "camera pitch (deg)",
+                                     snakemake.params.usable_nrmse_pct, example_net="camera")
         else:
             raise ValueError(f"unknown figure {name}")

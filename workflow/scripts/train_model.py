@@ -17,6 +17,7 @@ with log_to(snakemake.log[0]):
     occ = {k: tuple(v) for k, v in d["occlusion_levels"].items()}
     preprocess = {"base_width_mm": p.finger["base_width_mm"],
                   "crop_x_mm": d["crop_x_mm"], "crop_y_mm": d["crop_y_mm"],
+                  "base_band": d["base_band"],
                   "segment": {k: d[k] for k in ("threshold", "foreground", "min_object_frac",
                                                 "max_hole_frac", "keep_largest")}}
     train_from_shards(snakemake.input.shards, Path(snakemake.output.model).parent, net, cfg, aug,

@@ -40,6 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..render.camera_views import VIEW_COLUMNS
 from ..render.params import RenderParams
 from ..render.scene import load_render_index, read_render_frame, render_scene
 from .augment import NOISE_LEVELS, OCCLUSION_LEVELS
@@ -53,7 +54,7 @@ MANIFEST_COLUMNS = ["shard", "scene_id", "object", "material", "height_mm", "spl
 #: :class:`DatasetParams` is for the test-time corruptions and figures. A shard records
 #: these only, and the workflow re-renders when one of them changes.
 SHARD_KEYS = ("sizes", "crop_x_mm", "crop_y_mm", "threshold", "foreground", "min_object_frac",
-              "max_hole_frac", "keep_largest")
+              "max_hole_frac", "keep_largest", "base_band")
 
 
 @dataclass(frozen=True)
@@ -70,6 +71,10 @@ class DatasetParams:
     min_object_frac: float = 1e-3
     max_hole_frac: float = 2e-4
     keep_largest: bool = True
+    #: The base-anchored crop of camera frames (camera views, the predictor): the base is
+    #: the widest row among the lowest ``base_band`` of the mask's height (a rolled or
+    #: pitched camera slants its bottom edge over several rows).
+    base_band: float = 0.03
     noise_levels: tuple[tuple[str, float], ...] = tuple(NOISE_LEVELS.items())
     occlusion_levels: tuple[tuple[str, tuple[float, float]], ...] = tuple(OCCLUSION_LEVELS.items())
     occluder_value: float = 0.0
@@ -252,9 +257,10 @@ def _scene_of(index: dict, scene: dict | None) -> dict:
 
 
 def _write_shard(out_npz, index: dict, prep: FramePreparer, scene: dict | None,
-                 params: DatasetParams, box, render_dir) -> dict:
+                 params: DatasetParams, box, render_dir, extra: dict | None = None) -> dict:
     """Save the stacked frame arrays with the per-frame values and ``meta``; returns meta.
-    ``meta["support_iou_min"]``: the lowest :attr:`FramePreparer.support_iou`."""
+    ``meta["support_iou_min"]``: the lowest :attr:`FramePreparer.support_iou`.
+    ``extra``: ``{"arrays": ..., "meta": ...}`` added to both (the camera views)."""
     fr = index["frames"]
     meta = {
         "scene": _scene_of(index, scene), "sizes": [list(s) for s in params.sizes],
@@ -263,9 +269,11 @@ def _write_shard(out_npz, index: dict, prep: FramePreparer, scene: dict | None,
         "dataset": {k: v for k, v in params.to_dict().items() if k in SHARD_KEYS},
         "n_frames": index["n_frames"],
         "support_iou_min": min(prep.support_iou) if prep.support_iou else None,
+        **((extra or {}).get("meta") or {}),
     }
     arrays = prep.stacked()
     out = dict(arrays)
+    out.update((extra or {}).get("arrays") or {})
     out.update(
         frame=np.array([f["frame"] for f in fr], dtype=np.int32),
         fea_frame=np.array([f["fea_frame"] for f in fr], dtype=np.float64),
@@ -314,7 +322,8 @@ def build_shard(render_dir: str | Path, out_npz: str | Path, scene: dict | None 
 def render_shard(result_npz: str | Path, render_dir: str | Path, out_npz: str | Path,
                  pitch_deg: float = 0.0, *, render_params: RenderParams | None = None,
                  params: DatasetParams | None = None, extrusion_mm: float = 20.0,
-                 scene: dict | None = None) -> dict:
+                 scene: dict | None = None, camera_views=None,
+                 base_width_mm: float = 30.0) -> dict:
     """Render a solver result and build its shard in one pass; returns the shard's ``meta``.
 
     Each frame goes from the renderer straight to :class:`FramePreparer` (the same
@@ -322,15 +331,33 @@ def render_shard(result_npz: str | Path, render_dir: str | Path, out_npz: str | 
     trip through PNG + EXR files); ``render_dir`` receives ``index.json`` and the
     files of the ``render_params.files_per_scene`` frames (figures, inspection).
     The shard equals ``build_shard`` of a render with every frame's files.
+
+    ``camera_views`` (:class:`~finray.render.camera_views.CameraViews`): each frame is
+    also seen by its randomised camera, and the shard gets ``camera_input_HxW`` and
+    ``camera_view`` (:mod:`finray.dataset.camera_views`; ``base_width_mm`` anchors
+    their crop).
     """
     render_params = render_params or RenderParams()
     params = params or DatasetParams()
     box = render_params.box_px(params.crop_x_mm, params.crop_y_mm)
     prep = FramePreparer(render_params.shape, box, params)
+    cams = None
+    if camera_views is not None:
+        from ..render import load_fea_result
+        from .camera_views import CameraViewPreparer
+
+        sid = scene_id({**(scene or {}), "pitch_deg": float(pitch_deg)})
+        cams = CameraViewPreparer(load_fea_result(result_npz).mesh, extrusion_mm, camera_views,
+                                  params, base_width_mm, params.base_band, sid, render_params)
     index = render_scene(result_npz, render_dir, pitch_deg, params=render_params,
                          extrusion_mm=extrusion_mm, scene=scene,
-                         on_frame=lambda k, rgb, maps: prep.add(rgb, maps))
-    return _write_shard(out_npz, index, prep, scene, params, box, render_dir)
+                         on_frame=lambda k, rgb, maps: prep.add(rgb, maps),
+                         on_points=cams.add if cams is not None else None)
+    extra = None
+    if cams is not None:
+        extra = {"arrays": cams.stacked(), "meta": {"camera_views": camera_views.to_dict(),
+                                                    "camera_view_columns": list(VIEW_COLUMNS)}}
+    return _write_shard(out_npz, index, prep, scene, params, box, render_dir, extra)
 
 
 def load_shard(path: str | Path) -> dict:
@@ -355,7 +382,8 @@ FRAME_COLUMNS = ["scene_id", "object", "material", "height_mm", "pitch_deg", "fr
                  "displacement_mm", "fx_N", "fy_N"]
 
 
-def load_frames(shard_paths, size: tuple[int, int], every: int = 1, require_stress: bool = False):
+def load_frames(shard_paths, size: tuple[int, int], every: int = 1, require_stress: bool = False,
+                camera: bool = False):
     """The frames of shards at one input size, in the order given: arrays and a
     per-frame table (the one shard reader of training, evaluation and the studies).
 
@@ -365,7 +393,8 @@ def load_frames(shard_paths, size: tuple[int, int], every: int = 1, require_stre
     Table (pandas): :data:`FRAME_COLUMNS`. ``every``: keep every ``every``-th frame of
     each shard (evenly over the push). Only the arrays of ``size`` are read. A shard
     without a stress map (a lab recording) gives NaN stress, or a ``ValueError`` with
-    ``require_stress``."""
+    ``require_stress``. ``camera``: also ``camera_images`` (N, H, W) uint8, each frame
+    seen by its randomised camera (shards rendered with camera views; ValueError else)."""
     import pandas as pd
 
     k = size_key(size)
@@ -378,6 +407,11 @@ def load_frames(shard_paths, size: tuple[int, int], every: int = 1, require_stre
             sc = meta["scene"]
             x = f[f"input_{k}"][sel]
             arrays["images"].append(x)
+            if camera:
+                if f"camera_input_{k}" not in f.files:
+                    raise ValueError(f"{path} has no camera views (render.camera_views is off "
+                                     "for its scene)")
+                arrays.setdefault("camera_images", []).append(f[f"camera_input_{k}"][sel])
             if meta.get("has_stress", True):
                 arrays["stress"].append(f[f"stress_{k}"][sel])
             elif require_stress:

@@ -33,7 +33,8 @@ import pandas as pd
 from .baseline import RidgeBaseline
 from .camera import PATH_KEYS, camera_test_set, rendered_subset, shared_preprocessing
 from .metrics import force_metrics, force_vector_metrics, stress_metrics
-from ..predict import Predictor
+from ..dataset import scene_id
+from ..predict import FrameError, Predictor
 from .predictions import load_test_set, occlude, predict_images
 
 def _predict_all(images_u8, models: dict[str, Predictor], baseline: RidgeBaseline | None):
@@ -88,11 +89,12 @@ def _variant(row: dict) -> str:
 
 
 def headline_rows(metrics: pd.DataFrame) -> pd.DataFrame:
-    """The rows of the shard path on all frames (every row of a table from before the
-    camera path, which has no ``path`` column)."""
+    """The rows on all test frames: the shard path's, or the camera path's where it is the
+    experiment's only one (viewpoint); every row of a table from before the camera
+    path, which has no ``path`` column."""
     if "path" not in metrics:
         return metrics
-    return metrics[(metrics["path"] == "shard") & (metrics["frames"] == "all")]
+    return metrics[metrics["frames"] == "all"]
 
 
 def _camera_rows(render_indices, nets, base, tab, fr, stress, maps, group_col, cname,
@@ -183,6 +185,95 @@ def run_experiment(out_dir, shard_paths, size, models: dict[str, str], baseline_
     summary = {c: {_variant(r): {k: r[k] for k in r if k not in ID_COLUMNS}
                    for r in rows if r["condition"] == c and r["group"] == "all"}
                for c in conditions}
+    (out_dir / "metrics.json").write_text(json.dumps(summary, indent=1))
+    np.savez_compressed(out_dir / "examples.npz", **{f"{c}/{k}": v for c, d in examples.items()
+                                                     for k, v in d.items()})
+    return metrics
+
+
+def viewpoint_test_set(index_paths, shard_paths, predictor: Predictor, size
+                       ) -> tuple[dict, pd.DataFrame]:
+    """The viewpoint experiment's frames (:func:`finray.render.viewpoint.render_viewpoint`)
+    through ``predictor``'s preprocessing (segment, base-anchored crop, resample), with
+    their targets: the FEA forces of the render index and the front-view stress map
+    and mask of the same frame in the scene's shard (the canonical target). Arrays as
+    :func:`~finray.evaluate.predictions.load_test_set`; the table also has
+    ``distance_mm``."""
+    from ..render.imageio import read_png
+
+    arrays, table = load_test_set(shard_paths, size)
+    row_of = {(sid, int(fr)): i for i, (sid, fr) in enumerate(zip(table["scene_id"], table["frame"]))}
+    images, idx, rows = [], [], []
+    for path in sorted(str(p) for p in index_paths):
+        index = json.loads(Path(path).read_text())
+        sc = dict(index["scene"])
+        sid = scene_id({**sc, "pitch_deg": 0.0})
+        for fr in index["frames"]:
+            key = (sid, fr["frame"])
+            if key not in row_of:
+                raise ValueError(f"viewpoint: frame {fr['frame']} of {sid} is not in the test shards")
+            i = row_of[key]
+            if abs(table.at[i, "fx_N"] - fr["fx_N"]) > 1e-9 * max(1.0, abs(fr["fx_N"])):
+                raise ValueError(f"viewpoint: FEA force of frame {fr['frame']} of {sid} differs between "
+                                 "its render and its shard (renders and shards of different runs)")
+            png = Path(path).parent / fr["image"]
+            try:
+                x = predictor.network_input(predictor.segment(read_png(png)))
+            except FrameError as exc:
+                raise ValueError(f"{png}: {exc}") from None
+            images.append(np.rint(x[0, 0] * 255.0).astype(np.uint8))
+            idx.append(i)
+            rows.append({**{c: table.at[i, c] for c in table.columns}, "pitch_deg": fr["pitch_deg"],
+                         "distance_mm": fr["distance_mm"]})
+    if not rows:
+        raise ValueError("viewpoint: no rendered frames")
+    idx = np.asarray(idx)
+    out = {"images": np.stack(images), "stress": arrays["stress"][idx], "mask": arrays["mask"][idx],
+           "fx_N": arrays["fx_N"][idx]}
+    return out, pd.DataFrame(rows)
+
+
+def run_viewpoint(out_dir, index_paths, shard_paths, size, models: dict[str, str],
+                  baseline_path=None, *, log=print) -> pd.DataFrame:
+    """The viewpoint experiment: every model (and the baseline) on the perspective
+    renders of the held-out scenes, through the predictor's preprocessing; one condition
+    per pitch (named by it), groups by camera distance. Writes what :func:`run_experiment`
+    writes (``path`` camera, ``frames`` all) and returns the metrics table."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    nets = {name: Predictor(path, threads=1, backend="torchscript") for name, path in models.items()}
+    base = RidgeBaseline.load(baseline_path) if baseline_path else None
+    predictors = list(nets) + (["baseline"] if base is not None else [])
+    t0 = time.perf_counter()
+    arrays, table = viewpoint_test_set(index_paths, shard_paths, shared_preprocessing(nets), size)
+    log(f"viewpoint: {len(table)} rendered frames through the predictor in {time.perf_counter() - t0:.1f} s")
+    preds, maps = _predict_all(arrays["images"], nets, base)
+    rows, frames_out, examples = [], [], {}
+    for p in sorted(table["pitch_deg"].unique()):
+        sel = (table["pitch_deg"] == p).to_numpy()
+        cname = f"{p:g}"
+        fr = table[sel].reset_index(drop=True)
+        fr.insert(0, "condition", cname)
+        fr.insert(1, "path", "camera")
+        _add_predictions(fr, {k: v[sel] for k, v in preds.items()})
+        stress = {"true": arrays["stress"][sel], "mask": arrays["mask"][sel],
+                  "pred": {k: v[sel] for k, v in maps.items()}}
+        rows += _metric_rows(fr, "distance_mm", cname, predictors, stress, "camera", "all")
+        frames_out.append(fr)
+        ex = _example_indices(fr, "distance_mm")
+        examples[cname] = {"input": arrays["images"][sel][ex], "stress_true": stress["true"][ex],
+                           "mask": stress["mask"][ex],
+                           **{f"stress_{k}": v[ex] for k, v in stress["pred"].items()},
+                           "label": fr["distance_mm"].to_numpy()[ex].astype(str),
+                           "fx_N": fr["fx_N"].to_numpy()[ex],
+                           **{f"pred_{k}": v[sel][ex, 0] for k, v in preds.items()}}
+    metrics = pd.DataFrame(rows)
+    pd.concat(frames_out, ignore_index=True).to_csv(out_dir / "frames.csv", index=False,
+                                                    float_format="%.6g")
+    metrics.to_csv(out_dir / "metrics.csv", index=False, float_format="%.10g")
+    summary = {c: {_variant(r): {k: r[k] for k in r if k not in ID_COLUMNS}
+                   for r in rows if r["condition"] == c and r["group"] == "all"}
+               for c in examples}
     (out_dir / "metrics.json").write_text(json.dumps(summary, indent=1))
     np.savez_compressed(out_dir / "examples.npz", **{f"{c}/{k}": v for c, d in examples.items()
                                                      for k, v in d.items()})

@@ -83,8 +83,11 @@ def model_forces(shards: dict, model_path, size) -> pd.DataFrame:
     return pd.concat(parts, ignore_index=True)
 
 
-def lab_qa(take_dirs, ingest_dirs, model_path, size, model_name: str = "plain"):
-    """QA of every take: (per-take table, per-frame table, summary dict)."""
+def lab_qa(take_dirs, ingest_dirs, model_path, size, model_name: str = "plain",
+           other_models: dict[str, str] | None = None):
+    """QA of every take: (per-take table, per-frame table, summary dict). ``other_models``
+    (name -> model.ts) are scored on the same frames too: ``summary["other_models"]``
+    and ``pred_<name>_N`` in the per-frame table."""
     rows, frames = [], []
     for take_dir, ingest_dir in zip(take_dirs, ingest_dirs):
         qa, table = take_qa(take_dir, ingest_dir)
@@ -123,6 +126,17 @@ def lab_qa(take_dirs, ingest_dirs, model_path, size, model_name: str = "plain"):
     summary["rest_share_of_squared_error_pct"] = float(100 * sq[rest].sum() / sq.sum()) if sq.sum() > 0 else None
     summary["contact_vs_true"] = (force_metrics(scored.loc[~rest, "true_force_N"], scored.loc[~rest, "pred_N"])
                                   if (~rest).any() else None)
+    summary["other_models"] = {}
+    shards = {q: Path(d) / "shard.npz" for q, d in zip(per_take["take"], ingest_dirs)}
+    for name, path in (other_models or {}).items():
+        pred = model_forces(shards, path, size).rename(columns={"pred_N": f"pred_{name}_N"})
+        per_frame = per_frame.merge(pred, on=["take", "frame"], how="left")
+        sc = per_frame.dropna(subset=[f"pred_{name}_N", "sensor_label_N"])
+        r = sc["true_force_N"] < 0.01 * sc["true_force_N"].max()
+        summary["other_models"][name] = {
+            "force_vs_sensor": force_metrics(sc["sensor_label_N"], sc[f"pred_{name}_N"]),
+            "force_vs_true": force_metrics(sc["true_force_N"], sc[f"pred_{name}_N"]),
+            "rest_pred_mean_N": float(sc.loc[r, f"pred_{name}_N"].mean()) if r.any() else None}
     return per_take, per_frame, summary
 
 

@@ -74,7 +74,8 @@ def setup_summary(cfg: dict) -> dict:
             "base_channels": cfg["train"]["base_channels"],
             "batch_size": cfg["train"]["batch_size"],
             "alpha_stress": cfg["train"]["alpha_stress"], "alpha_force": cfg["train"]["alpha_force"],
-            "occlusion_levels": {k: list(v) for k, v in cfg["dataset"]["occlusion_levels"].items()}}
+            "occlusion_levels": {k: list(v) for k, v in cfg["dataset"]["occlusion_levels"].items()},
+            "viewpoint": cfg["evaluate"]["viewpoint"], "camera_views": cfg["render"]["camera_views"]}
 
 
 def fea_checks(fea_scenes_csv) -> dict:
@@ -166,6 +167,37 @@ def training_summary(h: dict, manifest_csv=None) -> dict:
             "step_cpu_ms": h.get("step_cpu_ms"), "cpu": h.get("cpu", "")}
 
 
+def viewpoint_summary(exp_dir, usable_nrmse_pct: float) -> dict:
+    """The viewpoint experiment (perspective renders through the predictor): per
+    predictor, the largest pitch up to which the force NRMSE stays within the threshold
+    (over both distances, and per distance) and the NRMSE at every pitch (all frames and
+    per distance), the largest pitch at which each is within it, and the distances."""
+    m = headline_rows(pd.read_csv(Path(exp_dir) / "metrics.csv"))
+    m = m.assign(group=m["group"].astype(str))
+    groups = [g for g in dict.fromkeys(m["group"]) if g != "all"]
+
+    def usable(df, p):
+        return usable_range(df.assign(group="all"), p, usable_nrmse_pct)
+
+    first = m[m["group"] == "all"].iloc[0]
+    out = {"threshold_pct": usable_nrmse_pct, "n_frames_per_pitch": int(first["n"]),
+           "distances_mm": [float(g) for g in groups], "usable_deg": {}, "usable_deg_by_distance": {},
+           "nrmse_pct": {}, "nrmse_pct_by_distance": {}, "fy_nrmse_pct": {}}
+    for p, g in m.groupby("predictor", sort=False):
+        allg = g[g["group"] == "all"]
+        out["usable_deg"][p] = usable(allg, p)
+        out["nrmse_pct"][p] = {f"{float(c):g}": float(v) for c, v in zip(allg["condition"], allg["nrmse_pct"])}
+        if "fy_nrmse_pct" in allg and allg["fy_nrmse_pct"].notna().all():
+            out["fy_nrmse_pct"][p] = {f"{float(c):g}": float(v)
+                                      for c, v in zip(allg["condition"], allg["fy_nrmse_pct"])}
+        out["usable_deg_by_distance"][p] = {d: usable(g[g["group"] == d], p) for d in groups}
+        out["nrmse_pct_by_distance"][p] = {
+            d: {f"{float(c):g}": float(v) for c, v in zip(g.loc[g["group"] == d, "condition"],
+                                                         g.loc[g["group"] == d, "nrmse_pct"])}
+            for d in groups}
+    return out
+
+
 def lab_summary(qa_json, qa_csv, lab_setup: dict) -> dict:
     """The emulated lab takes (:mod:`finray.evaluate.lab_takes`): the QA over all takes,
     one record per take, and the emulator's set-up (``lab`` config, less the scene)."""
@@ -200,6 +232,15 @@ def build_summary(evaluate_dir, experiments, baseline_fit, speed_json, fea_paret
                                       for p, g in pitched.groupby("predictor")}
         checks = json.loads((evaluate_dir / "pitch" / "checks.json").read_text())
         s["pitch_augmentation_iou"] = checks.get("augmentation_iou", {})
+    if "viewpoint" in experiments:
+        s["viewpoint"] = viewpoint_summary(evaluate_dir / "viewpoint", usable_nrmse_pct)
+    for e in ("shape", "material"):  # the camera model on front views, against the plain one
+        node = s["experiments"].get(e, {}).get("all", {})
+        if "camera" in node and "plain" in node:
+            s.setdefault("camera_model", {})[e] = {
+                "plain_nrmse_pct": node["plain"]["all"]["nrmse_pct"],
+                "camera_nrmse_pct": node["camera"]["all"]["nrmse_pct"],
+                "loss_pp": node["camera"]["all"]["nrmse_pct"] - node["plain"]["all"]["nrmse_pct"]}
     fit = json.loads(Path(baseline_fit).read_text())
     s["baseline"] = {"method": "ridge regression on the front-edge profile",
                      "alpha": fit["alpha"], "n_features": fit["n_features"],
@@ -224,6 +265,9 @@ def build_summary(evaluate_dir, experiments, baseline_fit, speed_json, fea_paret
 NAMED = [("experiments", "*"), ("experiments", "*", "*", "*", "groups"),
          ("experiments", "*", "*", "*", "*", "groups"),  # camera / shard_rendered groups
          ("speed", "fea_seconds_per_scene"), ("speed", "stages"), ("speed", "studies"), ("pitch_augmentation_iou",),
+         ("viewpoint", "usable_deg_by_distance", "*"), ("viewpoint", "nrmse_pct", "*"),
+         ("viewpoint", "nrmse_pct_by_distance", "*"), ("viewpoint", "nrmse_pct_by_distance", "*", "*"),
+         ("viewpoint", "fy_nrmse_pct", "*"),
          ("setup", "occlusion_levels")]
 
 

@@ -111,6 +111,7 @@ def render_scene(result_npz: str | Path, out_dir: str | Path, pitch_deg: float =
                  backend: str = "auto", draw_object: bool = False,
                  scene: dict | None = None,
                  on_frame: Callable[[int, np.ndarray, dict], None] | None = None,
+                 on_points: Callable[[int, np.ndarray], None] | None = None,
                  log_every_s: float = 30.0) -> dict:
     """Render all frames of a solver result into ``out_dir``; returns the index.
 
@@ -119,7 +120,8 @@ def render_scene(result_npz: str | Path, out_dir: str | Path, pitch_deg: float =
     The PNG + EXR files are written for ``params.written_frames`` (all by default;
     frame files of an earlier render in ``out_dir`` are removed first);
     ``on_frame(k, rgb, maps)``, if given, receives every frame in memory, in order
-    (``rgb, maps`` as :meth:`SceneRenderer.frame` returns them).
+    (``rgb, maps`` as :meth:`SceneRenderer.frame` returns them); ``on_points(k, points)``,
+    if given, every frame's deformed nodes (N, 2) mm (the camera views).
     ``scene`` (object, material, height_mm, split, ...) is copied into the index.
     ``draw_object`` draws the pushing object (figures only; never for training).
     A progress line (frame k/n, travel mm, elapsed s) goes to the ``finray.render``
@@ -153,6 +155,8 @@ def render_scene(result_npz: str | Path, out_dir: str | Path, pitch_deg: float =
                 write_exr(out_dir / _stress_name(k), maps, dict(exr_meta, frame=k))
             if on_frame is not None:
                 on_frame(k, rgb, maps)
+            if on_points is not None:
+                on_points(k, res.deformed_points(k))
             frames.append({
                 "frame": k, "fea_frame": float(res.fea_frame[k]),
                 "displacement_mm": float(res.displacement_mm[k]),
