@@ -43,10 +43,10 @@ def experiment_summary(exp_dir) -> dict:
 def camera_agreement(exp_dir) -> dict:
     """How far the camera path's forces are from the shard path's on the same frames
     (``frames.csv``): ``{condition: {predictor: {"n_frames", "max_abs_diff_N",
-    "rms_diff_N"}}}``; empty where the camera path did not run."""
+    "rms_diff_N"}}}``; empty where the camera path did not run, or ran alone."""
     f = pd.read_csv(Path(exp_dir) / "frames.csv")
-    if "path" not in f or not (f["path"] == "camera").any():
-        return {}
+    if "path" not in f or not (f["path"] == "camera").any() or not (f["path"] == "shard").any():
+        return {}  # no camera path, or no shard path beside it (viewpoint)
     key = [f.columns[0], "scene_id", "frame"]  # condition, scene, frame
     cam = f[f["path"] == "camera"]
     both = cam.merge(f[f["path"] == "shard"], on=key, suffixes=("_camera", "_shard"),
