@@ -61,15 +61,17 @@ _LAB_GEOMETRY = {"lab_finger", "lab_object"}  # the emulated rig's as-built fing
 _GEOMETRY = {"geometry_finger", "geometry_object"} | _STUDIES | _LAB_GEOMETRY  # the finger's shape
 _RENDER = {"render_scene", "render_benchmark"}
 _SEGMENT = _RENDER | {"dataset_examples", "train_model"}  # crop and segmentation
+#: what renders with the render settings: also the viewpoint experiment's perspective renders
+_RENDERS = _RENDER | {"viewpoint_render"}
 #: what lists every scene or every training shard (a new or moved scene changes its input)
 _LISTS = {"fea_figures", "dataset_manifest", "evaluate_baseline", "train_model", "train_pareto",
           "inference_latency"}
 READERS: list[tuple[str, set[str]]] = [
     ("finger.material", _GEOMETRY | {"fea_scene", "summary", "lab_fea"}),
-    ("finger.extrusion_mm", _GEOMETRY | _RENDER | {"fea_scene", "train_model",
+    ("finger.extrusion_mm", _GEOMETRY | _RENDERS | {"fea_scene", "train_model",
                                                    "evaluate_experiment", "summary",
                                                    "lab_fea", "lab_take"}),
-    ("finger.base_width_mm", _GEOMETRY | {"train_model", "lab_ingest"}),
+    ("finger.base_width_mm", _GEOMETRY | {"train_model", "lab_ingest", "render_scene"}),
     ("finger.ribs.count", _GEOMETRY | {"summary"}),
     ("finger.ribs.angle_step_deg", _GEOMETRY | {"summary"}),
     ("finger.*", _GEOMETRY),
@@ -77,16 +79,18 @@ READERS: list[tuple[str, set[str]]] = [
     ("mesh.min_angle_deg", _GEOMETRY),
     ("mesh.*", {"geometry_finger", "lab_finger"} | _STUDIES),  # order, arc chords: the finger only
     ("placement.gap_mm", {"geometry_object"} | _STUDIES),
-    ("heights_mm", {"geometry_object", "fea_scene", "render_scene", "geometry_gallery",
+    ("heights_mm", {"geometry_object", "fea_scene", "render_scene", "geometry_gallery", "viewpoint_render",
                     "dataset_examples", "evaluate_experiment", "figure_material_generalisation",
                     "render_benchmark", "summary"} | _LISTS),
     ("fea.friction", {"fea_scene", "summary"} | _STUDIES),
     ("fea.push_mm", {"fea_scene", "summary"} | _STUDIES),
     ("fea.*", {"fea_scene", "lab_fea"} | _STUDIES),  # (friction and push: the lab's own)
     ("render.pitches_deg", {"render_scene", "dataset_manifest", "dataset_examples",
-                            "evaluate_experiment"}),  # the new pitch's view
-    ("render.window_y_mm", _RENDER | {"train_model", "evaluate_experiment"}),  # pitch axis
-    ("render.*", _RENDER),
+                            "evaluate_experiment", "viewpoint_render"}),  # the new pitch's views
+    ("render.window_y_mm", _RENDERS | {"train_model", "evaluate_experiment"}),  # pitch axis
+    # the training scenes' camera views (and the manuscript quotes them)
+    ("render.camera_views.*", {"render_scene", "summary"}),
+    ("render.*", _RENDERS),
     ("dataset.sizes", _RENDER | {"lab_ingest"}),
     ("dataset.crop_y_mm", _SEGMENT | {"evaluate_experiment", "lab_ingest"}),
     ("dataset.crop_x_mm", _SEGMENT | {"lab_ingest"}),
@@ -96,6 +100,7 @@ READERS: list[tuple[str, set[str]]] = [
     ("dataset.occluder_value", {"dataset_examples"}),
     ("dataset.pitch_object", {"render_scene", "render_benchmark", "dataset_manifest",
                               "dataset_examples", "evaluate_experiment"}),
+    ("dataset.base_band", _RENDER | {"train_model"}),  # camera views' crop, the predictor's
     ("dataset.*", _SEGMENT),
     ("train.input_size", {"train_model", "train_pareto", "evaluate_baseline",
                           "evaluate_experiment", "summary", "lab_qa"}),
@@ -105,9 +110,11 @@ READERS: list[tuple[str, set[str]]] = [
     ("train.lr", {"train_model"}),
     ("train.alpha_*", {"train_model", "summary"}),  # the manuscript states the loss
     ("train.batch_size", {"train_model", "train_pareto", "summary"}),
+    ("train.forces", {"train_model"}),
     ("train.*", {"train_model", "train_pareto"}),
     ("evaluate.seed", {"evaluate_baseline", "evaluate_experiment"}),
     ("evaluate.usable_nrmse_pct", {"figure_viewpoint", "summary"}),
+    ("evaluate.viewpoint.*", {"viewpoint_render", "summary"}),
     ("benchmarks.fea_*", _STUDIES),
     ("benchmarks.latency_model", {"inference_latency"}),
     ("benchmarks.latency_frames", {"inference_latency", "train_pareto"}),

@@ -34,7 +34,7 @@ class CameraViewPreparer:
                  look=None):
         from ..render.params import RenderParams
 
-        self.raster = PerspectiveRaster(mesh, extrusion_mm, views.supersample)
+        self.raster = PerspectiveRaster(mesh, extrusion_mm, views.supersample, corners_only=True)
         self.look = look or RenderParams()  # colours and light
         self.views, self.params, self.scene_id = views, params, scene_id
         self.base_width_mm, self.base_band = float(base_width_mm), float(base_band)

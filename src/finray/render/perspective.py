@@ -1,5 +1,7 @@
-"""Coverage of the extruded finger seen through a pinhole camera (numba), the fast
-counterpart of :class:`~finray.render.pvrender.PyVistaPerspective` for training views.
+"""The extruded finger seen through a pinhole camera (numba), the fast counterpart of
+:class:`~finray.render.pvrender.PyVistaPerspective` for the training views:
+:meth:`PerspectiveRaster.coverage` (the silhouette) and :meth:`PerspectiveRaster.image`
+(the shaded image, what the camera views segment).
 
 The closed, outward-oriented surface of :func:`~finray.geometry.surface.extrude` is
 deformed per frame (front and back caps, side walls), its vertices are projected with
@@ -17,6 +19,12 @@ camera-facing triangle (edge functions, inclusive; the two triangles sharing an 
 get exactly opposite edge values, so a sample on it is in at least one: no cracks),
 and a pixel's coverage is its count of set samples / supersample^2. The work is
 confined to the smallest pixel window holding the projected surface.
+
+The image adds what segmentation sees: a depth test per sample (1/z interpolated, which
+is exact under perspective) keeps the nearest camera-facing face, flat-shaded by the
+headlight as VTK shades it, so side walls seen at a grazing angle are darker than the
+front face and a threshold cuts them where it cuts them in a pyvista render
+(``tests/test_perspective.py`` compares the two pixel for pixel and after segmentation).
 """
 from __future__ import annotations
 
@@ -188,9 +196,20 @@ def _colour_kernel(owner, ss, face_rgb, bg, out):
 class PerspectiveRaster:
     """Coverage of one finger mesh, extruded, through any pinhole camera (reuse per job)."""
 
-    def __init__(self, mesh: TriMesh, extrusion_mm: float = 20.0, supersample: int = 3):
+    def __init__(self, mesh: TriMesh, extrusion_mm: float = 20.0, supersample: int = 3,
+                 corners_only: bool = False):
+        """``corners_only``: quadratic elements drawn as their corner triangles (and the
+        boundary as chords between corner nodes): a fourth of the triangles; a rib's
+        mid-side node lies off the chord by ~chord^2 / (8 R), microns for 1 mm elements,
+        far below a camera pixel (the camera views use it; tests/test_perspective.py
+        checks the silhouettes against pyvista's full surface)."""
         if int(supersample) < 1:
             raise ValueError(f"supersample must be >= 1, got {supersample}")
+        if corners_only and mesh.order == 2:
+            be = mesh.boundary_edges
+            mesh = TriMesh(mesh.points, mesh.triangles[:, :3],
+                           np.column_stack([be[:, 0], be[:, 1], np.full(len(be), -1)]),
+                           mesh.boundary_tags)
         self.surface = extrude(mesh, extrusion_mm)
         self.faces = np.ascontiguousarray(self.surface.faces, dtype=np.int64)
         self.n_nodes = len(mesh.points)
@@ -203,32 +222,13 @@ class PerspectiveRaster:
         the smallest pixel window holding the whole projected surface plus a 1 px margin,
         not clipped to the camera's frame; ``(row0, col0)`` is the window's top-left
         pixel in the camera's pixel grid (may be negative or beyond the frame)."""
-        points2d = np.asarray(points2d, dtype=np.float64)
-        if points2d.shape != (self.n_nodes, 2):
-            raise ValueError(f"expected {self.n_nodes} nodes (N, 2), got shape {points2d.shape}")
-        pc = camera.to_camera(self.surface.deformed(points2d))
-        z = pc[:, 2]
-        if not z.min() > 0.0:
-            raise ValueError(f"the finger reaches behind the camera (nearest point {z.min():.1f} mm "
-                             "along its axis); move the camera away")
-        u = camera.fx * pc[:, 0] / z + camera.cx
-        v = camera.fy * pc[:, 1] / z + camera.cy
-        # pixel (i, j) spans u in [j - 0.5, j + 0.5): the pixels holding the extremes, +1
-        col0, col1 = int(np.floor(u.min() + 0.5)) - 1, int(np.floor(u.max() + 0.5)) + 1
-        row0, row1 = int(np.floor(v.min() + 0.5)) - 1, int(np.floor(v.max() + 0.5)) + 1
-        h, w = row1 - row0 + 1, col1 - col0 + 1
+        _, _, su, sv, (row0, col0, h, w) = self._window(points2d, camera)
         ss = self.supersample
         n = h * w * ss * ss
-        if n > MAX_SAMPLES:
-            raise ValueError(f"the finger spans {h} x {w} px in this camera's view "
-                             f"(over {MAX_SAMPLES} samples at supersample {ss}); move the camera away")
         if self._buf.size < n:
             self._buf = np.zeros(n, dtype=np.uint8)
         buf = self._buf[:n].reshape(h * ss, w * ss)
         buf.fill(0)
-        # sample k of pixel j is at u = j - 0.5 + (k + 0.5) / ss: sample index j ss + k
-        su = (u - col0 + 0.5) * ss - 0.5
-        sv = (v - row0 + 0.5) * ss - 0.5
         _cover_kernel(su, sv, self.faces, buf)
         cov = np.empty((h, w), dtype=np.float32)
         _count_kernel(buf, ss, cov)
