@@ -3,8 +3,8 @@
 Loss (the paper's eq. 1): ``alpha_stress * MSE(stress) + alpha_force * MSE(force)``,
 each force component (``fx`` along the push, ``fy`` across it, as the paper's two-output
 head) normalised by the training set's mean and standard deviation (stored in the
-model, so that its outputs are in N), the MSE taken over the components. Adam, seeded and deterministic: two runs with
-the same data and seed give identical losses.
+model, so that its outputs are in N), the MSE taken over the components. Adam, seeded
+and deterministic: two runs with the same data and seed give identical losses.
 
 Speed on the CPU: ``channels_last`` memory, one intra-op thread per job when other jobs
 share the machine, and ``bfloat16`` autocast only where the CPU runs it natively
@@ -367,7 +367,7 @@ def export_torchscript(model: FinRayNet, path: str | Path, preprocess: dict | No
         ts = torch.jit.trace_module(model, {"forward": example, "force": example})
         ts = torch.jit.freeze(ts, preserved_attrs=["force"])
     ts.save(str(path))
-    names = list(forces or [FORCE_COMPONENTS[c] for c in list(FORCE_COMPONENTS)[:c.n_forces]])
+    names = list(forces or list(FORCE_COMPONENTS.values())[:c.n_forces])
     if len(names) != c.n_forces:
         raise ValueError(f"{len(names)} force names for a model with {c.n_forces} force outputs")
     Path(str(path) + ".json").write_text(json.dumps({**model.config_dict(), "forces": names,
@@ -419,6 +419,7 @@ def force_onnx_path(path: str | Path) -> Path:
 #: Force components a model can predict -> the shards' per-frame arrays (N): along the
 #: push (the FEA's x, the headline force) and across it (y, friction).
 FORCE_COMPONENTS = {"fx": "fx_N", "fy": "fy_N"}
+
 
 def load_split(shards, size: tuple[int, int], every: int = 1,
                forces: tuple[str, ...] = ("fx",), camera: bool = False) -> dict[str, np.ndarray]:

@@ -25,6 +25,9 @@ is exact under perspective) keeps the nearest camera-facing face, flat-shaded by
 headlight as VTK shades it, so side walls seen at a grazing angle are darker than the
 front face and a threshold cuts them where it cuts them in a pyvista render
 (``tests/test_perspective.py`` compares the two pixel for pixel and after segmentation).
+Camera-facing walls overlap often (a rib's top face behind the outer wall at a pitch):
+painting them in any order without the depth test shades a fifth of a pitched view's
+pixels wrongly.
 """
 from __future__ import annotations
 
@@ -168,8 +171,8 @@ def _face_colours(pts, faces, fwd, rgb, ambient, diffuse, out):
 
 @nb.njit(cache=True)
 def _colour_kernel(owner, ss, face_rgb, bg, out):
-    """out (h, w, 3) = mean over each pixel's ss x ss samples of its owner face's colour
-    (the background's where none)."""
+    """out (h, w, 3) uint8 = mean over each pixel's ss x ss samples of its owner face's
+    colour (the background's where none), rounded."""
     h, w = out.shape[:2]
     inv = 1.0 / (ss * ss)
     for r in range(h):
@@ -188,9 +191,9 @@ def _colour_kernel(owner, ss, face_rgb, bg, out):
                         s0 += face_rgb[t, 0]
                         s1 += face_rgb[t, 1]
                         s2 += face_rgb[t, 2]
-            out[r, q, 0] = s0 * inv
-            out[r, q, 1] = s1 * inv
-            out[r, q, 2] = s2 * inv
+            out[r, q, 0] = np.uint8(min(np.rint(s0 * inv), 255.0))
+            out[r, q, 1] = np.uint8(min(np.rint(s1 * inv), 255.0))
+            out[r, q, 2] = np.uint8(min(np.rint(s2 * inv), 255.0))
 
 
 class PerspectiveRaster:
@@ -260,13 +263,13 @@ class PerspectiveRaster:
 
     def image(self, points2d: np.ndarray, camera: PinholeCamera, params) -> tuple[np.ndarray, tuple[int, int]]:
         """``(rgb, (row0, col0))``: the finger as :class:`~finray.render.pvrender.PyVistaPerspective`
-        draws it, over the window of :meth:`coverage`: a depth test per sample (the
-        nearest camera-facing face), each face flat-shaded by the headlight of
-        :class:`~finray.render.params.RenderParams` (``finger_rgb`` x (``ambient`` +
-        ``diffuse`` x cos of the angle between its normal and the view direction),
-        8-bit), the background ``background_rgb``, area-averaged over the samples:
-        (h, w, 3) uint8, so that :func:`~finray.dataset.imageops.segment` meets the
-        grey levels (side walls seen at a grazing angle darker) of a render."""
+        draws it, over the window of :meth:`coverage`, (h, w, 3) uint8: at each sample
+        the nearest camera-facing face (a depth test), flat-shaded by the
+        headlight of :class:`~finray.render.params.RenderParams` (``finger_rgb`` x
+        (``ambient`` + ``diffuse`` x cos of the angle between its normal and the view
+        direction), 8-bit), the background ``background_rgb``, area-averaged over the
+        samples; so that :func:`~finray.dataset.imageops.segment` meets the grey levels
+        of a render (side walls seen at a grazing angle darker than the front face)."""
         from .raster import to_uint8
 
         pts, z, su, sv, (row0, col0, h, w) = self._window(points2d, camera)
@@ -280,9 +283,9 @@ class PerspectiveRaster:
                       np.asarray(params.finger_rgb, dtype=np.float64), float(params.ambient),
                       float(params.diffuse), face_rgb)
         bg = to_uint8(np.asarray(params.background_rgb)).astype(np.float64)
-        out = np.empty((h, w, 3), dtype=np.float64)
+        out = np.empty((h, w, 3), dtype=np.uint8)
         _colour_kernel(owner, ss, face_rgb, bg, out)
-        return np.clip(np.rint(out), 0, 255).astype(np.uint8), (row0, col0)
+        return out, (row0, col0)
 
     def frame_coverage(self, points2d: np.ndarray, camera: PinholeCamera) -> np.ndarray:
         """The coverage placed in the camera's full frame (camera.height, camera.width)
