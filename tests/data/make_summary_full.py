@@ -19,7 +19,7 @@ from finray.evaluate.summary import build_summary, lab_summary
 from finray.fea.figures import scene_table
 
 ROOT = Path(__file__).resolve().parents[2]
-EXPERIMENTS = ["shape", "material", "occlusion", "pitch"]
+EXPERIMENTS = ["shape", "material", "occlusion", "pitch", "viewpoint"]  # evaluate.smk's
 
 
 def main() -> None:
