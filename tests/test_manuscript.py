@@ -91,6 +91,14 @@ def test_manuscript_renders_from_the_full_summary():
     assert "is **emulated**" in text and "the takes below are not recordings" in text
     ratio = q["force_vs_sensor"]["mse_N2"] / 0.092
     assert f"{ratio:.1f} times larger than the paper's\n0.092 N² on its real takes" in text
+    # the viewpoint experiment on perspective renders: each model's reach, from the summary
+    v = FULL["viewpoint"]
+    for key, name in (("plain", "CNN, front views"), ("camera", "CNN, camera views")):
+        u = v["usable_deg"][key]
+        assert f"- {name}: " + ("at no pitch" if u is None else f"up to {u:g}°") in text
+    c = FULL["camera_model"]["shape"]
+    assert (f"{'loses' if c['loss_pp'] > 0 else 'gains'} {abs(c['loss_pp']):.2f} percentage points "
+            "on the shape test") in text
 
 
 def test_the_words_turn_with_the_numbers():
@@ -103,7 +111,11 @@ def test_the_words_turn_with_the_numbers():
     s["pitch_augmentation_iou"]["5"]["iou_front_view_mean"] = 0.95
     occ = s["experiments"]["occlusion"]
     occ["low"]["baseline"]["all"]["nrmse_pct"] = occ["none"]["baseline"]["all"]["nrmse_pct"]
+    s["camera_model"]["shape"]["loss_pp"] = -0.3
+    s["viewpoint"]["nrmse_pct"]["plain"]["0"] = 4.0  # within the threshold: no "Even at 0°"
     text = render(s)
+    assert "gains 0.30 percentage points on the shape test" in text
+    assert "Even at 0°" not in text and "Even at 0°" in render(FULL)
     assert "3.0 times larger than\nthe baseline's" in text
     assert "above the paper's range" in text
     assert "up to 20°, beyond the paper's network" in text
