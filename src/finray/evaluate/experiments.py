@@ -121,6 +121,23 @@ def _camera_rows(render_indices, nets, base, tab, fr, stress, maps, group_col, c
     return rows
 
 
+def _write_outputs(out_dir: Path, rows: list[dict], frames_out: list[pd.DataFrame],
+                   examples: dict) -> pd.DataFrame:
+    """Write ``frames.csv``, ``metrics.csv``, ``metrics.json`` (per condition, in the
+    order of ``examples``) and ``examples.npz``; returns the metrics table."""
+    metrics = pd.DataFrame(rows)
+    pd.concat(frames_out, ignore_index=True).to_csv(out_dir / "frames.csv", index=False,
+                                                    float_format="%.6g")
+    metrics.to_csv(out_dir / "metrics.csv", index=False, float_format="%.10g")
+    summary = {c: {_variant(r): {k: r[k] for k in r if k not in ID_COLUMNS}
+                   for r in rows if r["condition"] == c and r["group"] == "all"}
+               for c in examples}
+    (out_dir / "metrics.json").write_text(json.dumps(summary, indent=1))
+    np.savez_compressed(out_dir / "examples.npz", **{f"{c}/{k}": v for c, d in examples.items()
+                                                     for k, v in d.items()})
+    return metrics
+
+
 def _example_indices(table: pd.DataFrame, per: str, n: int = 1) -> np.ndarray:
     """Per value of ``per``: the frame of largest FEA force (where stress shows most)."""
     idx = []
@@ -178,17 +195,7 @@ def run_experiment(out_dir, shard_paths, size, models: dict[str, str], baseline_
                            "label": tab[group_col or "scene_id"].to_numpy()[ex].astype(str),
                            "fx_N": tab["fx_N"].to_numpy()[ex],
                            **{f"pred_{k}": v[ex, 0] for k, v in preds.items()}}
-    metrics = pd.DataFrame(rows)
-    pd.concat(frames_out, ignore_index=True).to_csv(out_dir / "frames.csv", index=False,
-                                                    float_format="%.6g")
-    metrics.to_csv(out_dir / "metrics.csv", index=False, float_format="%.10g")
-    summary = {c: {_variant(r): {k: r[k] for k in r if k not in ID_COLUMNS}
-                   for r in rows if r["condition"] == c and r["group"] == "all"}
-               for c in conditions}
-    (out_dir / "metrics.json").write_text(json.dumps(summary, indent=1))
-    np.savez_compressed(out_dir / "examples.npz", **{f"{c}/{k}": v for c, d in examples.items()
-                                                     for k, v in d.items()})
-    return metrics
+    return _write_outputs(out_dir, rows, frames_out, examples)
 
 
 def viewpoint_test_set(index_paths, shard_paths, predictor: Predictor, size
@@ -267,17 +274,7 @@ def run_viewpoint(out_dir, index_paths, shard_paths, size, models: dict[str, str
                            "label": fr["distance_mm"].to_numpy()[ex].astype(str),
                            "fx_N": fr["fx_N"].to_numpy()[ex],
                            **{f"pred_{k}": v[sel][ex, 0] for k, v in preds.items()}}
-    metrics = pd.DataFrame(rows)
-    pd.concat(frames_out, ignore_index=True).to_csv(out_dir / "frames.csv", index=False,
-                                                    float_format="%.6g")
-    metrics.to_csv(out_dir / "metrics.csv", index=False, float_format="%.10g")
-    summary = {c: {_variant(r): {k: r[k] for k in r if k not in ID_COLUMNS}
-                   for r in rows if r["condition"] == c and r["group"] == "all"}
-               for c in examples}
-    (out_dir / "metrics.json").write_text(json.dumps(summary, indent=1))
-    np.savez_compressed(out_dir / "examples.npz", **{f"{c}/{k}": v for c, d in examples.items()
-                                                     for k, v in d.items()})
-    return metrics
+    return _write_outputs(out_dir, rows, frames_out, examples)
 
 
 def load_examples(path) -> dict[str, dict[str, np.ndarray]]:

@@ -46,6 +46,16 @@ from .raster import _edge_coeffs
 MAX_SAMPLES = 1 << 28
 
 
+@nb.njit(cache=True, inline="always")
+def _sample_box(su, sv, a, b, c, hf, wf):
+    """The samples (x0..x1, y0..y1, inclusive, clipped to the buffer) under triangle abc."""
+    x0 = max(int(math.ceil(min(su[a], su[b], su[c]))), 0)
+    x1 = min(int(math.floor(max(su[a], su[b], su[c]))), wf - 1)
+    y0 = max(int(math.ceil(min(sv[a], sv[b], sv[c]))), 0)
+    y1 = min(int(math.floor(max(sv[a], sv[b], sv[c]))), hf - 1)
+    return x0, x1, y0, y1
+
+
 @nb.njit(cache=True, error_model="numpy")
 def _cover_kernel(su, sv, faces, buf):
     """Set ``buf`` (hf, wf) uint8 to 1 at the samples inside a camera-facing face.
@@ -62,10 +72,7 @@ def _cover_kernel(su, sv, faces, buf):
         area = (su[b] - su[a]) * (sv[c] - sv[a]) - (sv[b] - sv[a]) * (su[c] - su[a])
         if area >= 0.0:  # turned away (or edge-on: it covers nothing)
             continue
-        x0 = max(int(math.ceil(min(su[a], su[b], su[c]))), 0)
-        x1 = min(int(math.floor(max(su[a], su[b], su[c]))), wf - 1)
-        y0 = max(int(math.ceil(min(sv[a], sv[b], sv[c]))), 0)
-        y1 = min(int(math.floor(max(sv[a], sv[b], sv[c]))), hf - 1)
+        x0, x1, y0, y1 = _sample_box(su, sv, a, b, c, hf, wf)
         if x0 > x1 or y0 > y1:
             continue
         b, c = c, b  # positively oriented: inside <=> all three edge values >= 0
@@ -114,10 +121,7 @@ def _depth_kernel(su, sv, inv_z, faces, depth, owner):
         area = (su[b] - su[a]) * (sv[c] - sv[a]) - (sv[b] - sv[a]) * (su[c] - su[a])
         if area >= 0.0:
             continue
-        x0 = max(int(math.ceil(min(su[a], su[b], su[c]))), 0)
-        x1 = min(int(math.floor(max(su[a], su[b], su[c]))), wf - 1)
-        y0 = max(int(math.ceil(min(sv[a], sv[b], sv[c]))), 0)
-        y1 = min(int(math.floor(max(sv[a], sv[b], sv[c]))), hf - 1)
+        x0, x1, y0, y1 = _sample_box(su, sv, a, b, c, hf, wf)
         if x0 > x1 or y0 > y1:
             continue
         b, c = c, b
