@@ -169,9 +169,10 @@ def training_summary(h: dict, manifest_csv=None) -> dict:
 
 def viewpoint_summary(exp_dir, usable_nrmse_pct: float) -> dict:
     """The viewpoint experiment (perspective renders through the predictor): per
-    predictor, the largest pitch up to which the force NRMSE stays within the threshold
-    (over both distances, and per distance) and the NRMSE at every pitch (all frames and
-    per distance), the largest pitch at which each is within it, and the distances."""
+    predictor, the largest pitch up to which the force NRMSE (%) stays within the
+    threshold (over all distances, and per distance; None: not even 0 deg), the NRMSE at
+    every pitch (all frames, per distance) and that of fy; the distances (mm) and the
+    frames per pitch."""
     m = headline_rows(pd.read_csv(Path(exp_dir) / "metrics.csv"))
     m = m.assign(group=m["group"].astype(str))
     groups = [g for g in dict.fromkeys(m["group"]) if g != "all"]
