@@ -9,9 +9,10 @@ import pandas as pd
 from .experiments import headline_rows, load_examples
 
 COLOURS = {"fea": "black", "plain": "tab:blue", "occlusion": "tab:orange", "pitch": "tab:green",
-           "baseline": "tab:gray"}
+           "camera": "tab:purple", "baseline": "tab:gray"}
 LABELS = {"fea": "FEA", "plain": "CNN", "occlusion": "CNN, occlusion-trained",
-          "pitch": "CNN, pitch-augmented", "baseline": "ridge on front edge"}
+          "pitch": "CNN, pitch-augmented", "camera": "CNN, camera views",
+          "baseline": "ridge on front edge"}
 
 
 def _plt():
@@ -178,7 +179,7 @@ def condition_figure(exp_dir, out_pdf, title: str, xlabel: str, threshold_pct: f
     ax.yaxis.set_minor_formatter(NullFormatter())
     ax.set_xlabel(xlabel)
     ax.set_ylabel("force NRMSE (% of max force)")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.005, 1.0))
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     _save(fig, out_pdf)
