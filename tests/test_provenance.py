@@ -65,7 +65,7 @@ _SEGMENT = _RENDER | {"dataset_examples", "train_model"}  # crop and segmentatio
 _RENDERS = _RENDER | {"viewpoint_render"}
 #: what lists every scene or every training shard (a new or moved scene changes its input)
 _LISTS = {"fea_figures", "dataset_manifest", "evaluate_baseline", "train_model", "train_pareto",
-          "inference_latency"}
+          "inference_latency", "sim2real"}
 READERS: list[tuple[str, set[str]]] = [
     ("finger.material", _GEOMETRY | {"fea_scene", "summary", "lab_fea"}),
     ("finger.extrusion_mm", _GEOMETRY | _RENDERS | {"fea_scene", "train_model",
@@ -103,7 +103,7 @@ READERS: list[tuple[str, set[str]]] = [
     ("dataset.base_band", _RENDER | {"train_model"}),  # camera views' crop, the predictor's
     ("dataset.*", _SEGMENT),
     ("train.input_size", {"train_model", "train_pareto", "evaluate_baseline",
-                          "evaluate_experiment", "summary", "lab_qa"}),
+                          "evaluate_experiment", "summary", "lab_qa", "sim2real"}),
     ("train.base_channels", {"train_model", "train_pareto", "summary"}),
     ("train.models.*", {"train_model"}),
     ("train.epochs", {"train_model"}),
@@ -115,6 +115,7 @@ READERS: list[tuple[str, set[str]]] = [
     ("evaluate.seed", {"evaluate_baseline", "evaluate_experiment"}),
     ("evaluate.usable_nrmse_pct", {"figure_viewpoint", "summary"}),
     ("evaluate.viewpoint.*", {"viewpoint_render", "summary"}),
+    ("evaluate.sim2real.*", {"sim2real"}),
     ("benchmarks.fea_*", _STUDIES),
     ("benchmarks.latency_model", {"inference_latency"}),
     ("benchmarks.latency_frames", {"inference_latency", "train_pareto"}),
@@ -130,15 +131,16 @@ READERS: list[tuple[str, set[str]]] = [
     ("objects.circle_d10.split", {"fea_scene", "render_scene", "geometry_gallery",
                                   "dataset_examples", "dataset_manifest", "evaluate_baseline",
                                   "evaluate_experiment", "render_benchmark", "train_model",
-                                  "train_pareto", "viewpoint_render"}),  # it becomes the pitch object
+                                  "train_pareto", "viewpoint_render", "sim2real"}),  # it becomes the pitch object
     ("objects.square_s10_a30.split", {"fea_scene", "render_scene", "geometry_gallery",
                                       "evaluate_baseline", "evaluate_experiment", "train_model",
-                                      "train_pareto", "figure_material_generalisation"}),
+                                      "train_pareto", "figure_material_generalisation", "sim2real"}),
     ("objects.ring_d15.split", {"fea_scene", "render_scene", "geometry_gallery",
                                 "evaluate_baseline", "evaluate_experiment", "train_model",
-                                "train_pareto", "figure_material_generalisation"}),
+                                "train_pareto", "figure_material_generalisation", "sim2real"}),
     ("objects.ellipse_16x9.split", {"fea_scene", "render_scene", "geometry_gallery",
-                                    "evaluate_experiment", "figure_material_generalisation"}),
+                                    "evaluate_experiment", "figure_material_generalisation",
+                                    "sim2real"}),
     # its materials: a deformable one meshes the object; new scenes (train objects: in
     # the training lists), removed ones (the lists lose them)
     ("objects.ring_d15.materials", {"geometry_object", "dataset_manifest", "evaluate_experiment",
@@ -146,13 +148,14 @@ READERS: list[tuple[str, set[str]]] = [
                                     "inference_latency"}),
     ("objects.ellipse_16x9.materials", {"geometry_object", "fea_scene", "render_scene",
                                         "dataset_manifest", "evaluate_experiment",
-                                        "fea_figures", "inference_latency", "viewpoint_render"}),
+                                        "fea_figures", "inference_latency", "viewpoint_render",
+                                        "sim2real"}),
     ("objects.*.materials", {"geometry_object", "fea_scene", "render_scene"} | _LISTS),
     ("objects.*", {"geometry_object"}),  # the shape
     # the emulated lab rig: read by the lab's rules only (never by training or predict)
     ("lab.seed", {"lab_take"}),
     ("lab.objects.*", {"lab_object"}),  # the shape
-    ("lab.heights_mm", {"lab_object", "lab_fea", "lab_take", "lab_ingest", "lab_qa"}),
+    ("lab.heights_mm", {"lab_object", "lab_fea", "lab_take", "lab_ingest", "lab_qa", "sim2real"}),
     # (the summary quotes how the takes were emulated: as built, motion, camera, sensor)
     ("lab.as_built.thickness_delta_mm", _LAB_GEOMETRY | {"summary"}),
     ("lab.as_built.*", {"lab_fea", "summary"}),
@@ -192,6 +195,7 @@ NEW_VALUES = {
     "render.px_per_mm": 5.0,
     "render.frames_per_scene": 30,
     "dataset.sizes": [[128, 64], [64, 32], [32, 16]],
+    "evaluate.sim2real.folds": "take",
     "dataset.crop_x_mm": [-4.0, 36.0],
     "dataset.crop_y_mm": [1.0, 81.0],
     "dataset.threshold": "otsu",

@@ -1,4 +1,5 @@
 """The Snakemake DAG on the smoke config: lint, dry run of the full config, a real run."""
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -66,8 +67,6 @@ def test_smoke_geometry_outputs(smoke_run):  # noqa: D103
 
 
 def test_smoke_fea_outputs(smoke_run):
-    import json
-
     cfg = yaml.safe_load((ROOT / "config" / "smoke.yaml").read_text())
     n = 0
     for name, spec in cfg["objects"].items():
@@ -89,8 +88,6 @@ def test_smoke_fea_outputs(smoke_run):
 
 
 def test_smoke_dataset_and_training(smoke_run):
-    import json
-
     import pandas as pd
 
     man = pd.read_csv(smoke_run / "results" / "dataset" / "manifest.csv")
@@ -138,7 +135,6 @@ def test_smoke_renders_are_pixel_aligned(smoke_run):
 def test_smoke_evaluation_summary_and_paper(smoke_run):
     """Every experiment has its table, figure and headline numbers; the manuscript
     carries the numbers of results/summary.json and no unfilled placeholder."""
-    import json
 
     s = json.loads((smoke_run / "results" / "summary.json").read_text())
     exps = s["experiments"]
@@ -172,7 +168,20 @@ def test_smoke_evaluation_summary_and_paper(smoke_run):
         assert exps[exp]["all"]["plain"]["camera"]["all"]["n"] == cam.loc["plain", "n"]
         assert s["camera_path"][exp]["all"]["plain"]["n_frames"] == cam.loc["plain", "n"]
     assert set(s["speed"]["stages"]) >= {"geometry", "fea", "render", "train", "evaluate"}
-    for name in ("shape_generalisation", "material_generalisation", "occlusion", "viewpoint", "speed"):
+    # sim-to-real on the one emulated take: its halves stand in for objects (0 and 1 context)
+    r = s["sim2real"]
+    assert set(r["by_context"]) == {"0", "1"} and r["emulated"] is True
+    assert [f["context_objects"] for f in r["fits"]] == [0, 1, 1]
+    for f in r["fits"]:
+        d = f["diagnostics"]
+        assert d["steps"] >= d["walkers"] and set(d["tau_steps"]) == {"gain", "offset_N", "log_sigma_N",
+                                                                      "log_rho", "log_kappa"}
+    m = pd.read_csv(smoke_run / "results" / "evaluate" / "sim2real" / "metrics.csv")
+    one = m[(m["context_objects"] == 1) & (m["context"] == "all") & (m["test"] == "all")].iloc[0]
+    assert one["n"] == r["by_context"]["1"]["n_frames"] and 0 <= one["coverage_pct"] <= 100
+    assert (smoke_run / "results" / "evaluate" / "sim2real" / "corner.pdf").stat().st_size > 1000
+    for name in ("shape_generalisation", "material_generalisation", "occlusion", "viewpoint", "speed",
+                 "sim2real"):
         for ext in ("pdf", "png"):
             assert (smoke_run / "paper" / "figures" / f"{name}.{ext}").stat().st_size > 1000
     html = (smoke_run / "paper" / "manuscript.html").read_text()
@@ -187,6 +196,29 @@ def test_smoke_evaluation_summary_and_paper(smoke_run):
     assert f"{shape['nrmse_pct']:.1f} %" in html
     assert 'src="figures/shape_generalisation.png"' in html
     assert "Through the camera path" in html
+
+
+def test_smoke_calibrate_and_predict_a_take(smoke_run, tmp_path, capsys):
+    """`finray calibrate` on the smoke run's emulated take and `finray predict
+    --calibration` on its video: a force with an interval for every frame."""
+    import pandas as pd
+
+    from finray.cli import main
+
+    take = smoke_run / "results" / "lab" / "cylinder_h30"
+    out = tmp_path / "rig" / "calibration.json"
+    rc = main(["calibrate", str(take), "--model", str(smoke_run / "results" / "train" / "camera" / "model.pt"),
+               "--out", str(out), "--config", str(ROOT / "config" / "smoke.yaml")])
+    assert rc == 0, capsys.readouterr().out[-2000:]
+    cal = json.loads(out.read_text())
+    assert cal["diagnostics"]["ok"] and cal["model"] == "calibration.model.ts"
+    assert (tmp_path / "rig" / "calibration.corner.png").stat().st_size > 1000
+    rc = main(["predict", "--calibration", str(out), str(take / "take.mp4"), "--out", str(tmp_path / "pred"),
+               "--force-only"])
+    assert rc == 0
+    f = pd.read_csv(tmp_path / "pred" / "forces.csv")
+    shard = pd.read_csv(smoke_run / "results" / "lab" / "ingest" / "cylinder_h30" / "frames.csv")
+    assert len(f) == len(shard) and (f["lo_N"] <= f["force_N"]).all() and (f["force_N"] <= f["hi_N"]).all()
 
 
 def test_one_figure_builds_only_what_it_needs(tmp_path):

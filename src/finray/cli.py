@@ -234,8 +234,12 @@ def _predict_parser(sub) -> None:
     p = sub.add_parser("predict", help="force and stress map from camera images",
                        description=PREDICT_HELP,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--model", type=Path, required=True,
-                   help="exported model (model.ts, with model.ts.json beside it)")
+    p.add_argument("--model", type=Path,
+                   help="exported model (model.ts, with model.ts.json beside it); with "
+                        "--calibration, its adapted model by default")
+    p.add_argument("--calibration", type=Path,
+                   help="calibration.json of finray calibrate: each frame's force also "
+                        "calibrated, with its predictive interval")
     p.add_argument("source", type=Path, help="image, folder of images or video")
     p.add_argument("--out", type=Path, required=True, help="output directory")
     p.add_argument("--threads", type=int, default=1, help="intra-op threads (default 1)")
@@ -253,12 +257,32 @@ def _force_line(row: dict) -> str:
                                        for k, v in row.items() if k != "frame")])
 
 
+def _calibrated_line(row: dict) -> str:
+    """``<frame>\tfx 1.2345 N\tcalibrated 1.30 N [1.10, 1.50] 90 %``."""
+    return (f"{row['frame']}\tfx {row['fx_N']:.4f} N\tcalibrated {row['force_N']:.4f} N "
+            f"[{row['lo_N']:.4f}, {row['hi_N']:.4f}] {100 * row['level']:.0f} %")
+
+
 def _run_predict(args) -> int:
     from .predict import predict_files
 
+    cal = None
+    if args.calibration is not None:
+        from .calibration import read_calibration
+
+        cal = read_calibration(args.calibration)
+        cal_model = args.calibration.parent / cal.get("model", "")
+        if args.model is None:
+            args.model = cal_model
+        elif args.model.resolve() != cal_model.resolve():
+            raise UsageError(f"--model {args.model} is not the model {args.calibration} "
+                             f"calibrates ({cal_model}): leave --model out")
+    if args.model is None:
+        raise UsageError("give --model (or --calibration)")
+    line = _calibrated_line if cal is not None else _force_line
     out = predict_files(args.model, args.source, args.out, args.threads, args.backend,
-                        args.force_only,
-                        on_frame=lambda r: print(_force_line(r), flush=True),
+                        args.force_only, calibration=cal,
+                        on_frame=lambda r: print(line(r), flush=True),
                         on_skip=lambda name, msg: print(f"finray predict: skipped {msg}",
                                                         file=sys.stderr, flush=True))
     if out["skipped"]:
@@ -309,6 +333,65 @@ def _run_ingest(args) -> int:
     return 0
 
 
+CALIBRATE_HELP = """\
+Calibrate a simulation-trained model to a rig from its takes (each a folder as
+finray ingest reads). The takes are ingested, the rig gets its own ensemble of
+force heads on the model's frozen encoder (fitted on every take's frames), and
+the sensor model F_sensor = g F_pred + b + e is sampled with emcee on
+cross-fitted predictions (see finray.calibration). Writes calibration.json
+(posterior samples, summary, convergence diagnostics), the adapted model
+<out>.model.ts that finray predict --calibration runs, <out>.corner.png and the
+ingested takes under <out>.ingest/. Settings: the config's evaluate.sim2real.
+
+example:
+  finray calibrate lab/cylinder_h20 lab/cylinder_h30 --model results/train/camera/model.pt \\
+      --out rig/calibration.json
+  finray predict --calibration rig/calibration.json video.mp4 --out rig/pred --force-only
+"""
+
+
+def _calibrate_parser(sub) -> None:
+    p = sub.add_parser("calibrate", help="fit a model and its force calibration to a rig's takes",
+                       description=CALIBRATE_HELP,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("takes", type=Path, nargs="+", help="take folders (as finray ingest reads)")
+    p.add_argument("--model", type=Path, required=True,
+                   help="the simulation-trained model: model.pt (or its model.ts, beside it)")
+    p.add_argument("--out", type=Path, required=True, help="calibration.json to write")
+    p.add_argument("--config", type=Path, default=None,
+                   help="YAML config (dataset crop, finger base width, evaluate.sim2real; "
+                        "default: config/config.yaml of the source tree)")
+    p.set_defaults(func=_run_calibrate)
+
+
+def _run_calibrate(args) -> int:
+    from .adapt import HeadFit
+    from .calibration import Priors, Sampler, calibrate_takes
+    from .dataset.shards import DatasetParams
+    from .recording import IngestParams
+
+    raw = _raw_config(args.config)
+    d = DatasetParams.from_config(raw.get("dataset"))
+    base = float((raw.get("finger") or {}).get("base_width_mm", 30.0))
+    s2r = (raw.get("evaluate") or {}).get("sim2real") or {}
+    pr = {k: tuple(v) if isinstance(v, list) else v for k, v in (s2r.get("priors") or {}).items()}
+    cal = calibrate_takes(args.takes, args.model, args.out,
+                          IngestParams(sizes=d.sizes, crop_x_mm=d.crop_x_mm, crop_y_mm=d.crop_y_mm,
+                                       base_width_mm=base),
+                          HeadFit(**(s2r.get("heads") or {})), str(s2r.get("folds", "both")),
+                          int(s2r.get("fold_members", 2)), Priors(**pr),
+                          Sampler(**(s2r.get("sampler") or {})), float(s2r.get("level", 0.9)),
+                          log=lambda m: print(m, flush=True))
+    sm, dg = cal["summary"], cal["diagnostics"]
+    for k in ("gain", "offset_N", "sigma_N", "rho", "kappa"):
+        print(f"{k}: {sm[k]['median']:.4g} (95 % {sm[k]['q2.5']:.4g} to {sm[k]['q97.5']:.4g})")
+    print(f"chain: {dg['steps']} steps x {dg['walkers']} walkers, {dg['steps_over_tau_min']:.0f} "
+          f"autocorrelation times, acceptance {dg['acceptance_fraction']['mean']:.2f}"
+          f"{'' if dg['ok'] else ' -- NOT CONVERGED: see diagnostics'}")
+    print(f"wrote {args.out} and {cal['model']}")
+    return 0 if dg["ok"] else 1
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="finray",
@@ -320,6 +403,7 @@ def build_parser() -> argparse.ArgumentParser:
     _simulate_parser(sub)
     _predict_parser(sub)
     _ingest_parser(sub)
+    _calibrate_parser(sub)
     return parser
 
 
@@ -335,10 +419,14 @@ def main(argv: list[str] | None = None) -> int:
         from .predict import InputError
 
         bad_input += (InputError,)
-    if args.command == "ingest":
+    if args.command in ("ingest", "calibrate"):
         from .recording import TakeError
 
         bad_input += (TakeError,)
+    if args.command in ("predict", "calibrate"):
+        from .calibration import CalibrationError
+
+        bad_input += (CalibrationError,)
     try:
         return args.func(args)
     except (ConfigError, GeometryError) as exc:

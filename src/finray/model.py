@@ -106,10 +106,14 @@ class FinRayNet(nn.Module):
     def forward_normalised(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Stress map and force in normalised units (what the loss sees)."""
         h, skips = self.encode(x)
+        return self.decode(h, skips), self.force_head(h)
+
+    def decode(self, h: torch.Tensor, skips: list[torch.Tensor]) -> torch.Tensor:
+        """The log-stress map from the encoder's latent and skip features."""
         y = h
         for step, skip in zip(self.up, reversed(skips)):
             y = step(y, skip)
-        return self.stress_out(y), self.force_head(h)
+        return self.stress_out(y)
 
     def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Stress map (log scale) and force in N."""

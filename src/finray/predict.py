@@ -83,10 +83,15 @@ class Predictor:
         #: the base is the widest row among the lowest base_band of the mask's height
         #: (dataset.base_band; 0, the lowest row, for exports before it)
         self.base_band = float(pre.get("base_band", 0.0))
+        #: Heads of an adapted ensemble (:mod:`finray.adapt`; 0: a single network).
+        self.ensemble = int(self.meta.get("ensemble", 0))
+        if self.ensemble and backend == "onnx":
+            raise InputError(f"{model_path} is a head ensemble: TorchScript only (backend "
+                             "torchscript or auto)")
         onnx_full = model_path.with_suffix(".onnx")
         onnx_force = model_path.with_suffix(".force.onnx")
         if backend == "auto":
-            have = onnx_full.is_file() and onnx_force.is_file()
+            have = onnx_full.is_file() and onnx_force.is_file() and not self.ensemble
             try:
                 import onnxruntime  # noqa: F401
             except ImportError:
@@ -168,6 +173,18 @@ class Predictor:
             xt = torch.from_numpy(x)
             f = self.model.force(xt) if self._has_force else self.model(xt)[1]
         return f.numpy()
+
+    def run_members(self, x: np.ndarray) -> np.ndarray:
+        """Each head's force (B, M) in N of inputs (B, 1, H, W) float32 (an adapted
+        ensemble; a single network: (B, 1), its force along the push)."""
+        if not self.ensemble:
+            return self.run_force(x)[:, :1]
+        with torch.inference_mode():
+            return self.model.members(torch.from_numpy(np.ascontiguousarray(x, np.float32))).numpy()
+
+    def force_members(self, frame: np.ndarray) -> np.ndarray:
+        """Each head's force (M,) in N of one frame (see :meth:`run_members`)."""
+        return self.run_members(self.network_input(self.segment(frame)))[0]
 
     def __call__(self, frame: np.ndarray) -> tuple[float, np.ndarray]:
         """Force (N, along the push) and the log-stress map (H, W) of one frame."""
@@ -363,7 +380,8 @@ def _video_frames(path: Path):
 
 
 def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = "auto",
-                  force_only: bool = False, on_frame=None, on_skip=None) -> dict:
+                  force_only: bool = False, on_frame=None, on_skip=None,
+                  calibration: dict | None = None) -> dict:
     """Predict every frame of ``source`` (image, folder of images or video) into
     ``out_dir``: ``forces.csv`` (``frame,fx_N``; a row appended and flushed as each
     frame completes; also ``fy_N`` for a model that predicts it) and, per frame unless
@@ -372,7 +390,10 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
     A frame that cannot be predicted (unreadable, not an image, no finger) is skipped:
     ``on_skip(name, message)`` is called and the run goes on. ``on_frame(row)`` gets
     each row ``{"frame", "fx_N"[, "fy_N"]}`` as it completes. Returns ``{"rows": [...],
-    "skipped": [(name, message), ...]}``. Raises :class:`InputError` for a missing
+    "skipped": [(name, message), ...]}``. With ``calibration`` (a ``calibration.json`` of
+    :func:`finray.calibration.calibrate_takes`, its model's heads' spread per frame) rows
+    and columns also have ``force_N``, ``lo_N``, ``hi_N`` (the calibrated force's median
+    and predictive interval, N) and ``level``. Raises :class:`InputError` for a missing
     model or source, for a single image that cannot be predicted, and when no frame
     at all could be.
     """
@@ -390,7 +411,8 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
     out_dir.mkdir(parents=True, exist_ok=True)
     rows, skipped = [], []
     with open(out_dir / "forces.csv", "w") as table:
-        table.write(",".join(["frame", *p.force_names]) + "\n")
+        cal_cols = ["force_N", "lo_N", "hi_N"] if calibration is not None else []
+        table.write(",".join(["frame", *p.force_names, *cal_cols]) + "\n")
         table.flush()
         for name, frame in frames:
             try:
@@ -419,7 +441,16 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
                 write_png(out_dir / f"{stem}_stress.png",
                           (cm.inferno(s)[..., :3] * 255).astype(np.uint8))
             row = {"frame": name, **{n: float(v) for n, v in zip(p.force_names, fvec)}}
-            table.write(",".join([name, *(f"{row[n]:.6g}" for n in p.force_names)]) + "\n")
+            if calibration is not None:
+                from .calibration import predictive
+
+                members = p.run_members(x)[0]
+                band = predictive(calibration, [members.mean()], [members.std()],
+                                  calibration.get("level", 0.9), seed=len(rows))
+                row.update(force_N=float(band["median"][0]), lo_N=float(band["lo"][0]),
+                           hi_N=float(band["hi"][0]), level=band["level"])
+            table.write(",".join([name, *(f"{row[n]:.6g}" for n in [*p.force_names, *cal_cols])])
+                        + "\n")
             table.flush()  # a long video's forces can be read while it runs
             rows.append(row)
             if on_frame is not None:

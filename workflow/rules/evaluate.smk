@@ -58,3 +58,36 @@ rule evaluate_experiment:
         "../../envs/finray.yaml"
     script:
         "../scripts/evaluate_experiment.py"
+
+
+def sim2real_model():
+    """The network sim-to-real starts from: the camera model where configured, else plain."""
+    return f"{TRAIN}/{'camera' if 'camera' in config['train']['models'] else 'plain'}/model.pt"
+
+
+rule sim2real:
+    # Reads the ingested takes (the recording format's shards), never lab: settings.
+    input:
+        lab=[f"{LAB}/ingest/{t}/shard.npz" for t in lab_takes()],
+        model=sim2real_model(),
+        sim=shard_files(splits=["train"], pitch=0.0),
+        sim_test=shard_files(splits=["shape"], pitch=0.0),
+    output:
+        metrics=f"{EVALUATE}/sim2real/metrics.csv",
+        frames=f"{EVALUATE}/sim2real/frames.csv",
+        summary=f"{EVALUATE}/sim2real/summary.json",
+        calibrations=f"{EVALUATE}/sim2real/calibrations.json",
+        corner=report(f"{EVALUATE}/sim2real/corner.pdf", caption="../report/sim2real_corner.rst",
+                      category="Sim-to-real"),
+    params:
+        size=config["train"]["input_size"],
+        sim2real=section("evaluate", keys=("sim2real",))["sim2real"],
+    log:
+        f"{RESULTS}/logs/evaluate/sim2real.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/evaluate/sim2real.tsv"
+    threads: 1
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/sim2real.py"

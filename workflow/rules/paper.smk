@@ -5,7 +5,8 @@ from finray.evaluate.summary import setup_summary
 from finray.paper_reference import paper_reference
 
 PAPER = "paper"
-FIGURES = ["shape_generalisation", "material_generalisation", "occlusion", "viewpoint", "speed"]
+FIGURES = ["shape_generalisation", "material_generalisation", "occlusion", "viewpoint", "speed",
+           "sim2real"]
 
 
 rule evaluate_speed:
@@ -121,6 +122,24 @@ rule figure_speed:
         "../scripts/paper_figure.py"
 
 
+rule figure_sim2real:
+    input:
+        frames=f"{EVALUATE}/sim2real/frames.csv",
+        summary=f"{EVALUATE}/sim2real/summary.json",
+    output:
+        pdf=report(f"{PAPER}/figures/sim2real.pdf", caption="../report/sim2real.rst", category="Paper"),
+        png=f"{PAPER}/figures/sim2real.png",
+    log:
+        f"{RESULTS}/logs/paper/sim2real.log",
+    params:
+        figure="sim2real",
+    threads: 1
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/paper_figure.py"
+
+
 rule summary:
     input:
         experiments=expand(f"{EVALUATE}/{{experiment}}/metrics.json", experiment=EXPERIMENTS),
@@ -132,6 +151,7 @@ rule summary:
         manifest=f"{DATASET}/manifest.csv",  # the frames behind training vs the FEA states
         lab_qa=f"{RESULTS}/lab/qa.json",
         lab_takes=f"{RESULTS}/lab/qa.csv",
+        sim2real=f"{EVALUATE}/sim2real/summary.json",
     output:
         json=f"{RESULTS}/summary.json",
     params:

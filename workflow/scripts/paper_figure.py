@@ -10,6 +10,13 @@ out = snakemake.output.pdf
 with log_to(snakemake.log[0]):
     if name == "speed":
         figures.speed_figure(json.loads(Path(snakemake.input.speed).read_text()), out)
+    elif name == "sim2real":
+        import pandas as pd
+
+        from finray.evaluate.sim2real import sim2real_figure
+
+        sim2real_figure(pd.read_csv(snakemake.input.frames),
+                        json.loads(Path(snakemake.input.summary).read_text()), out)
     else:
         exp_dir = Path(snakemake.input.metrics).parent
         if name == "shape_generalisation":

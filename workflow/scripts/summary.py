@@ -15,6 +15,8 @@ with log_to(snakemake.log[0]):
     s["setup"] = snakemake.params.setup  # the set-up constants, from the config that ran
     s["lab"] = lab_summary(snakemake.input.lab_qa, snakemake.input.lab_takes,
                            snakemake.params.lab)  # emulated takes, not recordings
+    # sim-to-real on the emulated takes, with the calibrated force
+    s["sim2real"] = json.loads(Path(snakemake.input.sim2real).read_text())
     s["paper"] = snakemake.params.paper  # the paper's reference numbers (finray/paper_reference.yaml)
     with open(snakemake.output.json, "w") as f:
         json.dump(s, f, indent=1)

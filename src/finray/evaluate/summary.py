@@ -269,7 +269,8 @@ NAMED = [("experiments", "*"), ("experiments", "*", "*", "*", "groups"),
          ("viewpoint", "usable_deg_by_distance", "*"), ("viewpoint", "nrmse_pct", "*"),
          ("viewpoint", "nrmse_pct_by_distance", "*"), ("viewpoint", "nrmse_pct_by_distance", "*", "*"),
          ("viewpoint", "fy_nrmse_pct", "*"),
-         ("setup", "occlusion_levels")]
+         ("setup", "occlusion_levels"),
+         ("sim2real", "by_context"), ("sim2real", "by_context", "*", "per_object")]
 
 
 def key_structure(node, path: tuple = ()):

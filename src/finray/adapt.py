@@ -1,0 +1,149 @@
+"""Adapting a simulation-trained network to a rig: an ensemble of force heads on its
+frozen encoder.
+
+A rig's finger is not the simulated one (a print is stiffer or softer, grips more), so
+the same deformation image means another force. The rig gets its own force heads,
+each started from the simulation's head and fitted on the rig's frames (a bootstrap
+sample of them, its own seed) with the encoder, the stress decoder and the
+simulation's head frozen: the network cannot forget the simulation, and a fit takes
+seconds, as the encoder's features are computed once. The members' spread is the
+per-frame uncertainty of the network (:mod:`finray.calibration` adds the sensor's).
+
+- :func:`encoder_features` -- the frozen encoder's latent per frame
+- :func:`fit_heads` -- the head ensemble on features and forces (N)
+- :class:`HeadEnsemble` -- the network with the heads: ``force`` (mean, N),
+  ``members`` (each head's, N); :func:`export_ensemble` writes it for
+  :class:`finray.predict.Predictor`
+"""
+from __future__ import annotations
+
+import copy
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import nn
+
+from .model import FinRayNet
+
+
+@dataclass(frozen=True)
+class HeadFit:
+    """How the heads are fitted: ``members`` heads of ``steps`` Adam steps (batches of
+    ``batch``, learning rate ``lr``), each on a bootstrap sample of the frames
+    (``bootstrap``), seeded from ``seed``."""
+
+    members: int = 4
+    steps: int = 400
+    batch: int = 64
+    lr: float = 1e-3
+    bootstrap: bool = True
+    seed: int = 0
+
+
+def encoder_features(model: FinRayNet, images, batch: int = 256) -> torch.Tensor:
+    """The encoder's flattened latent (N, F) of images (N, 1, H, W) in [0, 1]."""
+    model.eval()
+    x = torch.tensor(np.asarray(images, dtype=np.float32))
+    with torch.inference_mode():
+        return torch.cat([model.encode(x[i:i + batch])[0].flatten(1)
+                          for i in range(0, len(x), batch)]) if len(x) else torch.zeros(0)
+
+
+def fit_heads(model: FinRayNet, features: torch.Tensor, force_N, fit: HeadFit,
+              component: int = 0) -> list[nn.Module]:
+    """``fit.members`` copies of the model's force head, reduced to output
+    ``component`` (0: along the push), each fitted to ``force_N`` (N,) on
+    ``features`` (N, F); batch-norm statistics stay the simulation's."""
+    y = torch.tensor(np.asarray(force_N, dtype=np.float32))
+    if len(y) != len(features) or not len(y):
+        raise ValueError(f"need as many forces as feature rows, got {len(y)} and {len(features)}")
+    if not torch.isfinite(y).all():
+        raise ValueError("the forces to fit contain NaN")
+    mean, scale = model.force_mean_N[component], model.force_scale_N[component]
+    target = (y - mean) / scale
+    heads = []
+    for m in range(fit.members):
+        gen = torch.Generator().manual_seed(fit.seed * 1000 + m)
+        head = _single_output(model.force_head, component)
+        head.eval()  # batch-norm: running statistics frozen
+        opt = torch.optim.Adam(head.parameters(), lr=fit.lr)
+        n = len(y)
+        pool = torch.randint(0, n, (n,), generator=gen) if fit.bootstrap else torch.arange(n)
+        for _ in range(fit.steps):
+            idx = pool[torch.randint(0, n, (min(fit.batch, n),), generator=gen)]
+            loss = ((head(features[idx])[:, 0] - target[idx]) ** 2).mean()
+            opt.zero_grad(set_to_none=True)
+            loss.backward()
+            opt.step()
+        head.requires_grad_(False)
+        heads.append(head)
+    return heads
+
+
+def _single_output(head: nn.Sequential, component: int) -> nn.Sequential:
+    """A copy of ``head`` whose last linear layer gives output ``component`` only."""
+    head = copy.deepcopy(head)
+    last = head[-1]
+    one = nn.Linear(last.in_features, 1)
+    with torch.no_grad():
+        one.weight.copy_(last.weight[component:component + 1])
+        one.bias.copy_(last.bias[component:component + 1])
+    head[-1] = one
+    return head
+
+
+def head_forces(model: FinRayNet, heads: list[nn.Module], features: torch.Tensor,
+                component: int = 0) -> np.ndarray:
+    """Each head's force (M, N) in N on features (N, F)."""
+    mean, scale = model.force_mean_N[component], model.force_scale_N[component]
+    with torch.inference_mode():
+        return torch.stack([h(features)[:, 0] * scale + mean for h in heads]).numpy()
+
+
+class HeadEnsemble(nn.Module):
+    """The simulation's network with the rig's force heads: ``forward`` gives the
+    simulation's stress map and the heads' mean force (B, 1) in N, ``force`` that force
+    alone, ``members`` each head's (B, M) in N."""
+
+    def __init__(self, model: FinRayNet, heads: list[nn.Module], component: int = 0):
+        super().__init__()
+        self.model = model
+        self.heads = nn.ModuleList(heads)
+        self.register_buffer("mean_N", model.force_mean_N[component].detach().clone())
+        self.register_buffer("scale_N", model.force_scale_N[component].detach().clone())
+
+    def _members(self, h: torch.Tensor) -> torch.Tensor:
+        z = h.flatten(1)
+        return torch.cat([head(z) for head in self.heads], dim=1) * self.scale_N + self.mean_N
+
+    def members(self, x: torch.Tensor) -> torch.Tensor:
+        return self._members(self.model.encode(x)[0])
+
+    def force(self, x: torch.Tensor) -> torch.Tensor:
+        return self.members(x).mean(dim=1, keepdim=True)
+
+    def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        h, skips = self.model.encode(x)
+        return self.model.decode(h, skips), self._members(h).mean(dim=1, keepdim=True)
+
+
+def export_ensemble(ensemble: HeadEnsemble, path: str | Path, preprocess: dict,
+                    info: dict | None = None) -> None:
+    """Trace the ensemble to TorchScript at ``path`` (``forward``, ``force``, ``members``)
+    with ``path + '.json'`` as :func:`finray.train.export_torchscript` writes it, plus
+    ``ensemble`` (the number of heads) and ``adapted`` (``info``)."""
+    ens = copy.deepcopy(ensemble).float().eval()
+    c = ens.model.cfg
+    example = torch.rand(1, c.in_channels, c.height, c.width)
+    with torch.no_grad():
+        ts = torch.jit.trace_module(ens, {"forward": example, "force": example,
+                                          "members": example})
+        ts = torch.jit.freeze(ts, preserved_attrs=["force", "members"])
+    ts.save(str(path))
+    cfg = ens.model.config_dict() | {"n_forces": 1}
+    Path(str(path) + ".json").write_text(json.dumps(
+        {**cfg, "forces": ["fx_N"], "ensemble": len(ens.heads), "preprocess": preprocess,
+         "adapted": info or {}}, indent=1))

@@ -1,0 +1,332 @@
+"""Bayesian force calibration: a rig's sensor against the network, sampled with emcee.
+
+The sensor model, per frame with the network's force ``mu`` (N, the ensemble's mean)
+and its spread ``s`` (N, the heads' standard deviation):
+
+    F_sensor = g mu + b + e,   e ~ Normal(0, sigma^2 + (rho g mu)^2 + (kappa g s)^2)
+
+``g`` the gain, ``b`` the offset (N; a sensor that was not zeroed), ``sigma`` (N) the
+noise at rest, ``rho`` the relative error under load (the network's error grows with
+the force), ``kappa`` the scale of the ensemble's spread (a small ensemble's spread is
+a relative, not an absolute, measure of its error). Priors (:class:`Priors`): ``log g ~
+Normal(0, gain_log_sd)``, ``b ~ Normal(0, offset_sd_N)``; ``log sigma``, ``log rho``
+and ``log kappa`` uniform (scale-free) within bounds. The chain runs until it is at least ``min_tau_multiple`` autocorrelation
+times long for every parameter (emcee's integrated time); the diagnostics are kept
+with the posterior (:func:`fit_calibration`). :func:`predictive` gives each frame's
+median and interval from the posterior and the network's spread.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+PARAMS = ("gain", "offset_N", "log_sigma_N", "log_rho", "log_kappa")
+LABELS = ("g", "b (N)", r"log $\sigma$ (N)", r"log $\rho$", r"log $\kappa$")
+
+
+class CalibrationError(ValueError):
+    """A calibration that cannot be fitted or read; ``str`` is one line."""
+
+
+@dataclass(frozen=True)
+class Priors:
+    gain_log_sd: float = 0.5
+    offset_sd_N: float = 1.0
+    #: bounds: sigma from a tenth of a force sensor's resolution (~0.01 N) up
+    sigma_N: tuple[float, float] = (1e-3, 10.0)
+    rho: tuple[float, float] = (1e-3, 1.0)
+    kappa: tuple[float, float] = (1e-2, 100.0)
+
+
+@dataclass(frozen=True)
+class Sampler:
+    """emcee's settings: ``walkers``, steps per round (``chunk``), at most ``max_steps``,
+    until the chain is ``min_tau_multiple`` times the largest autocorrelation time."""
+
+    walkers: int = 32
+    chunk: int = 1000
+    max_steps: int = 20000
+    min_tau_multiple: float = 50.0
+    seed: int = 0
+
+
+def log_posterior(theta: np.ndarray, mu, s, y, priors: Priors) -> np.ndarray:
+    """Log posterior (W,) of parameter rows ``theta`` (W, 5): gain, offset (N),
+    log sigma (N), log rho, log kappa; ``mu``, ``s``, ``y`` (N,) in N."""
+    theta = np.atleast_2d(theta)
+    g, b, ls, lr, lk = (theta[:, i:i + 1] for i in range(5))
+    ok = g[:, 0] > 0
+    for v, (lo, hi) in ((ls, priors.sigma_N), (lr, priors.rho), (lk, priors.kappa)):
+        ok &= (v[:, 0] >= np.log(lo)) & (v[:, 0] <= np.log(hi))
+    out = np.full(len(theta), -np.inf)
+    if not ok.any():
+        return out
+    g, b, ls, lr, lk = g[ok], b[ok], ls[ok], lr[ok], lk[ok]
+    var = np.exp(2 * ls) + (np.exp(lr) * g * mu) ** 2 + (np.exp(lk) * g * s) ** 2
+    ll = -0.5 * np.sum((y - g * mu - b) ** 2 / var + np.log(2 * np.pi * var), axis=1)
+    lg = np.log(g[:, 0])
+    lp = -0.5 * (lg / priors.gain_log_sd) ** 2 - lg - 0.5 * (b[:, 0] / priors.offset_sd_N) ** 2
+    out[ok] = ll + lp
+    return out
+
+
+def _start(mu, s, y, priors: Priors) -> np.ndarray:
+    """The posterior's mode (Nelder-Mead from a least-squares line), to start the walkers."""
+    from scipy.optimize import minimize
+
+    A = np.column_stack([mu, np.ones_like(mu)])
+    (g, b), *_ = np.linalg.lstsq(A, y, rcond=None)
+    g = g if g > 0 else 1.0
+    r = y - g * mu - b
+    x0 = np.array([g, b, np.log(max(np.std(r), 2 * priors.sigma_N[0])), np.log(0.05), 0.0])
+    best = minimize(lambda t: -log_posterior(t, mu, s, y, priors)[0], x0, method="Nelder-Mead",
+                    options={"maxiter": 4000, "xatol": 1e-6, "fatol": 1e-6})
+    x = best.x if np.isfinite(best.fun) else x0
+    # inside the bounds, so that every walker of the ball around it starts finite
+    for i, (lo, hi) in zip((2, 3, 4), (priors.sigma_N, priors.rho, priors.kappa)):
+        x[i] = np.clip(x[i], np.log(lo) + 0.05, np.log(hi) - 0.05)
+    return x
+
+
+def fit_calibration(mu, s, y, priors: Priors | None = None, sampler: Sampler | None = None,
+                    log=print) -> dict:
+    """Sample the sensor model's posterior on frames (network mean ``mu``, spread ``s``,
+    sensor ``y``; N). Returns ``{"posterior": {"names", "samples"}, "summary",
+    "diagnostics", "priors", "sampler"}``; ``diagnostics["ok"]``: the chain is long
+    enough and the acceptance fraction within 0.2-0.5."""
+    import emcee
+
+    priors, sampler = priors or Priors(), sampler or Sampler()
+    mu, s, y = (np.asarray(a, dtype=np.float64).ravel() for a in (mu, s, y))
+    keep = np.isfinite(mu) & np.isfinite(s) & np.isfinite(y)
+    mu, s, y = mu[keep], s[keep], y[keep]
+    if len(y) < 10:
+        raise CalibrationError(f"too few frames to calibrate ({len(y)}; at least 10)")
+    rng = np.random.default_rng(sampler.seed)
+    x0 = _start(mu, s, y, priors)
+    p0 = x0 + 1e-3 * rng.standard_normal((sampler.walkers, len(PARAMS))) * np.maximum(np.abs(x0), 0.1)
+    # differential-evolution moves shorten the autocorrelation; mixed with the stretch
+    # move (acceptance ~0.6 here) for an acceptance fraction within 0.2-0.5
+    moves = [(emcee.moves.DEMove(), 0.6), (emcee.moves.DESnookerMove(), 0.1),
+             (emcee.moves.StretchMove(), 0.3)]
+    ens = emcee.EnsembleSampler(sampler.walkers, len(PARAMS), log_posterior, args=(mu, s, y, priors),
+                                vectorize=True, moves=moves)
+    ens.random_state = np.random.RandomState(sampler.seed).get_state()  # replayable moves
+    state, tau, n = p0, None, 0
+    while n < sampler.max_steps:
+        state = ens.run_mcmc(state, sampler.chunk, progress=False)
+        n += sampler.chunk
+        tau = emcee.autocorr.integrated_time(ens.get_chain(), tol=0)
+        log(f"  calibration: {n} steps, autocorrelation time {np.max(tau):.1f} steps "
+            f"({n / np.max(tau):.0f} tau)")
+        if n >= sampler.min_tau_multiple * np.max(tau):
+            break
+    acc = ens.acceptance_fraction
+    burn = int(np.ceil(5 * np.max(tau)))
+    thin = max(1, int(np.max(tau) / 2))
+    flat = ens.get_chain(discard=burn, thin=thin, flat=True)
+    if len(flat) > 4000:
+        flat = flat[rng.choice(len(flat), 4000, replace=False)]
+    diag = {"tau_steps": dict(zip(PARAMS, map(float, tau))), "steps": int(n),
+            "walkers": sampler.walkers, "steps_over_tau_min": float(n / np.max(tau)),
+            "acceptance_fraction": {"mean": float(acc.mean()), "min": float(acc.min()),
+                                    "max": float(acc.max())},
+            "burn_in_steps": burn, "thin": thin, "n_samples": int(len(flat))}
+    diag["ok"] = bool(diag["steps_over_tau_min"] >= sampler.min_tau_multiple
+                      and 0.2 <= acc.mean() <= 0.5)
+    return {"posterior": {"names": list(PARAMS), "samples": flat.tolist()},
+            "summary": summarise(flat), "diagnostics": diag, "n_frames": int(len(y)),
+            "priors": asdict(priors), "sampler": asdict(sampler)}
+
+
+def summarise(samples: np.ndarray) -> dict:
+    """Median and 2.5/5/95/97.5 % quantiles per parameter; sigma (N), rho and kappa
+    also unlogged."""
+    samples = np.asarray(samples)
+    cols = dict(zip(PARAMS, samples.T))
+    for k in ("log_sigma_N", "log_rho", "log_kappa"):
+        cols[k[4:]] = np.exp(cols[k])
+    return {k: {"median": float(np.median(v)),
+                **{f"q{q:g}": float(np.percentile(v, q)) for q in (2.5, 5, 95, 97.5)}}
+            for k, v in cols.items()}
+
+
+def predictive(calibration: dict, mu, s, level: float = 0.9, seed: int = 0,
+               chunk: int = 1000) -> dict:
+    """Each frame's sensor force under the posterior (N): ``median``, ``lo``, ``hi``
+    (the central ``level`` interval), from one draw per posterior sample."""
+    theta = np.asarray(calibration["posterior"]["samples"], dtype=np.float64)
+    g, b = theta[:, :1], theta[:, 1:2]
+    sig, rho, kap = np.exp(theta[:, 2:3]), np.exp(theta[:, 3:4]), np.exp(theta[:, 4:5])
+    mu, s = np.asarray(mu, dtype=np.float64).ravel(), np.asarray(s, dtype=np.float64).ravel()
+    rng = np.random.default_rng(seed)
+    q = (50.0, 50 * (1 - level), 50 * (1 + level))
+    out = np.empty((3, len(mu)))
+    for i in range(0, len(mu), chunk):
+        m, sp = mu[None, i:i + chunk], s[None, i:i + chunk]
+        sd = np.sqrt(sig ** 2 + (rho * g * m) ** 2 + (kap * g * sp) ** 2)
+        draws = g * m + b + sd * rng.standard_normal(sd.shape)
+        out[:, i:i + chunk] = np.percentile(draws, q, axis=0)
+    return {"median": out[0], "lo": out[1], "hi": out[2], "level": level}
+
+
+def coverage(y, band: dict) -> float:
+    """Fraction of frames whose ``y`` lies inside the band's interval."""
+    y = np.asarray(y, dtype=np.float64)
+    return float(np.mean((y >= band["lo"]) & (y <= band["hi"])))
+
+
+def read_calibration(path: str | Path) -> dict:
+    """A ``calibration.json`` (:func:`fit_calibration`'s output and its ``model``), or a
+    one-line :class:`CalibrationError`."""
+    path = Path(path)
+    if not path.is_file():
+        raise CalibrationError(f"no calibration at {path}")
+    try:
+        cal = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise CalibrationError(f"{path} is not JSON ({type(exc).__name__})") from None
+    samples = cal.get("posterior", {}).get("samples") if isinstance(cal, dict) else None
+    if not samples or np.asarray(samples).ndim != 2 or np.asarray(samples).shape[1] != len(PARAMS):
+        raise CalibrationError(f"{path} has no posterior samples ({', '.join(PARAMS)})")
+    return cal
+
+
+def corner_figure(calibration: dict, title: str = ""):
+    """Corner plot of the posterior (corner.py), 5/50/95 % quantiles marked; the
+    matplotlib figure (the caller saves and closes it)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import corner
+
+    samples = np.asarray(calibration["posterior"]["samples"])
+    fig = corner.corner(samples, labels=list(LABELS), quantiles=[0.05, 0.5, 0.95],
+                        show_titles=True, title_fmt=".3f", title_kwargs={"fontsize": 8},
+                        label_kwargs={"fontsize": 9})
+    d = calibration["diagnostics"]
+    fig.suptitle(f"{title}\n{d['steps']} steps x {d['walkers']} walkers, "
+                 f"{d['steps_over_tau_min']:.0f} tau, acceptance {d['acceptance_fraction']['mean']:.2f}",
+                 fontsize=9, y=1.02)
+    return fig
+
+
+def fold_units(table: pd.DataFrame, folds: str) -> list[np.ndarray]:
+    """The cross-fitting labellings of context frames: ``take`` (each take predicted by
+    heads fitted without it: a new scene), ``half`` (each take's second half by heads
+    fitted on the first halves, and back: a new moment of a seen scene) or ``both``. A
+    single take has halves only."""
+    if folds not in ("take", "half", "both"):
+        raise ValueError(f"the folds must be take, half or both, not {folds!r}")
+    late = table.groupby("take")["t_s"].transform(lambda s: s > s.median()).to_numpy()
+    sets = []
+    if folds in ("take", "both") and table["take"].nunique() >= 2:
+        sets.append(table["take"].to_numpy())
+    if folds in ("half", "both") or not sets:
+        sets.append(np.where(late, "2nd half", "1st half"))
+    return sets
+
+
+def cross_fitted(model, features, force_N, units, fit, fold_members: int = 2):
+    """Each frame's ensemble mean and spread (N) from heads fitted without its unit
+    (``units``: a label per frame, e.g. its take): what the network does on frames it
+    has not seen, the residuals a calibration needs."""
+    from dataclasses import replace
+
+    from .adapt import fit_heads, head_forces
+
+    units = np.asarray(units)
+    mu, sd = np.full(len(units), np.nan), np.full(len(units), np.nan)
+    labels = sorted(set(units.tolist()))
+    if len(labels) < 2:
+        raise CalibrationError(f"cross-fitting needs at least two units of frames, got {labels}")
+    y = np.asarray(force_N, dtype=np.float32)
+    for j, u in enumerate(labels):
+        out = units == u
+        heads = fit_heads(model, features[~out], y[~out],
+                          replace(fit, members=fold_members, seed=fit.seed + 101 * (j + 1)))
+        P = head_forces(model, heads, features[out])
+        mu[out], sd[out] = P.mean(0), P.std(0)
+    return mu, sd
+
+
+def fit_rig(model, features, force_N, unit_sets, fit, fold_members: int = 2,
+            priors: Priors | None = None, sampler: Sampler | None = None, log=print):
+    """A rig's head ensemble (:func:`finray.adapt.fit_heads` on every frame) and its
+    sensor calibration, sampled on the cross-fitted predictions (:func:`cross_fitted`)
+    of every labelling in ``unit_sets`` (each a label per frame; the frames enter once
+    per labelling). Returns (heads, calibration dict)."""
+    from .adapt import fit_heads
+
+    heads = fit_heads(model, features, force_N, fit)
+    y = np.asarray(force_N, dtype=np.float64)
+    parts = [cross_fitted(model, features, force_N, u, fit, fold_members) for u in unit_sets]
+    mu, sd = (np.concatenate(a) for a in zip(*parts))
+    cal = fit_calibration(mu, sd, np.tile(y, len(parts)), priors, sampler, log=log)
+    cal["cross_fit"] = {"unit_sets": [sorted(set(np.asarray(u).tolist())) for u in unit_sets],
+                        "fold_members": fold_members,
+                        "nrmse_pct": [float(100 * np.sqrt(np.mean((m - y) ** 2)) / np.max(np.abs(y)))
+                                      for m, _ in parts]}
+    cal["heads"] = dict(vars(fit))
+    return heads, cal
+
+
+def calibrate_takes(takes, model_path, out_json, ingest_params, fit, folds: str = "both",
+                    fold_members: int = 2, priors: Priors | None = None,
+                    sampler: Sampler | None = None, level: float = 0.9, log=print) -> dict:
+    """``finray calibrate``: ingest the take folders (:func:`finray.recording.ingest`,
+    into ``<out>.ingest/<take>/``), fit the rig's head ensemble on the simulation-trained
+    model (``model.pt``, or the ``model.ts`` it was exported to, beside it) and sample
+    the sensor calibration on cross-fitted predictions. Writes ``out_json``, the adapted
+    model ``<out>.model.ts`` (+ ``.json``; what ``finray predict --calibration`` runs) and
+    the corner plot ``<out>.corner.png``; returns the calibration."""
+    import pandas as pd
+
+    from .adapt import HeadEnsemble, encoder_features, export_ensemble
+    from .dataset import load_frames
+    from .recording import ingest
+    from .train import load_checkpoint
+
+    out_json = Path(out_json)
+    model_path = Path(model_path)
+    pt = model_path if model_path.suffix == ".pt" else model_path.with_suffix(".pt")
+    ts_meta = Path(str(pt.with_suffix(".ts")) + ".json")
+    if not pt.is_file() or not ts_meta.is_file():
+        raise CalibrationError(f"{model_path}: need the trained model's model.pt and "
+                               "model.ts.json side by side (results/train/<model>/)")
+    model, _ = load_checkpoint(pt)
+    meta = json.loads(ts_meta.read_text())
+    stem = out_json.with_suffix("")
+    shards, names = [], []
+    for take in map(Path, takes):
+        log(f"ingest {take}")
+        ingest(take, Path(f"{stem}.ingest") / take.name, ingest_params, log=log)
+        shards.append(Path(f"{stem}.ingest") / take.name / "shard.npz")
+        names.append(take.name)
+    size = (model.cfg.height, model.cfg.width)
+    a, table = load_frames(shards, size)
+    t = []
+    for path in shards:
+        with np.load(path) as f:
+            t.append(f["t_s"])
+    table = table.assign(t_s=np.concatenate(t), take=np.repeat(names, [len(x) for x in t]))
+    feats = encoder_features(model, a["images"][:, None].astype(np.float32) / 255.0)
+    y = np.asarray(a["fx_N"], dtype=np.float64)
+    heads, cal = fit_rig(model, feats, y, fold_units(pd.DataFrame(table), folds), fit,
+                         fold_members, priors, sampler, log=log)
+    ts_path = Path(f"{stem}.model.ts")
+    export_ensemble(HeadEnsemble(model, heads), ts_path, meta.get("preprocess", {}),
+                    {"base_model": str(pt), "takes": [str(p) for p in takes]})
+    cal.update(model=ts_path.name, base_model=str(pt), takes=[str(p) for p in takes],
+               level=level, n_frames_takes=int(len(y)))
+    out_json.parent.mkdir(parents=True, exist_ok=True)
+    out_json.write_text(json.dumps(cal))
+    import matplotlib.pyplot as plt
+
+    fig = corner_figure(cal, f"calibration on {len(names)} take(s)")
+    fig.savefig(f"{stem}.corner.png", dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    return cal

@@ -1,0 +1,109 @@
+"""The rig's head ensemble: fitting, export, the Predictor's members, and `finray
+predict --calibration` / `finray calibrate` errors."""
+import csv
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from finray.adapt import HeadEnsemble, HeadFit, encoder_features, export_ensemble, fit_heads, head_forces
+from finray.cli import main
+from finray.model import FinRayNet, NetConfig
+from finray.predict import InputError, Predictor
+from test_predict import PREPROCESS, render_png  # noqa: F401  (fixture)
+
+
+@pytest.fixture(scope="module")
+def net():
+    torch.manual_seed(0)
+    m = FinRayNet(NetConfig(in_channels=1, base_channels=4, height=64, width=32, n_forces=2))
+    m.set_force_normalisation([3.0, -0.5], [2.0, 0.5])
+    m.train()
+    with torch.no_grad():
+        m(torch.rand(8, 1, 64, 32))  # batch-norm running statistics
+    return m.eval()
+
+
+def test_heads_learn_a_rig_that_differs_from_the_simulation(net):
+    """A rig whose force is 1.5 times the simulation's: the fitted heads follow it, and
+    the simulation's head is untouched."""
+    x = torch.rand(256, 1, 64, 32)
+    f = encoder_features(net, x)
+    sim = net.force(x)[:, 0].detach().numpy()
+    rig = 1.5 * sim + 0.3
+    before = [p.clone() for p in net.force_head.parameters()]
+    heads = fit_heads(net, f, rig, HeadFit(members=3, steps=300, lr=3e-3))
+    pred = head_forces(net, heads, f)
+    assert pred.shape == (3, 256)
+    err0, err = np.sqrt(np.mean((sim - rig) ** 2)), np.sqrt(np.mean((pred.mean(0) - rig) ** 2))
+    assert err < 0.25 * err0
+    assert all(torch.equal(a, b) for a, b in zip(before, net.force_head.parameters()))
+    assert pred.std(0).mean() > 0  # bootstrap samples: the members differ
+
+
+def test_fit_heads_rejects_bad_labels(net):
+    f = encoder_features(net, torch.rand(4, 1, 64, 32))
+    with pytest.raises(ValueError, match="NaN"):
+        fit_heads(net, f, [1.0, np.nan, 1.0, 1.0], HeadFit(members=1, steps=1))
+    with pytest.raises(ValueError, match="as many forces"):
+        fit_heads(net, f, [1.0, 2.0], HeadFit(members=1, steps=1))
+
+
+@pytest.fixture(scope="module")
+def ensemble(net, tmp_path_factory):
+    x = torch.rand(64, 1, 64, 32)
+    heads = fit_heads(net, encoder_features(net, x), np.linspace(0, 5, 64), HeadFit(members=3, steps=20))
+    d = tmp_path_factory.mktemp("ens")
+    export_ensemble(HeadEnsemble(net, heads), d / "rig.model.ts", PREPROCESS, {"takes": ["t"]})
+    return net, heads, d
+
+
+def test_exported_ensemble_in_the_predictor(ensemble):
+    """The export's members are the heads' forces, its force their mean, its stress map
+    the simulation network's."""
+    net, heads, d = ensemble
+    p = Predictor(d / "rig.model.ts")
+    assert p.ensemble == 3 and p.backend == "torchscript" and p.force_names == ["fx_N"]
+    x = np.random.default_rng(0).random((5, 1, 64, 32)).astype(np.float32)
+    members = p.run_members(x)
+    want = head_forces(net, heads, encoder_features(net, x)).T
+    assert np.allclose(members, want, atol=1e-5)
+    stress, force = p.run(x)
+    assert np.allclose(force[:, 0], members.mean(1), atol=1e-5)
+    assert np.allclose(stress, net(torch.from_numpy(x))[0].detach().numpy(), atol=1e-5)
+    with pytest.raises(InputError, match="TorchScript only"):
+        Predictor(d / "rig.model.ts", backend="onnx")
+
+
+def test_predict_with_calibration(ensemble, render_png, tmp_path, capsys):  # noqa: F811
+    """`finray predict --calibration` prints each frame's calibrated force and interval
+    and writes them to forces.csv; a --model that is not the calibrated one is refused."""
+    _, _, d = ensemble
+    rng = np.random.default_rng(0)
+    samples = np.column_stack([rng.normal(2.0, 0.01, 500), rng.normal(0.5, 0.01, 500),
+                               np.full(500, np.log(0.1)), np.full(500, np.log(0.01)),
+                               np.full(500, np.log(0.01))])  # kappa 0.01: the spread hardly counts
+    cal = d / "calibration.json"
+    cal.write_text(json.dumps({"model": "rig.model.ts", "level": 0.9,
+                               "posterior": {"names": [], "samples": samples.tolist()}}))
+    rc = main(["predict", "--calibration", str(cal), str(render_png), "--out", str(tmp_path / "p"),
+               "--force-only"])
+    assert rc == 0
+    line = capsys.readouterr().out.strip().splitlines()[-1]
+    assert "calibrated" in line and "90 %" in line
+    row = next(csv.DictReader(open(tmp_path / "p" / "forces.csv")))
+    fx, f, lo, hi = (float(row[k]) for k in ("fx_N", "force_N", "lo_N", "hi_N"))
+    assert f == pytest.approx(2.0 * fx + 0.5, abs=0.05)  # the posterior's gain and offset
+    sd = np.hypot(0.1, 0.01 * f)  # sigma and rho g mu; 500 draws: quantiles within ~20 %
+    assert lo < f < hi and hi - lo == pytest.approx(2 * 1.645 * sd, rel=0.2)
+    rc = main(["predict", "--calibration", str(cal), "--model", str(tmp_path / "other.ts"),
+               str(render_png), "--out", str(tmp_path / "q")])
+    assert rc == 2 and "is not the model" in capsys.readouterr().err
+
+
+def test_calibrate_errors_are_one_line(tmp_path, capsys):
+    rc = main(["calibrate", str(tmp_path), "--model", str(tmp_path / "model.pt"),
+               "--out", str(tmp_path / "c.json")])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and len(err.splitlines()) == 1 and "model.pt" in err

@@ -1,0 +1,12 @@
+import torch
+
+from finray.evaluate.sim2real import Sim2RealConfig, run_sim2real, write_outputs
+from finray.logs import log_to
+
+inp, out = snakemake.input, snakemake.output
+with log_to(snakemake.log[0]):
+    torch.set_num_threads(snakemake.threads)
+    result = run_sim2real(inp.model, list(inp.lab), list(inp.sim), list(inp.sim_test),
+                          snakemake.params.size, Sim2RealConfig.from_params(snakemake.params.sim2real))
+    write_outputs(result, out)
+    print(result["metrics"].to_string())
