@@ -111,6 +111,7 @@ READERS: list[tuple[str, set[str]]] = [
     ("train.alpha_*", {"train_model", "summary"}),  # the manuscript states the loss
     ("train.batch_size", {"train_model", "train_pareto", "summary"}),
     ("train.forces", {"train_model"}),
+    ("train.device", {"train_model"}),  # not the CPU study (train_pareto)
     ("train.*", {"train_model", "train_pareto"}),
     ("evaluate.seed", {"evaluate_baseline", "evaluate_experiment"}),
     ("evaluate.usable_nrmse_pct", {"figure_viewpoint", "summary"}),
@@ -208,6 +209,7 @@ NEW_VALUES = {
     "train.input_size": [128, 64],
     "train.forces": ["fx"],
     "train.bf16": False,
+    "train.device": "cpu",
     "benchmarks.fea_arc_chord_sizes_mm": [0.05],
     "benchmarks.train_sizes": [[64, 32]],
     "benchmarks.latency_model": "occlusion",

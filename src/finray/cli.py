@@ -226,7 +226,7 @@ forces.csv (frame,fx_N,fy_N: the model's force outputs; a row as each frame comp
 cannot be predicted (corrupt, no finger) is reported on stderr and skipped, the
 others are written (exit code 1); bad input stops with one line (exit code 2).
 The network runs in ONNX Runtime when model.onnx and model.force.onnx lie beside
-model.ts (faster), else in TorchScript.
+model.ts (faster), else in TorchScript; on a CUDA GPU (--device) in TorchScript.
 """
 
 
@@ -246,6 +246,9 @@ def _predict_parser(sub) -> None:
     p.add_argument("--backend", choices=["auto", "onnx", "torchscript"], default="auto",
                    help="network runtime: ONNX Runtime, TorchScript, or auto (ONNX Runtime "
                         "when model.onnx is there; default)")
+    p.add_argument("--device", choices=["auto", "cpu", "cuda"], default="auto",
+                   help="where the network runs: auto (a CUDA GPU when torch sees one, else "
+                        "the CPU; default), cpu, or cuda (stops with one line without a GPU)")
     p.add_argument("--force-only", action="store_true",
                    help="forces (N) only, no stress maps (skips the stress decoder)")
     p.set_defaults(func=_run_predict)
@@ -284,7 +287,8 @@ def _run_predict(args) -> int:
                         args.force_only, calibration=cal,
                         on_frame=lambda r: print(line(r), flush=True),
                         on_skip=lambda name, msg: print(f"finray predict: skipped {msg}",
-                                                        file=sys.stderr, flush=True))
+                                                        file=sys.stderr, flush=True),
+                        device=args.device)
     if out["skipped"]:
         n = len(out["rows"]) + len(out["skipped"])
         print(f"finray predict: {len(out['skipped'])} of {n} frames skipped; the other "

@@ -1,5 +1,6 @@
-"""The numeric type of CPU training: bfloat16 autocast where the CPU runs it natively,
-float32 elsewhere.
+"""The device and numeric type of training and inference: the GPU when asked for (or,
+with ``auto``, when torch sees one), else the CPU; bfloat16 autocast where the device
+runs it natively, float32 elsewhere.
 
 bfloat16 autocast makes a training step faster only on CPUs whose convolutions run it in
 hardware (AVX-512 BF16 or AMX); on the others oneDNN emulates it and the step is many
@@ -7,7 +8,8 @@ times slower than in float32 (the step times per CPU are in the README and in ea
 model's ``history.json``). ``train.bf16: auto`` picks from what the CPU offers to the
 kernels torch will really use: the ATen dispatch level (``ATEN_CPU_CAPABILITY`` lowers
 it) and oneDNN's instruction set (``ONEDNN_MAX_CPU_ISA`` caps it), beside the
-hardware flags.
+hardware flags. On a GPU, ``auto`` means bfloat16 where the GPU has native bfloat16
+units (NVIDIA Ampere and later).
 """
 from __future__ import annotations
 
@@ -63,21 +65,89 @@ def cpu_precision() -> CpuPrecision:
                         onednn_max_isa=os.environ.get("ONEDNN_MAX_CPU_ISA") or None)
 
 
-def resolve_bf16(setting: bool | str, cpu: CpuPrecision | None = None) -> tuple[bool, str]:
+@dataclass(frozen=True)
+class GpuPrecision:
+    """What a CUDA GPU offers for bfloat16, as torch sees it."""
+
+    name: str  # torch.cuda.get_device_name()
+    native_bf16: bool  # bfloat16 in hardware (Ampere and later), not emulated
+
+    def describe(self) -> str:
+        return f"GPU {self.name}, bf16 {'native' if self.native_bf16 else 'not native'}"
+
+
+def gpu_precision(device=None) -> GpuPrecision:
+    """Read a CUDA GPU's bfloat16 support from torch (``device``: a torch device)."""
+    import torch
+
+    with torch.cuda.device(device):
+        try:
+            native = bool(torch.cuda.is_bf16_supported(including_emulation=False))
+        except TypeError:  # torch before 2.3 has no including_emulation
+            native = bool(torch.cuda.is_bf16_supported())
+        return GpuPrecision(torch.cuda.get_device_name(), native)
+
+
+def resolve_bf16(setting: bool | str, cpu: CpuPrecision | None = None, device=None,
+                 gpu: GpuPrecision | None = None) -> tuple[bool, str]:
     """``train.bf16`` (``"auto"``, true or false) -> (use bfloat16 autocast, a one-line
-    reason for the log)."""
+    reason for the log), for ``device`` (a torch device or its name; the CPU if None).
+    ``cpu``/``gpu``: the hardware's description (read from torch if None)."""
     if isinstance(setting, str) and setting != "auto":
         raise ValueError(f"train.bf16 must be auto, true or false, not {setting!r}")
-    cpu = cpu or cpu_precision()
-    native = cpu.native_bf16
+    on_gpu = device is not None and _device_type(device) == "cuda"
+    hw = (gpu or gpu_precision(device)) if on_gpu else (cpu or cpu_precision())
+    where = "GPU" if on_gpu else "CPU"
+    native = hw.native_bf16
     if setting == "auto":
         kind = "bfloat16 autocast" if native else "float32"
         why = "native bfloat16" if native else "no native bfloat16"
-        return native, f"{kind} (train.bf16: auto; {why}: {cpu.describe()})"
+        return native, f"{kind} (train.bf16: auto; {why}: {hw.describe()})"
     if setting and not native:
-        return True, ("bfloat16 autocast (train.bf16: true) on a CPU without native bfloat16 "
-                      f"({cpu.describe()}): expect steps many times slower than float32")
-    return bool(setting), f"{'bfloat16 autocast' if setting else 'float32'} (train.bf16: {str(bool(setting)).lower()}; {cpu.describe()})"
+        return True, (f"bfloat16 autocast (train.bf16: true) on a {where} without native bfloat16 "
+                      f"({hw.describe()}): expect steps many times slower than float32")
+    return bool(setting), f"{'bfloat16 autocast' if setting else 'float32'} (train.bf16: {str(bool(setting)).lower()}; {hw.describe()})"
+
+
+#: Values of ``train.device`` and of ``Predictor(device=...)``.
+DEVICES = ("auto", "cpu", "cuda")
+
+
+class DeviceError(ValueError):
+    """A device this machine does not have, or an unknown one; ``str`` is one line."""
+
+
+def _device_type(device) -> str:
+    return device if isinstance(device, str) else device.type
+
+
+def resolve_device(name: str = "auto", what: str = "device"):
+    """``auto`` | ``cpu`` | ``cuda`` -> a ``torch.device``: ``auto`` is the GPU when torch
+    sees one, else the CPU. ``cuda`` without a GPU raises :class:`DeviceError` (one line
+    naming ``what``, e.g. ``train.device``), before any work."""
+    import torch
+
+    if name not in DEVICES:
+        raise DeviceError(f"{what} must be one of {', '.join(DEVICES)}, not {name!r}")
+    if name == "cpu" or (name == "auto" and not torch.cuda.is_available()):
+        return torch.device("cpu")
+    if not torch.cuda.is_available():
+        build = (f"built with CUDA {torch.version.cuda}, but no GPU is visible (driver, "
+                 "CUDA_VISIBLE_DEVICES?)" if torch.version.cuda else "a CPU-only build")
+        raise DeviceError(f"{what} is cuda, but torch {torch.__version__} sees no CUDA GPU "
+                          f"({build}); use auto or cpu")
+    return torch.device("cuda", torch.cuda.current_device())
+
+
+def device_name(device) -> str:
+    """What a device is, for logs and benchmark files: ``cpu (<model name>)`` or
+    ``cuda:0 (<GPU name>)``."""
+    import torch
+
+    device = torch.device(device)
+    if device.type == "cuda":
+        return f"{device} ({torch.cuda.get_device_name(device)})"
+    return f"cpu ({cpu_name()})"
 
 
 def cpu_name() -> str:

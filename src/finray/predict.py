@@ -14,7 +14,10 @@ then cut around it.
 
 The network runs in ONNX Runtime when ``model.onnx`` and ``model.force.onnx`` lie
 beside ``model.ts`` (faster than TorchScript at batch 1 on one thread: both are timed in
-``results/benchmarks/inference_latency.json``), else in TorchScript.
+``results/benchmarks/inference_latency.json``), else in TorchScript. On a CUDA GPU
+(``device="cuda"``, or ``"auto"`` where torch sees one) it runs in TorchScript, or in
+ONNX Runtime's CUDAExecutionProvider when ``backend="onnx"`` is asked for and the
+installed ONNX Runtime has it; preprocessing stays on the CPU.
 """
 from __future__ import annotations
 
@@ -26,6 +29,7 @@ import numpy as np
 import torch
 
 from .dataset.imageops import EmptyMaskError, base_anchored_box, segment, silhouette_input
+from .precision import DeviceError, resolve_device
 
 BACKENDS = ("auto", "onnx", "torchscript")
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
@@ -34,6 +38,10 @@ VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm")
 
 class InputError(ValueError):
     """Input that cannot be predicted (model, source or frame); ``str`` is one line."""
+
+
+class DeviceInputError(InputError, DeviceError):
+    """A device this machine does not have (``device="cuda"`` without a GPU)."""
 
 
 class FrameError(InputError):
@@ -54,10 +62,15 @@ class Predictor:
     ``model.force.onnx`` for ONNX Runtime) once; call per frame.
 
     ``backend``: ``"onnx"`` (ONNX Runtime), ``"torchscript"``, or ``"auto"`` (ONNX
-    Runtime when its files and the package are there). ``threads``: intra-op threads.
+    Runtime when its files and the package are there; TorchScript on a GPU).
+    ``device``: ``"auto"`` (a CUDA GPU when torch sees one, else the CPU), ``"cpu"`` or
+    ``"cuda"`` (:class:`DeviceInputError` without a GPU); ``backend="onnx"`` on
+    ``"auto"`` stays on the CPU unless ONNX Runtime has its CUDAExecutionProvider.
+    :attr:`device` is where the network runs. ``threads``: intra-op threads (CPU).
     """
 
-    def __init__(self, model_path: str | Path, threads: int = 1, backend: str = "auto"):
+    def __init__(self, model_path: str | Path, threads: int = 1, backend: str = "auto",
+                 device: str = "auto"):
         model_path = Path(model_path)
         meta_path = Path(str(model_path) + ".json")
         if not model_path.is_file():
@@ -66,6 +79,10 @@ class Predictor:
             raise InputError(f"{meta_path} (the model's preprocessing settings) is missing")
         if backend not in BACKENDS:
             raise ValueError(f"backend must be one of {BACKENDS}, not {backend!r}")
+        try:
+            self.device = resolve_device(device, "device")
+        except DeviceError as exc:
+            raise DeviceInputError(str(exc)) from None
         try:
             self.meta = json.loads(meta_path.read_text())
         except (json.JSONDecodeError, UnicodeDecodeError) as exc:
@@ -90,8 +107,10 @@ class Predictor:
                              "torchscript or auto)")
         onnx_full = model_path.with_suffix(".onnx")
         onnx_force = model_path.with_suffix(".force.onnx")
+        cuda = self.device.type == "cuda"
         if backend == "auto":
-            have = onnx_full.is_file() and onnx_force.is_file() and not self.ensemble
+            have = (onnx_full.is_file() and onnx_force.is_file() and not cuda
+                    and not self.ensemble)
             try:
                 import onnxruntime  # noqa: F401
             except ImportError:
@@ -101,6 +120,16 @@ class Predictor:
         if backend == "onnx":
             import onnxruntime as ort
 
+            providers = ["CPUExecutionProvider"]
+            if cuda and "CUDAExecutionProvider" in ort.get_available_providers():
+                providers.insert(0, "CUDAExecutionProvider")
+            elif cuda and device == "cuda":
+                raise DeviceInputError(
+                    "backend onnx on cuda needs ONNX Runtime's CUDAExecutionProvider (the "
+                    "onnxruntime-gpu package); this one has "
+                    f"{', '.join(ort.get_available_providers())}: use backend torchscript")
+            elif cuda:  # device auto: ONNX Runtime without CUDA runs on the CPU
+                self.device = torch.device("cpu")
             opts = ort.SessionOptions()
             opts.intra_op_num_threads = threads
             opts.inter_op_num_threads = 1
@@ -109,17 +138,15 @@ class Predictor:
                 if not f.is_file():
                     raise InputError(f"no ONNX model at {f}")
             try:
-                self._full = ort.InferenceSession(str(onnx_full), opts,
-                                                  providers=["CPUExecutionProvider"])
-                self._force = ort.InferenceSession(str(onnx_force), opts,
-                                                   providers=["CPUExecutionProvider"])
+                self._full = ort.InferenceSession(str(onnx_full), opts, providers=providers)
+                self._force = ort.InferenceSession(str(onnx_force), opts, providers=providers)
             except Exception as exc:  # onnxruntime's own error types
                 raise InputError(f"cannot load the ONNX model {onnx_full} ({_one_line(exc)})"
                                  ) from None
         else:
             torch.set_num_threads(threads)
             try:
-                self.model = torch.jit.load(str(model_path), map_location="cpu").eval()
+                self.model = torch.jit.load(str(model_path), map_location=self.device).eval()
             except (RuntimeError, ValueError) as exc:
                 raise InputError(f"{model_path} is not a TorchScript model ({_one_line(exc)})"
                                  ) from None
@@ -160,8 +187,8 @@ class Predictor:
             stress, force = self._full.run(None, {"image": x})
             return stress, force
         with torch.inference_mode():
-            stress, force = self.model(torch.from_numpy(x))
-        return stress.numpy(), force.numpy()
+            stress, force = self.model(torch.from_numpy(x).to(self.device))
+        return stress.cpu().numpy(), force.cpu().numpy()
 
     def run_force(self, x: np.ndarray) -> np.ndarray:
         """Forces (B, n_forces) in N of inputs (B, 1, H, W) float32, without the stress
@@ -170,9 +197,9 @@ class Predictor:
         if self.backend == "onnx":
             return self._force.run(None, {"image": x})[0]
         with torch.inference_mode():
-            xt = torch.from_numpy(x)
+            xt = torch.from_numpy(x).to(self.device)
             f = self.model.force(xt) if self._has_force else self.model(xt)[1]
-        return f.numpy()
+        return f.cpu().numpy()
 
     def run_members(self, x: np.ndarray) -> np.ndarray:
         """Each head's force (B, M) in N of inputs (B, 1, H, W) float32 (an adapted
@@ -180,7 +207,8 @@ class Predictor:
         if not self.ensemble:
             return self.run_force(x)[:, :1]
         with torch.inference_mode():
-            return self.model.members(torch.from_numpy(np.ascontiguousarray(x, np.float32))).numpy()
+            xt = torch.from_numpy(np.ascontiguousarray(x, np.float32)).to(self.device)
+            return self.model.members(xt).cpu().numpy()
 
     def force_members(self, frame: np.ndarray) -> np.ndarray:
         """Each head's force (M,) in N of one frame (see :meth:`run_members`)."""
@@ -243,7 +271,8 @@ def latency(predictor: Predictor, frames: list[np.ndarray], n_frames: int = 200,
             for j, key in enumerate(names):
                 wall[key].append((t[j + 1] - t[j]) * 1e3)
                 cpu[key].append((c[j + 1] - c[j]) * 1e3)
-    out = {"backend": predictor.backend, "input_size": list(predictor.size),
+    out = {"backend": predictor.backend, "device": str(predictor.device),
+           "input_size": list(predictor.size),
            "base_channels": predictor.meta.get("base_channels"),
            "frame_shape": list(np.asarray(frames[0]).shape), "n_calls": repeats * n_frames,
            "n_distinct_frames": min(len(frames), n_frames)}
@@ -259,11 +288,13 @@ def latency(predictor: Predictor, frames: list[np.ndarray], n_frames: int = 200,
 
 
 def latency_report(model_path: str | Path, images, n_frames: int = 200, repeats: int = 3,
-                   backends=("onnx", "torchscript")) -> dict:
+                   backends=("onnx", "torchscript"), device: str = "cpu") -> dict:
     """Latency (ms) per frame at batch 1 on one thread of the exported model on raw
     camera images (paths; up to ``n_frames`` distinct ones, evenly picked), per
     backend (:func:`latency`); the first backend's figures at the top level, the
-    machine's load average before and after (timings on a shared machine are high)."""
+    machine's load average before and after (timings on a shared machine are high).
+    On the CPU by default, whatever the machine has (``finray.benchmarks.device``
+    times a GPU)."""
     import os
 
     import imageio.v3 as iio
@@ -274,7 +305,8 @@ def latency_report(model_path: str | Path, images, n_frames: int = 200, repeats:
     pick = np.unique(np.linspace(0, len(images) - 1, min(n_frames, len(images))).round().astype(int))
     frames = [iio.imread(images[k]) for k in pick]
     load_before = os.getloadavg()
-    runs = {b: latency(Predictor(model_path, threads=1, backend=b), frames, n_frames, repeats)
+    runs = {b: latency(Predictor(model_path, threads=1, backend=b, device=device), frames,
+                       n_frames, repeats)
             for b in backends}
     out = dict(runs[backends[0]])
     out.update({"model": str(model_path), "cpu_count": os.cpu_count(),
@@ -381,7 +413,7 @@ def _video_frames(path: Path):
 
 def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = "auto",
                   force_only: bool = False, on_frame=None, on_skip=None,
-                  calibration: dict | None = None) -> dict:
+                  device: str = "auto", calibration: dict | None = None) -> dict:
     """Predict every frame of ``source`` (image, folder of images or video) into
     ``out_dir``: ``forces.csv`` (``frame,fx_N``; a row appended and flushed as each
     frame completes; also ``fy_N`` for a model that predicts it) and, per frame unless
@@ -394,8 +426,8 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
     :func:`finray.calibration.calibrate_takes`, its model's heads' spread per frame) rows
     and columns also have ``force_N``, ``lo_N``, ``hi_N`` (the calibrated force's median
     and predictive interval, N) and ``level``. Raises :class:`InputError` for a missing
-    model or source, for a single image that cannot be predicted, and when no frame
-    at all could be.
+    model or source, a ``device`` this machine does not have (:class:`Predictor`), a
+    single image that cannot be predicted, and when no frame at all could be.
     """
     import matplotlib
 
@@ -406,7 +438,7 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
 
     frames = read_frames(source)  # checks the source before the model loads
     one_image = Path(source).is_file() and Path(source).suffix.lower() not in VIDEO_SUFFIXES
-    p = Predictor(model_path, threads, backend)
+    p = Predictor(model_path, threads, backend, device)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     rows, skipped = [], []

@@ -1,4 +1,4 @@
-"""Training of :class:`~finray.model.FinRayNet` on the CPU.
+"""Training of :class:`~finray.model.FinRayNet` on the CPU or a CUDA GPU.
 
 Loss (the paper's eq. 1): ``alpha_stress * MSE(stress) + alpha_force * MSE(force)``,
 each force component (``fx`` along the push, ``fy`` across it, as the paper's two-output
@@ -10,6 +10,14 @@ Speed on the CPU: ``channels_last`` memory, one intra-op thread per job when oth
 share the machine, and ``bfloat16`` autocast only where the CPU runs it natively
 (``bf16="auto"``, :mod:`finray.precision`); the choice and the measured step time go to
 the log and to ``history.json``.
+
+On a GPU (``device="cuda"``, or ``"auto"`` where torch sees one) the model and each
+batch go to the GPU; the frames stay in host memory and the augmentation runs on the
+CPU from the same generator, so that a run draws the same batches and augmentations on
+either device (results differ in rounding only). bfloat16 autocast follows the GPU's
+native support. Batch size, learning rate and epochs are the config's on every device.
+The trained model comes back on the CPU, and checkpoints and exports are written from
+it, so that they load on any machine.
 """
 from __future__ import annotations
 
@@ -17,6 +25,7 @@ import contextlib
 import copy
 import json
 import math
+import os
 import time
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
@@ -27,7 +36,7 @@ import torch
 from torch import nn
 
 from .model import FinRayNet, NetConfig
-from .precision import cpu_name, resolve_bf16
+from .precision import cpu_name, device_name, resolve_bf16, resolve_device
 
 
 @dataclass
@@ -39,7 +48,8 @@ class TrainConfig:
     alpha_force: float = 10.0
     seed: int = 0
     threads: int = 1
-    bf16: bool | str = "auto"  # "auto": bfloat16 autocast where the CPU runs it natively
+    bf16: bool | str = "auto"  # "auto": bfloat16 autocast where the device runs it natively
+    device: str = "auto"  # "auto" (the GPU when torch sees one), "cpu" or "cuda"
     channels_last: bool = True
     progress: bool = True  # a tqdm bar (interactive use); the log gets lines either way
     log_every_s: float = 60.0  # a progress line in the log at most this often (s)
@@ -58,6 +68,7 @@ class History:
     epoch_time_s: list = field(default_factory=list)  # training loop + validation (s)
     precision: str = ""  # "bfloat16" or "float32", as resolved from TrainConfig.bf16
     precision_reason: str = ""
+    device: str = ""  # where it trained: "cpu (<CPU>)" or "cuda:0 (<GPU>)"
     step_ms: float = float("nan")  # median training step, wall (batch, augmentation included)
     step_cpu_ms: float = float("nan")  # the same in the thread's CPU time (less load-dependent)
     best_epoch: int = 0  # the epoch whose weights are kept: lowest validation loss (train loss without validation)
@@ -168,8 +179,8 @@ def seed_everything(seed: int) -> torch.Generator:
     return g
 
 
-def _use_bf16(cfg: TrainConfig) -> bool:
-    return resolve_bf16(cfg.bf16)[0] if isinstance(cfg.bf16, str) else bool(cfg.bf16)
+def _use_bf16(cfg: TrainConfig, device: torch.device) -> bool:
+    return resolve_bf16(cfg.bf16, device=device)[0] if isinstance(cfg.bf16, str) else bool(cfg.bf16)
 
 
 def _step_times(hist: History, step_s: list[tuple[float, float]]) -> None:
@@ -178,9 +189,9 @@ def _step_times(hist: History, step_s: list[tuple[float, float]]) -> None:
     hist.step_ms, hist.step_cpu_ms = (1e3 * float(v) for v in np.median(t, axis=0))
 
 
-def _autocast(enabled: bool):
+def _autocast(enabled: bool, device: torch.device):
     if enabled:
-        return torch.autocast("cpu", dtype=torch.bfloat16)
+        return torch.autocast(device.type, dtype=torch.bfloat16)
     return contextlib.nullcontext()
 
 
@@ -190,18 +201,20 @@ def _prep(x: torch.Tensor, channels_last: bool) -> torch.Tensor:
 
 def evaluate(model: FinRayNet, images: torch.Tensor, stress: torch.Tensor, force_N: torch.Tensor,
              cfg: TrainConfig, batch_size: int = 256) -> dict:
-    """Losses and force errors (N) of ``model`` on a set, in eval mode."""
+    """Losses and force errors (N) of ``model`` on a set, in eval mode, on the model's
+    device (the set's batches go there; the predicted forces come back to the CPU)."""
     model.eval()
+    device = next(model.parameters()).device
     n = len(images)
     s_se, f_se, f_pred = 0.0, 0.0, []
-    with torch.no_grad(), _autocast(_use_bf16(cfg)):
+    with torch.no_grad(), _autocast(_use_bf16(cfg, device), device):
         for i in range(0, n, batch_size):
-            x = _prep(images[i:i + batch_size], cfg.channels_last)
+            x = _prep(images[i:i + batch_size].to(device), cfg.channels_last)
             s, f = model.forward_normalised(x)
-            s_se += float(((s.float() - stress[i:i + batch_size]) ** 2).mean()) * len(x)
-            fn = model.normalise_force(force_N[i:i + batch_size])
+            s_se += float(((s.float() - stress[i:i + batch_size].to(device)) ** 2).mean()) * len(x)
+            fn = model.normalise_force(force_N[i:i + batch_size].to(device))
             f_se += float(((f.float() - fn) ** 2).mean()) * len(x)
-            f_pred.append(f.float() * model.force_scale_N + model.force_mean_N)
+            f_pred.append((f.float() * model.force_scale_N + model.force_mean_N).cpu())
     f_pred = torch.cat(f_pred)
     s_mse, f_mse = s_se / n, f_se / n
     return {
@@ -227,12 +240,18 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
     training batch (on the fly, seeded by the training generator); with
     ``camera_images`` (N, C, H, W: each frame seen by its randomised camera) it is called
     ``augment(x, s, generator, x_camera)`` and picks between the two views.
+    Runs on ``cfg.device`` (:func:`~finray.precision.resolve_device`: ``cuda`` without a
+    GPU stops here, before any work); the model is returned on the CPU.
     """
+    device = resolve_device(cfg.device, "train.device")
+    if device.type == "cuda":  # deterministic cuBLAS needs a fixed workspace (torch's reproducibility notes)
+        os.environ.setdefault("CUBLAS_WORKSPACE_CONFIG", ":4096:8")
     torch.set_num_threads(cfg.threads)
     gen = seed_everything(cfg.seed)
-    bf16, why = resolve_bf16(cfg.bf16)
+    bf16, why = resolve_bf16(cfg.bf16, device=device)
     cfg = replace(cfg, bf16=bf16)
     log(f"precision: {why}")
+    log(f"device: {device_name(device)}")
     x_all = torch.as_tensor(images, dtype=torch.float32)
     s_all = torch.as_tensor(stress, dtype=torch.float32)
     f_all = torch.as_tensor(force_N, dtype=torch.float32).reshape(len(x_all), -1)
@@ -246,6 +265,7 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
     mean = f_all.mean(0)
     scale = f_all.std(0).clamp_min(1e-6)
     model.set_force_normalisation(mean, scale)
+    model = model.to(device)  # initialised on the CPU: the same weights on any device
     if cfg.channels_last:
         model = model.to(memory_format=torch.channels_last)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
@@ -254,7 +274,8 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
         vx, vs, vf = (torch.as_tensor(a, dtype=torch.float32) for a in val)
         vf = vf.reshape(len(vx), -1)
     hist = History(precision="bfloat16" if bf16 else "float32", precision_reason=why,
-                   force_mean_N=mean.tolist(), force_std_N=scale.tolist())
+                   device=device_name(device), force_mean_N=mean.tolist(),
+                   force_std_N=scale.tolist())
     best, best_loss = None, math.inf
     n = len(x_all)
     n_batches = max(1, n // cfg.batch_size)  # drop the last partial batch (batch-norm)
@@ -280,8 +301,9 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
             x, s, f = x_all[idx], s_all[idx], f_all[idx]
             if augment is not None:
                 x, s = augment(x, s, gen) if c_all is None else augment(x, s, gen, c_all[idx])
-            x = _prep(x, cfg.channels_last)
-            with _autocast(bf16):
+            x = _prep(x.to(device), cfg.channels_last)
+            s, f = s.to(device), f.to(device)
+            with _autocast(bf16, device):
                 s_pred, f_pred = model.forward_normalised(x)
             ls = mse(s_pred.float(), s)
             lf = mse(f_pred.float(), model.normalise_force(f))
@@ -333,12 +355,13 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
             msg += " (best)"
         log(msg)
     model.load_state_dict(best)
-    model.eval()
+    model = model.cpu().eval()  # checkpoints and exports load anywhere
     return model, hist
 
 
 def save_checkpoint(model: FinRayNet, hist: History, path: str | Path, extra: dict | None = None) -> None:
-    torch.save({"net_config": model.config_dict(), "state_dict": model.state_dict(),
+    state = {k: v.detach().cpu() for k, v in model.state_dict().items()}  # loads anywhere
+    torch.save({"net_config": model.config_dict(), "state_dict": state,
                 "history": asdict(hist), "extra": extra or {}}, path)
 
 
@@ -360,7 +383,7 @@ def export_torchscript(model: FinRayNet, path: str | Path, preprocess: dict | No
     ``path + '.json'`` keeps the network's settings, the names of the force outputs
     (``forces``, e.g. ``["fx_N", "fy_N"]``; default ``fx_N`` and on) and the preprocessing
     (crop window, base width, segmentation) that :class:`finray.predict.Predictor` needs."""
-    model = copy.deepcopy(model).float().eval().to(memory_format=torch.contiguous_format)
+    model = copy.deepcopy(model).cpu().float().eval().to(memory_format=torch.contiguous_format)
     c = model.cfg
     example = torch.rand(1, c.in_channels, c.height, c.width)
     with torch.no_grad():
@@ -391,7 +414,7 @@ def export_onnx(model: FinRayNet, path: str | Path) -> None:
     ``.force.onnx`` (the encoder and force head only, output ``force_N``)."""
     import warnings
 
-    model = copy.deepcopy(model).float().eval().to(memory_format=torch.contiguous_format)
+    model = copy.deepcopy(model).cpu().float().eval().to(memory_format=torch.contiguous_format)
     c = model.cfg
     example = torch.rand(1, c.in_channels, c.height, c.width)
     path = Path(path)
@@ -461,7 +484,9 @@ def train_from_shards(shards, out_dir: str | Path, net_cfg: NetConfig, cfg: Trai
     """Train on the shards (force components ``forces``, ``fx`` first; ``net_cfg.n_forces``
     is set to match), keep the best model by validation loss and write
     ``model.pt``, ``model.ts`` (TorchScript), ``model.onnx`` and ``model.force.onnx``
-    (ONNX), ``history.json`` and ``curves.png``."""
+    (ONNX), ``history.json`` and ``curves.png``. ``cuda`` without a GPU stops before
+    the data load."""
+    resolve_device(cfg.device, "train.device")
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     forces = tuple(forces)
@@ -486,7 +511,7 @@ def train_from_shards(shards, out_dir: str | Path, net_cfg: NetConfig, cfg: Trai
                         camera_images=tr.get("camera_images"))
     seconds = time.perf_counter() - t0
     extra = {"train_config": asdict(cfg), "augment": asdict(augment) if augment else None,
-             "cpu": cpu_name(), "torch_threads": torch.get_num_threads(),
+             "cpu": cpu_name(), "device": hist.device, "torch_threads": torch.get_num_threads(),
              "validation_scenes": sorted(val_ids), "n_train": int(len(tr["images"])),
              "n_val": int(len(va["images"])), "train_seconds": seconds,
              "forces": [FORCE_COMPONENTS[c] for c in forces]}

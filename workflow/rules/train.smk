@@ -16,7 +16,7 @@ rule train_model:
             category="Training",
         ),
     params:
-        train=section("train", drop=("models",)),
+        train=section("train", drop=("models",)),  # device too: the rounding follows it
         augment=model_augment,
         dataset=section("dataset", keys=SEGMENT_KEYS + ("crop_x_mm", "crop_y_mm", "occlusion_levels",
                                                         "base_band")),

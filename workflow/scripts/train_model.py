@@ -10,8 +10,8 @@ with log_to(snakemake.log[0]):
     net = NetConfig(in_channels=1, base_channels=t["base_channels"], height=h, width=w)
     cfg = TrainConfig(epochs=t["epochs"], batch_size=t["batch_size"], lr=t["lr"],
                       alpha_stress=t["alpha_stress"], alpha_force=t["alpha_force"], seed=t["seed"],
-                      threads=snakemake.threads, bf16=t["bf16"], channels_last=t["channels_last"],
-                      progress=False)
+                      threads=snakemake.threads, bf16=t["bf16"], device=t["device"],
+                      channels_last=t["channels_last"], progress=False)
     d = p.dataset
     aug = AugmentConfig(**p.augment, **pitch_geometry(d, p.render, h, p.finger["extrusion_mm"]))
     occ = {k: tuple(v) for k, v in d["occlusion_levels"].items()}

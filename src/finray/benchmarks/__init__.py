@@ -11,4 +11,6 @@ speed     FEA against network times, the pipeline's stage times, the studies' ti
           and the DAG's wall time (from Snakemake's benchmark files)
 pareto    the one Pareto-front helper of the studies
 timing    the one timer (wall and CPU time of a block or a callable)
+device    one training epoch and the batch-1 latency on the device torch finds
+          (``python -m finray.benchmarks.device``)
 """

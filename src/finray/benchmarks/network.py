@@ -104,8 +104,9 @@ def run_time_vs_error(shards, out_csv, out_png, out_md, sizes, bases, configured
 
     torch.set_num_threads(1)
     rows = []
+    # a CPU cost study (one thread, as its latencies): on the CPU whatever the machine has
     cfg = TrainConfig(epochs=epochs, batch_size=batch_size, lr=lr, seed=seed, threads=1,
-                      bf16=bf16, channels_last=channels_last, progress=False)
+                      bf16=bf16, device="cpu", channels_last=channels_last, progress=False)
     for h, w in sizes:
         data = load_split(shards, (h, w), every)
         val_ids = validation_scenes(data["scene_id"], val_fraction, seed)

@@ -46,13 +46,15 @@ class Stopwatch:
 
 @dataclass(frozen=True)
 class CallTimes:
-    """Seconds per call: the median and mean over the timed calls, wall and CPU."""
+    """Seconds per call: the median and mean over the timed calls, wall and CPU, and the
+    90th percentile of the wall time."""
 
     wall_s: float
     cpu_s: float
     mean_wall_s: float
     mean_cpu_s: float
     n_calls: int
+    p90_wall_s: float = float("nan")
 
 
 def time_calls(fn, n_calls: int = 1, repeats: int = 1, warmup: int = 1,
@@ -70,4 +72,4 @@ def time_calls(fn, n_calls: int = 1, repeats: int = 1, warmup: int = 1,
         fn(i % max(int(n_calls), 1))
         wall[i], cpu_s[i] = time.perf_counter() - t, clock() - c
     return CallTimes(float(np.median(wall)), float(np.median(cpu_s)), float(wall.mean()),
-                     float(cpu_s.mean()), n)
+                     float(cpu_s.mean()), n, float(np.percentile(wall, 90)))
