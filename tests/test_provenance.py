@@ -132,7 +132,7 @@ READERS: list[tuple[str, set[str]]] = [
     ("objects.circle_d10.split", {"fea_scene", "render_scene", "geometry_gallery",
                                   "dataset_examples", "dataset_manifest", "evaluate_baseline",
                                   "evaluate_experiment", "render_benchmark", "train_model",
-                                  "train_pareto", "viewpoint_render", "sim2real"}),  # it becomes the pitch object
+                                  "train_pareto", "viewpoint_render"}),  # it becomes the pitch object
     ("objects.square_s10_a30.split", {"fea_scene", "render_scene", "geometry_gallery",
                                       "evaluate_baseline", "evaluate_experiment", "train_model",
                                       "train_pareto", "figure_material_generalisation", "sim2real"}),
