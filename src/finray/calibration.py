@@ -53,9 +53,10 @@ class Sampler:
     seed: int = 0
 
 
-def log_posterior(theta: np.ndarray, mu, s, y, priors: Priors) -> np.ndarray:
+def log_posterior(theta: np.ndarray, mu, s, y, priors: Priors, weight: float = 1.0) -> np.ndarray:
     """Log posterior (W,) of parameter rows ``theta`` (W, 5): gain, offset (N),
-    log sigma (N), log rho, log kappa; ``mu``, ``s``, ``y`` (N,) in N."""
+    log sigma (N), log rho, log kappa; ``mu``, ``s``, ``y`` (N,) in N. ``weight``: each
+    frame's share of the likelihood (1 / the times a frame appears in ``y``)."""
     theta = np.atleast_2d(theta)
     g, b, ls, lr, lk = (theta[:, i:i + 1] for i in range(5))
     ok = g[:, 0] > 0
@@ -69,11 +70,11 @@ def log_posterior(theta: np.ndarray, mu, s, y, priors: Priors) -> np.ndarray:
     ll = -0.5 * np.sum((y - g * mu - b) ** 2 / var + np.log(2 * np.pi * var), axis=1)
     lg = np.log(g[:, 0])
     lp = -0.5 * (lg / priors.gain_log_sd) ** 2 - lg - 0.5 * (b[:, 0] / priors.offset_sd_N) ** 2
-    out[ok] = ll + lp
+    out[ok] = weight * ll + lp
     return out
 
 
-def _start(mu, s, y, priors: Priors) -> np.ndarray:
+def _start(mu, s, y, priors: Priors, weight: float = 1.0) -> np.ndarray:
     """The posterior's mode (Nelder-Mead from a least-squares line), to start the walkers."""
     from scipy.optimize import minimize
 
@@ -82,7 +83,7 @@ def _start(mu, s, y, priors: Priors) -> np.ndarray:
     g = g if g > 0 else 1.0
     r = y - g * mu - b
     x0 = np.array([g, b, np.log(max(np.std(r), 2 * priors.sigma_N[0])), np.log(0.05), 0.0])
-    best = minimize(lambda t: -log_posterior(t, mu, s, y, priors)[0], x0, method="Nelder-Mead",
+    best = minimize(lambda t: -log_posterior(t, mu, s, y, priors, weight)[0], x0, method="Nelder-Mead",
                     options={"maxiter": 4000, "xatol": 1e-6, "fatol": 1e-6})
     x = best.x if np.isfinite(best.fun) else x0
     # inside the bounds, so that every walker of the ball around it starts finite
@@ -92,11 +93,12 @@ def _start(mu, s, y, priors: Priors) -> np.ndarray:
 
 
 def fit_calibration(mu, s, y, priors: Priors | None = None, sampler: Sampler | None = None,
-                    log=print) -> dict:
+                    log=print, weight: float = 1.0) -> dict:
     """Sample the sensor model's posterior on frames (network mean ``mu``, spread ``s``,
     sensor ``y``; N). Returns ``{"posterior": {"names", "samples"}, "summary",
     "diagnostics", "priors", "sampler"}``; ``diagnostics["ok"]``: the chain is long
-    enough and the acceptance fraction within 0.2-0.5."""
+    enough and the acceptance fraction within 0.2-0.5. ``weight``: see
+    :func:`log_posterior`."""
     import emcee
 
     priors, sampler = priors or Priors(), sampler or Sampler()
@@ -106,13 +108,14 @@ def fit_calibration(mu, s, y, priors: Priors | None = None, sampler: Sampler | N
     if len(y) < 10:
         raise CalibrationError(f"too few frames to calibrate ({len(y)}; at least 10)")
     rng = np.random.default_rng(sampler.seed)
-    x0 = _start(mu, s, y, priors)
+    x0 = _start(mu, s, y, priors, weight)
     p0 = x0 + 1e-3 * rng.standard_normal((sampler.walkers, len(PARAMS))) * np.maximum(np.abs(x0), 0.1)
     # differential-evolution moves shorten the autocorrelation; mixed with the stretch
     # move (acceptance ~0.6 here) for an acceptance fraction within 0.2-0.5
     moves = [(emcee.moves.DEMove(), 0.6), (emcee.moves.DESnookerMove(), 0.1),
              (emcee.moves.StretchMove(), 0.3)]
-    ens = emcee.EnsembleSampler(sampler.walkers, len(PARAMS), log_posterior, args=(mu, s, y, priors),
+    ens = emcee.EnsembleSampler(sampler.walkers, len(PARAMS), log_posterior,
+                                args=(mu, s, y, priors, weight),
                                 vectorize=True, moves=moves)
     ens.random_state = np.random.RandomState(sampler.seed).get_state()  # replayable moves
     state, tau, n = p0, None, 0
@@ -139,6 +142,7 @@ def fit_calibration(mu, s, y, priors: Priors | None = None, sampler: Sampler | N
                       and 0.2 <= acc.mean() <= 0.5)
     return {"posterior": {"names": list(PARAMS), "samples": flat.tolist()},
             "summary": summarise(flat), "diagnostics": diag, "n_frames": int(len(y)),
+            "likelihood_weight": weight,
             "priors": asdict(priors), "sampler": asdict(sampler)}
 
 
@@ -265,7 +269,10 @@ def fit_rig(model, features, force_N, unit_sets, fit, fold_members: int = 2,
     y = np.asarray(force_N, dtype=np.float64)
     parts = [cross_fitted(model, features, force_N, u, fit, fold_members) for u in unit_sets]
     mu, sd = (np.concatenate(a) for a in zip(*parts))
-    cal = fit_calibration(mu, sd, np.tile(y, len(parts)), priors, sampler, log=log)
+    # each frame once per labelling: a likelihood weighted 1/len, so that the posterior
+    # is not narrowed as if there were more frames
+    cal = fit_calibration(mu, sd, np.tile(y, len(parts)), priors, sampler, log=log,
+                          weight=1.0 / len(parts))
     cal["cross_fit"] = {"unit_sets": [sorted(set(np.asarray(u).tolist())) for u in unit_sets],
                         "fold_members": fold_members,
                         "nrmse_pct": [float(100 * np.sqrt(np.mean((m - y) ** 2)) / np.max(np.abs(y)))
