@@ -11,7 +11,7 @@ from finray.adapt import HeadEnsemble, HeadFit, encoder_features, export_ensembl
 from finray.cli import main
 from finray.model import FinRayNet, NetConfig
 from finray.predict import InputError, Predictor
-from test_predict import PREPROCESS, render_png  # noqa: F401  (fixture)
+from test_predict import PREPROCESS, render_png  # noqa: F401,F811  (a fixture)
 
 
 @pytest.fixture(scope="module")
@@ -76,7 +76,7 @@ def test_exported_ensemble_in_the_predictor(ensemble):
         Predictor(d / "rig.model.ts", backend="onnx")
 
 
-def test_predict_with_calibration(ensemble, render_png, tmp_path, capsys):  # noqa: F811
+def test_predict_with_calibration(ensemble, render_png, tmp_path, capsys):  # noqa: F811  (the fixture)
     """`finray predict --calibration` prints each frame's calibrated force and interval
     and writes them to forces.csv; a --model that is not the calibrated one is refused."""
     _, _, d = ensemble

@@ -218,11 +218,11 @@ def corner_figure(calibration: dict, title: str = ""):
     return fig
 
 
-def fold_units(table: pd.DataFrame, folds: str) -> list[np.ndarray]:
-    """The cross-fitting labellings of context frames: ``take`` (each take predicted by
-    heads fitted without it: a new scene), ``half`` (each take's second half by heads
-    fitted on the first halves, and back: a new moment of a seen scene) or ``both``. A
-    single take has halves only."""
+def fold_units(table, folds: str) -> list[np.ndarray]:
+    """The cross-fitting labellings of context frames (a table with ``take`` and
+    ``t_s``): ``take`` (each take predicted by heads fitted without it: a new scene),
+    ``half`` (each take's second half by heads fitted on the first halves, and back: a
+    new moment of a seen scene) or ``both``. A single take has halves only."""
     if folds not in ("take", "half", "both"):
         raise ValueError(f"the folds must be take, half or both, not {folds!r}")
     late = table.groupby("take")["t_s"].transform(lambda s: s > s.median()).to_numpy()

@@ -26,13 +26,16 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..adapt import HeadFit, encoder_features, fit_heads, head_forces
-from ..calibration import (Priors, Sampler, coverage, fit_calibration, fit_rig, fold_units,
-                           predictive)
+from ..adapt import HeadFit, encoder_features, head_forces
+from ..calibration import Priors, Sampler, coverage, fit_rig, fold_units, predictive
+from ..paper_reference import paper_value
 from .metrics import force_metrics
 
-#: The paper's MSE (N^2) with 0, 1 and 2 context objects (section 5.3).
-PAPER_MSE_N2 = {0: 0.092, 1: 0.07, 2: 0.037}
+
+def paper_mse_N2() -> dict[int, float]:
+    """The paper's MSE (N^2) with 0, 1 and 2 context objects (section 5.3)."""
+    v = paper_value("sim_to_real_mse_N2")
+    return {0: v["sim_only"], 1: v["one_real_sample"], 2: v["two_real_samples"]}
 
 
 @dataclass(frozen=True)
@@ -100,7 +103,7 @@ def run_sim2real(model_pt, lab_shards, sim_shards, sim_test_shards, size, cfg: S
     f_lab = encoder_features(model, x)
     xs, ys, ts = _frames(sim_shards, size, cfg.sim_every)
     f_sim = encoder_features(model, xs)
-    xt, yt, tt = _frames(sim_test_shards, size, cfg.sim_every)
+    xt, yt, _ = _frames(sim_test_shards, size, cfg.sim_every)
     f_test = encoder_features(model, xt)
     log(f"features: {len(x)} lab frames, {len(xs)} simulated, "
         f"{len(xt)} simulated test frames ({time.perf_counter() - t0:.1f} s)")
@@ -175,7 +178,7 @@ def metrics_table(frames: pd.DataFrame, level: float) -> pd.DataFrame:
             rows.append({"context_objects": k, "context": "all", "test": grp, **_row(g)})
         rows.append({"context_objects": k, "context": "all", "test": "all", **_row(gk)})
     out = pd.DataFrame(rows)
-    out["paper_mse_N2"] = out["context_objects"].map(PAPER_MSE_N2)
+    out["paper_mse_N2"] = out["context_objects"].map(paper_mse_N2())
     out["interval"] = f"{level:.0%}"
     return out
 
@@ -189,7 +192,7 @@ def summarise_runs(metrics: pd.DataFrame, cals: list[dict], sim: dict, cfg: Sim2
         by_k[str(int(k))] = {
             **{c: float(tot[c]) for c in ("mse_N2", "rmse_N", "nrmse_pct", "coverage_pct",
                                           "raw_mse_N2", "raw_nrmse_pct", "max_sensor_N")},
-            "n_frames": int(tot["n"]), "paper_mse_N2": PAPER_MSE_N2.get(int(k)),
+            "n_frames": int(tot["n"]), "paper_mse_N2": paper_mse_N2().get(int(k)),
             "per_object": {r["test"]: {c: float(r[c]) for c in ("mse_N2", "rmse_N", "nrmse_pct",
                                                                  "coverage_pct")}
                            for _, r in g[g["test"] != "all"].iterrows()},
