@@ -288,8 +288,9 @@ def calibrate_takes(takes, model_path, out_json, ingest_params, fit, folds: str 
     into ``<out>.ingest/<take>/``), fit the rig's head ensemble on the simulation-trained
     model (``model.pt``, or the ``model.ts`` it was exported to, beside it) and sample
     the sensor calibration on cross-fitted predictions. Writes ``out_json``, the adapted
-    model ``<out>.model.ts`` (+ ``.json``; what ``finray predict --calibration`` runs) and
-    the corner plot ``<out>.corner.png``; returns the calibration."""
+    model ``<out>.model.ts`` (+ ``.json``; what ``finray predict --calibration`` runs), the
+    takes' colour segmentation (``segment``: new frames are segmented as the takes were)
+    and the corner plot ``<out>.corner.png``; returns the calibration."""
     import pandas as pd
 
     from .adapt import HeadEnsemble, encoder_features, export_ensemble
@@ -327,8 +328,13 @@ def calibrate_takes(takes, model_path, out_json, ingest_params, fit, folds: str 
     ts_path = Path(f"{stem}.model.ts")
     export_ensemble(HeadEnsemble(model, heads), ts_path, meta.get("preprocess", {}),
                     {"base_model": str(pt), "takes": [str(p) for p in takes]})
+    with np.load(shards[0]) as f:  # the takes' finger colour, to segment new frames alike
+        colour = json.loads(str(f["meta"]))["colour"]
     cal.update(model=ts_path.name, base_model=str(pt), takes=[str(p) for p in takes],
-               level=level, n_frames_takes=int(len(y)))
+               level=level, n_frames_takes=int(len(y)),
+               segment={"colour": colour, "stride": ingest_params.stride,
+                        "min_object_frac": ingest_params.min_object_frac,
+                        "max_hole_frac": ingest_params.max_hole_frac})
     out_json.parent.mkdir(parents=True, exist_ok=True)
     out_json.write_text(json.dumps(cal))
     import matplotlib.pyplot as plt

@@ -411,6 +411,26 @@ def _video_frames(path: Path):
     return frames()
 
 
+def _colour_segmenter(spec: dict):
+    """The finger's mask of a frame as ``finray ingest`` found it in the calibration's
+    takes (their learned or given colour, :func:`finray.recording.segment_finger`)."""
+    from .recording.colour import ColourRange, segment_finger
+
+    colour = ColourRange.from_take(spec["colour"])
+
+    def seg(frame):
+        frame = np.asarray(frame)
+        if frame.ndim != 3:
+            raise FrameError(f"expected an (H, W, 3) colour frame, got shape {frame.shape}")
+        mask = segment_finger(frame[..., :3], colour, spec["stride"], spec["min_object_frac"],
+                              spec["max_hole_frac"])
+        if mask is None:
+            raise FrameError(f"no finger of the calibrated colour ({colour.describe()})")
+        return mask
+
+    return seg
+
+
 def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = "auto",
                   force_only: bool = False, on_frame=None, on_skip=None,
                   device: str = "auto", calibration: dict | None = None) -> dict:
@@ -441,6 +461,9 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
     p = Predictor(model_path, threads, backend, device)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
+    segment_frame = p.segment
+    if calibration is not None and calibration.get("segment"):
+        segment_frame = _colour_segmenter(calibration["segment"])
     rows, skipped = [], []
     with open(out_dir / "forces.csv", "w") as table:
         cal_cols = ["force_N", "lo_N", "hi_N"] if calibration is not None else []
@@ -450,7 +473,7 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
             try:
                 if isinstance(frame, FrameError):
                     raise frame
-                x = p.network_input(p.segment(frame))
+                x = p.network_input(segment_frame(frame))
                 if force_only:
                     fvec = p.run_force(x)[0]
                 else:
