@@ -164,3 +164,19 @@ def test_key_structure_ignores_names_only():
     assert key_structure(s) == a
     s["training"]["plain"].pop("best_epoch")
     assert key_structure(s) != a
+
+
+def test_sim2real_section_follows_its_numbers():
+    """The sim-to-real words: emulated takes, the error's trend and the comparison with
+    the paper's MSE, taken from the summary."""
+    text = render(FULL)
+    r = FULL["sim2real"]
+    assert "**emulated** ones above, not recordings" in text
+    assert ("The error falls with each context object" in text) == r["error_falls"]
+    s = copy.deepcopy(FULL)
+    s["sim2real"]["error_falls"] = False
+    s["sim2real"]["by_context"]["2"]["mse_N2"] = 0.37  # ten times the paper's 0.037
+    text = render(s)
+    assert "The error does not fall with each context object" in text
+    assert "10.0 times larger than the paper's 0.037" in text.replace("\n", " ")
+    assert f"{r['lab_coverage_pct_with_context']:.1f} % of the held-out frames" in render(FULL).replace("\n", " ")

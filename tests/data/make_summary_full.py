@@ -42,6 +42,7 @@ def main() -> None:
     # the emulated lab takes, with the set-up the summary rule passes (lab.smk, paper.smk)
     s["lab"] = lab_summary(r / "lab" / "qa.json", r / "lab" / "qa.csv",
                            {k: cfg["lab"][k] for k in ("as_built", "motion", "camera", "sensor")})
+    s["sim2real"] = json.loads((r / "evaluate" / "sim2real" / "summary.json").read_text())
     a.out.write_text(json.dumps(s, indent=1) + "\n")
     print(f"wrote {a.out} ({a.out.stat().st_size} bytes)")
 
