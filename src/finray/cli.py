@@ -344,8 +344,9 @@ force heads on the model's frozen encoder (fitted on every take's frames), and
 the sensor model F_sensor = g F_pred + b + e is sampled with emcee on
 cross-fitted predictions (see finray.calibration). Writes calibration.json
 (posterior samples, summary, convergence diagnostics), the adapted model
-<out>.model.ts that finray predict --calibration runs, <out>.corner.png and the
-ingested takes under <out>.ingest/. Settings: the config's evaluate.sim2real.
+<out>.model.ts that finray predict --calibration runs (on frames segmented by the
+takes' finger colour), <out>.corner.png and the ingested takes under
+<out>.ingest/. Settings: the config's evaluate.sim2real.
 
 example:
   finray calibrate lab/cylinder_h20 lab/cylinder_h30 --model results/train/camera/model.pt \\
