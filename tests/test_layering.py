@@ -11,6 +11,9 @@ or lower. The top-level modules that are not stages get the rank of what they im
   import it (the FEA studies do, from ``benchmarks``).
 - ``model``, ``train``: the train stage; ``predict`` runs a trained model on camera
   frames (dataset's image ops, render's image I/O) and is what evaluate scores.
+  ``adapt`` fits a rig's force heads on a trained model, ``calibration`` the sensor model
+  on them (from ingested takes: recording's level): both at train's rank, so that
+  ``predict`` may apply a calibration.
 - ``lab``: the emulated rig: FEA results through a camera into takes (render's level
   and up: rank 35). ``recording``: a real rig's takes -> shards, the dataset stage's
   counterpart; it must never import ``lab`` (ingest must not see the emulator's truth).
@@ -32,7 +35,7 @@ RANK = {
     "lab": 35,
     "dataset": 40, "recording": 40,
     "config": 45,
-    "model": 50, "train": 50, "predict": 50,
+    "model": 50, "train": 50, "predict": 50, "adapt": 50, "calibration": 50,
     "evaluate": 60,
     "benchmarks": 70,
     "cli": 80,
