@@ -324,15 +324,22 @@ def _ingest_parser(sub) -> None:
     p.set_defaults(func=_run_ingest)
 
 
-def _run_ingest(args) -> int:
+def _ingest_params(raw: dict):
+    """Ingest's settings from a config mapping: the dataset's sizes and crop, the
+    finger's base width (never ``lab:``)."""
     from .dataset.shards import DatasetParams
-    from .recording import IngestParams, ingest
+    from .recording import IngestParams
 
-    raw = _raw_config(args.config)
     d = DatasetParams.from_config(raw.get("dataset"))
     base = float((raw.get("finger") or {}).get("base_width_mm", 30.0))
-    params = IngestParams(sizes=d.sizes, crop_x_mm=d.crop_x_mm, crop_y_mm=d.crop_y_mm,
-                          base_width_mm=base)
+    return IngestParams(sizes=d.sizes, crop_x_mm=d.crop_x_mm, crop_y_mm=d.crop_y_mm,
+                        base_width_mm=base)
+
+
+def _run_ingest(args) -> int:
+    from .recording import ingest
+
+    params = _ingest_params(_raw_config(args.config))
     ingest(args.take, args.out, params, log=lambda m: print(m, flush=True))
     return 0
 
@@ -370,22 +377,13 @@ def _calibrate_parser(sub) -> None:
 
 
 def _run_calibrate(args) -> int:
-    from .adapt import HeadFit
-    from .calibration import Priors, Sampler, calibrate_takes
-    from .dataset.shards import DatasetParams
-    from .recording import IngestParams
+    from .calibration import calibrate_takes
+    from .evaluate.sim2real import Sim2RealConfig
 
     raw = _raw_config(args.config)
-    d = DatasetParams.from_config(raw.get("dataset"))
-    base = float((raw.get("finger") or {}).get("base_width_mm", 30.0))
-    s2r = (raw.get("evaluate") or {}).get("sim2real") or {}
-    pr = {k: tuple(v) if isinstance(v, list) else v for k, v in (s2r.get("priors") or {}).items()}
-    cal = calibrate_takes(args.takes, args.model, args.out,
-                          IngestParams(sizes=d.sizes, crop_x_mm=d.crop_x_mm, crop_y_mm=d.crop_y_mm,
-                                       base_width_mm=base),
-                          HeadFit(**(s2r.get("heads") or {})), str(s2r.get("folds", "both")),
-                          int(s2r.get("fold_members", 2)), Priors(**pr),
-                          Sampler(**(s2r.get("sampler") or {})), float(s2r.get("level", 0.9)),
+    c = Sim2RealConfig.from_params((raw.get("evaluate") or {}).get("sim2real") or {})
+    cal = calibrate_takes(args.takes, args.model, args.out, _ingest_params(raw), c.heads, c.folds,
+                          c.fold_members, c.priors, c.sampler, c.level,
                           log=lambda m: print(m, flush=True))
     sm, dg = cal["summary"], cal["diagnostics"]
     for k in ("gain", "offset_N", "sigma_N", "rho", "kappa"):
