@@ -218,6 +218,15 @@ def corner_figure(calibration: dict, title: str = ""):
     return fig
 
 
+def shard_times(shards) -> np.ndarray:
+    """The camera time (s) of every frame of ingested shards, in order."""
+    t = []
+    for path in shards:
+        with np.load(path, allow_pickle=False) as f:
+            t.append(f["t_s"])
+    return np.concatenate(t)
+
+
 def fold_units(table, folds: str) -> list[np.ndarray]:
     """The cross-fitting labellings of context frames (a table with ``take`` and
     ``t_s``): ``take`` (each take predicted by heads fitted without it: a new scene),
@@ -291,8 +300,6 @@ def calibrate_takes(takes, model_path, out_json, ingest_params, fit, folds: str 
     model ``<out>.model.ts`` (+ ``.json``; what ``finray predict --calibration`` runs), the
     takes' colour segmentation (``segment``: new frames are segmented as the takes were)
     and the corner plot ``<out>.corner.png``; returns the calibration."""
-    import pandas as pd
-
     from .adapt import HeadEnsemble, encoder_features, export_ensemble
     from .dataset import load_frames
     from .recording import ingest
@@ -316,15 +323,12 @@ def calibrate_takes(takes, model_path, out_json, ingest_params, fit, folds: str 
         names.append(take.name)
     size = (model.cfg.height, model.cfg.width)
     a, table = load_frames(shards, size)
-    t = []
-    for path in shards:
-        with np.load(path) as f:
-            t.append(f["t_s"])
+    t = [shard_times([path]) for path in shards]
     table = table.assign(t_s=np.concatenate(t), take=np.repeat(names, [len(x) for x in t]))
     feats = encoder_features(model, a["images"][:, None].astype(np.float32) / 255.0)
     y = np.asarray(a["fx_N"], dtype=np.float64)
-    heads, cal = fit_rig(model, feats, y, fold_units(pd.DataFrame(table), folds), fit,
-                         fold_members, priors, sampler, log=log)
+    heads, cal = fit_rig(model, feats, y, fold_units(table, folds), fit, fold_members, priors,
+                         sampler, log=log)
     ts_path = Path(f"{stem}.model.ts")
     export_ensemble(HeadEnsemble(model, heads), ts_path, meta.get("preprocess", {}),
                     {"base_model": str(pt), "takes": [str(p) for p in takes]})

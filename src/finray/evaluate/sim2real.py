@@ -27,7 +27,8 @@ import numpy as np
 import pandas as pd
 
 from ..adapt import HeadFit, encoder_features, head_forces
-from ..calibration import Priors, Sampler, coverage, fit_rig, fold_units, predictive
+from ..calibration import (Priors, Sampler, coverage, fit_rig, fold_units, predictive,
+                           shard_times)
 from ..paper_reference import paper_value
 from .metrics import force_metrics
 
@@ -72,11 +73,7 @@ def _frames(shards, size, every=1):
 def lab_table(shards, table: pd.DataFrame) -> pd.DataFrame:
     """The lab frames' table with their camera time (s, ``t_s``), take (``take``) and
     group (the object; with a single object, the take's first or second half)."""
-    t = []
-    for path in shards:
-        with np.load(path, allow_pickle=False) as f:
-            t.append(f["t_s"])
-    table = table.assign(t_s=np.concatenate(t), take=table["scene_id"].to_numpy())
+    table = table.assign(t_s=shard_times(shards), take=table["scene_id"].to_numpy())
     if table["object"].nunique() >= 2:
         return table.assign(group=table["object"])
     late = table.groupby("take")["t_s"].transform(lambda s: s > s.median())
