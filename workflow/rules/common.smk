@@ -342,6 +342,11 @@ def all_targets():
 LAB = f"{RESULTS}/lab"
 
 
+def sim2real_model():
+    """The network sim-to-real starts from: the camera model where configured, else plain."""
+    return f"{TRAIN}/{'camera' if 'camera' in config['train']['models'] else 'plain'}/model.pt"
+
+
 def lab_takes():
     """Every take's name: <object>_h<height>."""
     return [f"{o}_h{h:g}" for o in sorted(config["lab"]["objects"]) for h in config["lab"]["heights_mm"]]

@@ -60,11 +60,6 @@ rule evaluate_experiment:
         "../scripts/evaluate_experiment.py"
 
 
-def sim2real_model():
-    """The network sim-to-real starts from: the camera model where configured, else plain."""
-    return f"{TRAIN}/{'camera' if 'camera' in config['train']['models'] else 'plain'}/model.pt"
-
-
 rule sim2real:
     # Reads the ingested takes (the recording format's shards), never lab: settings.
     input:
