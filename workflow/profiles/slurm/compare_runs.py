@@ -5,9 +5,11 @@
 Compares the files under results/ and paper/ of both run directories, leaving out
 logs/ and the per-job benchmark records (results/benchmarks/**/*.tsv):
 - the same set of files;
-- byte-identical files pass;
-- CSV/TSV, JSON and NPZ: every number equal to 1e-9 (|a - b| <= 1e-9 max(1, |a|, |b|)),
-  every string equal; columns/keys named like a timing (TIMING) are listed, not compared;
+- byte-identical files pass, after masking the write dates that meshio (PLY comment) and
+  matplotlib (PDF /CreationDate) put into files;
+- CSV/TSV, JSON and NPZ: every number equal to TOL (|a - b| <= TOL max(1, |a|, |b|),
+  TOL = 1e-9 or --rtol), float32 arrays to max(TOL, 1e-6) (a few float32 ulps), every
+  string equal; columns/keys named like a timing (TIMING) are listed, not compared;
 - text files (md, txt, tex, html, pvd): equal line by line after masking the numbers on
   lines that name a timing;
 - any other differing file (PNG, VTU, checkpoints, ...) is a mismatch unless its path
@@ -22,9 +24,10 @@ import numpy as np
 import pandas as pd
 
 TOL = 1e-9
-TIMING = re.compile(r"(time|(^|_)s$|_s_|seconds|latency|fps|throughput|speed|rss|wall|cpu"
+TIMING = re.compile(r"(time|timing|(^|_)ms(_|$)|(^|_)s(_per|$)|_s_|\d s/|load_average|seconds|latency|fps|throughput|speed|rss|wall|cpu"
                     r"|duration|elapsed|per_s|hz|date|host|pareto|benchmark)", re.I)
 TEXT = {".md", ".txt", ".tex", ".html", ".pvd", ".rst", ".yaml", ".j2"}
+STAMPS = re.compile(rb"(comment Created by meshio[^\n]*|/(Creation|Mod)Date \(D:[^)]*\))")
 NUM = re.compile(r"[-+]?\d*\.?\d+(?:[eE][-+]?\d+)?")
 
 
@@ -42,12 +45,13 @@ def files(run):
     return out
 
 
-def close(a, b):
-    """Numbers equal to TOL (relative above 1)."""
+def close(a, b, tol=None):
+    """Numbers equal to tol (default TOL; relative above 1)."""
+    tol = TOL if tol is None else tol
     a, b = np.asarray(a, float), np.asarray(b, float)
     both_nan = np.isnan(a) & np.isnan(b)
     with np.errstate(invalid="ignore"):
-        ok = np.abs(a - b) <= TOL * np.maximum(1.0, np.maximum(np.abs(a), np.abs(b)))
+        ok = np.abs(a - b) <= tol * np.maximum(1.0, np.maximum(np.abs(a), np.abs(b)))
     return bool(np.all(ok | both_nan))
 
 
@@ -91,7 +95,7 @@ def compare_json(a, b):
         va, vb = fa[k], fb[k]
         if va == vb:
             continue
-        if TIMING.search(k):
+        if TIMING.search(re.sub(r"\[\d+\]", "", k)):
             timing.append(k.lstrip("."))
         elif isinstance(va, (int, float)) and isinstance(vb, (int, float)) and close(va, vb):
             continue
@@ -111,7 +115,8 @@ def compare_npz(a, b):
             if x.shape != y.shape:
                 bad.append(f"{k}: shape {x.shape} vs {y.shape}")
             elif x.dtype.kind in "fiub" and y.dtype.kind in "fiub":
-                if not close(x, y):
+                f32 = np.float32 in (x.dtype, y.dtype)
+                if not close(x, y, max(TOL, 1e-6) if f32 else None):
                     bad.append(f"{k}: max |diff| {np.nanmax(np.abs(x.astype(float) - y)):.3g}")
             elif not np.array_equal(x, y):
                 bad.append(f"{k}: differs")
@@ -135,9 +140,14 @@ def compare_text(a, b):
 
 
 def main(argv=None):
-    argv = sys.argv[1:] if argv is None else argv
+    global TOL
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if "--rtol" in argv:
+        i = argv.index("--rtol")
+        TOL = float(argv[i + 1])
+        del argv[i:i + 2]
     if len(argv) != 2 or not all(Path(r, "results").is_dir() for r in argv):
-        sys.exit("usage: compare_runs.py RUN_A RUN_B (directories holding results/)")
+        sys.exit("usage: compare_runs.py [--rtol 1e-9] RUN_A RUN_B (directories holding results/)")
     a, b = argv
     fa, fb = files(a), files(b)
     mismatches = [f"only in {a}: {p}" for p in sorted(fa - fb)]
@@ -145,7 +155,7 @@ def main(argv=None):
     identical, timing_only = 0, []
     for rel in sorted(fa & fb):
         pa, pb = Path(a, rel), Path(b, rel)
-        if pa.read_bytes() == pb.read_bytes():
+        if STAMPS.sub(b"", pa.read_bytes()) == STAMPS.sub(b"", pb.read_bytes()):
             identical += 1
             continue
         suf, timing = pa.suffix.lower(), []
@@ -170,7 +180,7 @@ def main(argv=None):
             kind = "equal to 1e-9" if not timing else "timings differ: " + ", ".join(timing[:6])
             timing_only.append(f"{rel}: {kind}")
     n = len(fa & fb)
-    print(f"compare: {len(fa)} vs {len(fb)} files; {n} in both: {identical} byte-identical, "
+    print(f"compare (rtol {TOL:g}): {len(fa)} vs {len(fb)} files; {n} in both: {identical} identical (write dates masked), "
           f"{len(timing_only)} equal apart from timings/roundoff, {len(mismatches)} mismatches")
     for line in timing_only:
         print(f"  ok (not bit-identical) {line}")

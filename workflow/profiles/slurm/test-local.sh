@@ -9,7 +9,8 @@
 # LOCAL_RUN_DIR: an existing local smoke run (a --directory holding results/) to compare
 # with; without it the script runs the smoke DAG locally first.
 # Environment: PYTHON (the venv's python; default: python3 on PATH), WORK (scratch
-# directory; default: a new /tmp/finray-slurm.*), NICE (default 19).
+# directory; default: a new /tmp/finray-slurm.*), NICE (default 19), RTOL (compare_runs.py
+# tolerance, default 1e-9).
 set -euo pipefail
 
 REPO=$(cd "$(dirname "${BASH_SOURCE[0]}")/../../.." && pwd)
@@ -47,6 +48,10 @@ cleanup() {
     for pidfile in "${PIDS[@]}"; do
         [[ -s $pidfile ]] && kill "$(cat "$pidfile")" 2>/dev/null || true
     done
+    if [[ -L /etc/slurm/slurm.conf ]]; then
+        rm -f /etc/slurm/slurm.conf
+        [[ -e $WORK/slurm/slurm.conf.orig ]] && mv "$WORK/slurm/slurm.conf.orig" /etc/slurm/slurm.conf
+    fi
     exit "$rc"
 }
 trap cleanup EXIT
@@ -102,7 +107,15 @@ MinJobAge=600
 NodeName=$NODE NodeAddr=127.0.0.1 CPUs=$CPUS RealMemory=$MEM State=UNKNOWN
 PartitionName=finray Nodes=$NODE Default=YES MaxTime=INFINITE State=UP
 CONF
-log "slurm.conf: node $NODE, CPUs=$CPUS, RealMemory=$MEM MB, partition finray"
+# srun inside a batch job reads the default path, not the SLURM_CONF of sbatch's caller:
+# link it there, keeping (and putting back) a slurm.conf that is not ours
+ETC_CONF=/etc/slurm/slurm.conf
+if [[ -e $ETC_CONF && ! -L $ETC_CONF ]] && ! grep -q '^# one-node cluster on localhost for test-local.sh' "$ETC_CONF"; then
+    mv "$ETC_CONF" "$WORK/slurm/slurm.conf.orig"
+    log "moved the existing $ETC_CONF to $WORK/slurm/slurm.conf.orig (put back on exit)"
+fi
+mkdir -p /etc/slurm && ln -sfn "$SLURM_CONF" "$ETC_CONF"
+log "slurm.conf: node $NODE, CPUs=$CPUS, RealMemory=$MEM MB, partition finray ($ETC_CONF -> $SLURM_CONF)"
 
 slurmctld -c -f "$SLURM_CONF" || die "slurmctld (see $WORK/slurm/log/slurmctld.log)"
 PIDS+=("$WORK/slurm/slurmctld.pid")
@@ -134,6 +147,7 @@ else
 fi
 
 log "Slurm smoke run -> $WORK/run-slurm"
+rm -rf "$WORK/run-slurm"   # always a whole run
 t=$(date +%s)
 smk --workflow-profile "$REPO/workflow/profiles/slurm/local" --directory "$WORK/run-slurm" \
     >"$WORK/slurm.log" 2>&1 || { tail -40 "$WORK/slurm.log"; die "Slurm smoke run (see $WORK/slurm.log)"; }
@@ -142,6 +156,6 @@ log "Slurm smoke run done in $(( $(date +%s) - t )) s ($NJOBS Slurm jobs submitt
 
 # ------------------------------------------------------------------ compare
 log "comparing $LOCAL_RUN with $WORK/run-slurm"
-"$PYTHON" "$REPO/workflow/profiles/slurm/compare_runs.py" "$LOCAL_RUN" "$WORK/run-slurm" \
+"$PYTHON" "$REPO/workflow/profiles/slurm/compare_runs.py" --rtol "${RTOL:-1e-9}" "$LOCAL_RUN" "$WORK/run-slurm" \
     | tee "$WORK/compare.log" || die "outputs differ (see $WORK/compare.log)"
 log "PASSED: the Slurm run's outputs equal the local run's"
