@@ -11,6 +11,9 @@ rule dataset_manifest:
     log:
         f"{RESULTS}/logs/dataset/manifest.log",
     threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
     conda:
         "../../envs/finray.yaml"
     script:
@@ -33,6 +36,9 @@ rule dataset_examples:
     log:
         f"{RESULTS}/logs/dataset/examples.log",
     threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
     conda:
         "../../envs/finray.yaml"
     script:

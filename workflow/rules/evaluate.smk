@@ -25,6 +25,9 @@ rule evaluate_baseline:
     benchmark:
         f"{RESULTS}/benchmarks/evaluate/baseline.tsv"
     threads: 1
+    resources:
+        mem_mb=1600,
+        runtime=1,
     conda:
         "../../envs/finray.yaml"
     script:
@@ -54,6 +57,9 @@ rule evaluate_experiment:
     benchmark:
         f"{RESULTS}/benchmarks/evaluate/{{experiment}}.tsv"
     threads: 1
+    resources:
+        mem_mb=1300,
+        runtime=5,
     conda:
         "../../envs/finray.yaml"
     script:
@@ -82,6 +88,9 @@ rule sim2real:
     benchmark:
         f"{RESULTS}/benchmarks/evaluate/sim2real.tsv"
     threads: 1
+    resources:
+        mem_mb=1100,
+        runtime=7,
     conda:
         "../../envs/finray.yaml"
     script:

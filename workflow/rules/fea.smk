@@ -23,7 +23,8 @@ rule fea_scene:
         f"{RESULTS}/benchmarks/fea/{{object}}_{{material}}_h{{height}}.tsv"
     threads: 1
     resources:
-        runtime=30,
+        mem_mb=600,
+        runtime=1,
     conda:
         "../../envs/finray.yaml"
     script:
@@ -48,6 +49,9 @@ rule fea_figures:
     log:
         f"{RESULTS}/logs/fea/figures.log",
     threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
     conda:
         "../../envs/finray.yaml"
     script:

@@ -28,7 +28,8 @@ rule fea_pareto:
         f"{RESULTS}/benchmarks/studies/fea_pareto.tsv"
     threads: 1
     resources:
-        runtime=20,
+        mem_mb=1400,
+        runtime=12,
     conda:
         "../../envs/finray.yaml"
     script:
@@ -52,7 +53,8 @@ rule fea_stability:
         f"{RESULTS}/benchmarks/studies/fea_stability.tsv"
     threads: 1
     resources:
-        runtime=20,
+        mem_mb=1200,
+        runtime=6,
     conda:
         "../../envs/finray.yaml"
     script:

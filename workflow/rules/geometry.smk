@@ -16,6 +16,9 @@ rule geometry_finger:
     benchmark:
         f"{RESULTS}/benchmarks/geometry/finger.tsv"
     threads: 1
+    resources:
+        mem_mb=200,
+        runtime=1,
     conda:
         "../../envs/finray.yaml"
     script:
@@ -40,6 +43,9 @@ rule geometry_object:
     benchmark:
         f"{RESULTS}/benchmarks/geometry/{{object}}_h{{height}}.tsv"
     threads: 1
+    resources:
+        mem_mb=100,
+        runtime=1,
     conda:
         "../../envs/finray.yaml"
     script:
@@ -62,6 +68,9 @@ rule geometry_gallery:
     log:
         f"{RESULTS}/logs/geometry/gallery.log",
     threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
     conda:
         "../../envs/finray.yaml"
     script:

@@ -18,6 +18,9 @@ rule lab_finger:
     benchmark:
         f"{RESULTS}/benchmarks/lab/finger.tsv"
     threads: 1
+    resources:
+        mem_mb=200,
+        runtime=1,
     conda:
         "../../envs/finray.yaml"
     script:
@@ -42,6 +45,9 @@ rule lab_object:
     benchmark:
         f"{RESULTS}/benchmarks/lab/{{object}}_h{{height}}_object.tsv"
     threads: 1
+    resources:
+        mem_mb=100,
+        runtime=1,
     conda:
         "../../envs/finray.yaml"
     script:
@@ -68,7 +74,8 @@ rule lab_fea:
         f"{RESULTS}/benchmarks/lab/{{object}}_h{{height}}_fea.tsv"
     threads: 1
     resources:
-        runtime=30,
+        mem_mb=500,
+        runtime=1,
     conda:
         "../../envs/finray.yaml"
     script:
@@ -94,6 +101,9 @@ rule lab_take:
     benchmark:
         f"{RESULTS}/benchmarks/lab/{{object}}_h{{height}}_take.tsv"
     threads: 1
+    resources:
+        mem_mb=1100,
+        runtime=1,
     conda:
         "../../envs/finray.yaml"
     script:
@@ -122,6 +132,9 @@ rule lab_ingest:
     benchmark:
         f"{RESULTS}/benchmarks/lab/{{object}}_h{{height}}_ingest.tsv"
     threads: 1
+    resources:
+        mem_mb=900,
+        runtime=1,
     conda:
         "../../envs/finray.yaml"
     script:
@@ -152,6 +165,9 @@ rule lab_qa:
     benchmark:
         f"{RESULTS}/benchmarks/lab/qa.tsv"
     threads: 1
+    resources:
+        mem_mb=1400,
+        runtime=2,
     conda:
         "../../envs/finray.yaml"
     script:

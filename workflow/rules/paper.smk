@@ -27,6 +27,9 @@ rule evaluate_speed:
     log:
         f"{RESULTS}/logs/evaluate/speed.log",
     threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
     conda:
         "../../envs/finray.yaml"
     script:
@@ -44,6 +47,9 @@ rule figure_shape_generalisation:
     params:
         figure="shape_generalisation",
     threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
     conda:
         "../../envs/finray.yaml"
     script:
@@ -64,6 +70,9 @@ rule figure_material_generalisation:
     params:
         figure="material_generalisation",
     threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
     conda:
         "../../envs/finray.yaml"
     script:
@@ -81,6 +90,9 @@ rule figure_occlusion:
     params:
         figure="occlusion",
     threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
     conda:
         "../../envs/finray.yaml"
     script:
@@ -99,6 +111,9 @@ rule figure_viewpoint:
         figure="viewpoint",
         usable_nrmse_pct=config["evaluate"]["usable_nrmse_pct"],
     threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
     conda:
         "../../envs/finray.yaml"
     script:
@@ -116,6 +131,9 @@ rule figure_speed:
     params:
         figure="speed",
     threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
     conda:
         "../../envs/finray.yaml"
     script:
@@ -134,6 +152,9 @@ rule figure_sim2real:
     params:
         figure="sim2real",
     threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
     conda:
         "../../envs/finray.yaml"
     script:
@@ -163,6 +184,9 @@ rule summary:
     log:
         f"{RESULTS}/logs/paper/summary.log",
     threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
     conda:
         "../../envs/finray.yaml"
     script:
@@ -181,6 +205,9 @@ rule manuscript:
     log:
         f"{RESULTS}/logs/paper/manuscript.log",
     threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
     conda:
         "../../envs/finray.yaml"
     script:

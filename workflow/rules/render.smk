@@ -23,6 +23,9 @@ rule render_scene:
     benchmark:
         f"{RESULTS}/benchmarks/render/{{object}}_{{material}}_h{{height}}_p{{pitch}}.tsv"
     threads: 1
+    resources:
+        mem_mb=800,
+        runtime=1,
     conda:
         "../../envs/finray.yaml"
     script:
@@ -43,6 +46,9 @@ rule render_benchmark:
     benchmark:
         f"{RESULTS}/benchmarks/studies/render_throughput.tsv"
     threads: 1
+    resources:
+        mem_mb=700,
+        runtime=1,
     conda:
         "../../envs/finray.yaml"
     script:
@@ -67,6 +73,9 @@ rule viewpoint_render:
     benchmark:
         f"{RESULTS}/benchmarks/render/viewpoint_{{object}}_{{material}}_h{{height}}.tsv"
     threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=1,
     conda:
         "../../envs/finray.yaml"
     script:

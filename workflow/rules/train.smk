@@ -28,7 +28,8 @@ rule train_model:
         f"{RESULTS}/benchmarks/train/{{model}}.tsv"
     threads: 1
     resources:
-        runtime=120,
+        mem_mb=2600,
+        runtime=40,
     conda:
         "../../envs/finray.yaml"
     script:

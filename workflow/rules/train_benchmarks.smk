@@ -27,7 +27,8 @@ rule train_pareto:
         f"{RESULTS}/benchmarks/studies/train_pareto.tsv"
     threads: 1
     resources:
-        runtime=30,
+        mem_mb=2600,
+        runtime=19,
     conda:
         "../../envs/finray.yaml"
     script:
@@ -50,7 +51,8 @@ rule inference_latency:
         f"{RESULTS}/benchmarks/studies/inference_latency.tsv"
     threads: 1
     resources:
-        runtime=10,
+        mem_mb=700,
+        runtime=1,
     conda:
         "../../envs/finray.yaml"
     script:
@@ -69,7 +71,8 @@ rule train_time:
         f"{RESULTS}/logs/train/benchmark_train_time.log",
     threads: 1
     resources:
-        runtime=5,
+        mem_mb=2000,
+        runtime=10,
     conda:
         "../../envs/finray.yaml"
     script:
