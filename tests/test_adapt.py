@@ -83,7 +83,8 @@ def test_predict_with_calibration(ensemble, render_png, tmp_path, capsys):  # no
     rng = np.random.default_rng(0)
     samples = np.column_stack([rng.normal(2.0, 0.01, 500), rng.normal(0.5, 0.01, 500),
                                np.full(500, np.log(0.1)), np.full(500, np.log(0.01)),
-                               np.full(500, np.log(0.01))])  # kappa 0.01: the spread hardly counts
+                               np.full(500, np.log(0.01)),   # kappa 0.01: the spread hardly counts
+                               np.full(500, np.log(200.0))])  # nu 200: nearly normal
     cal = d / "calibration.json"
     cal.write_text(json.dumps({"model": "rig.model.ts", "level": 0.9,
                                "posterior": {"names": [], "samples": samples.tolist()}}))

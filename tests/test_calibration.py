@@ -37,6 +37,19 @@ def test_recovers_known_gain_offset_and_noise(fitted):
         assert q["q2.5"] < value < q["q97.5"], (name, value, q)
 
 
+def test_heavy_tailed_noise_gives_few_degrees_of_freedom():
+    """Student-t(3) noise of known scale: the posterior puts nu far below a normal law's
+    (its 97.5 % quantile under 20, the prior's mean), gain and scale inside their 95 %
+    intervals."""
+    rng = np.random.default_rng(7)
+    mu, s = 4 * np.abs(rng.normal(0, 1, 600)), np.full(600, 1e-3)
+    y = 1.1 * mu - 0.1 + 0.05 * rng.standard_t(3, 600)
+    q = fit_calibration(mu, s, y, Priors(rho=(1e-4, 1.0)), log=lambda m: None)["summary"]
+    assert 2 <= q["nu"]["median"] < 6 and q["nu"]["q97.5"] < 20
+    assert q["gain"]["q2.5"] < 1.1 < q["gain"]["q97.5"]
+    assert q["sigma_N"]["q2.5"] < 0.05 < q["sigma_N"]["q97.5"]
+
+
 def test_diagnostics_are_written_and_hold(fitted):
     d = fitted["diagnostics"]
     assert set(d["tau_steps"]) == set(PARAMS)
@@ -57,10 +70,11 @@ def test_predictive_interval_covers_new_frames(fitted):
 def test_log_posterior_is_minus_infinity_outside_the_priors():
     mu, s, y = synthetic(20, 3)
     p = Priors()
-    inside = [1.0, 0.0, np.log(0.1), np.log(0.05), 0.0]
+    inside = [1.0, 0.0, np.log(0.1), np.log(0.05), 0.0, np.log(10.0)]
     rows = np.array([inside, [-1.0, *inside[1:]],                    # negative gain
                      [*inside[:2], np.log(p.sigma_N[1]) + 1, *inside[3:]],  # sigma above its bound
-                     [*inside[:4], np.log(p.kappa[0]) - 1]])          # kappa below its bound
+                     [*inside[:4], np.log(p.kappa[0]) - 1, inside[5]],  # kappa below its bound
+                     [*inside[:5], np.log(p.nu[0]) - 0.1]])           # nu below its bound
     lp = log_posterior(rows, mu, s, y, p)
     assert np.isfinite(lp[0]) and np.all(np.isneginf(lp[1:]))
 

@@ -175,7 +175,7 @@ def test_smoke_evaluation_summary_and_paper(smoke_run):
     for f in r["fits"]:
         d = f["diagnostics"]
         assert d["steps"] >= d["walkers"] and set(d["tau_steps"]) == {"gain", "offset_N", "log_sigma_N",
-                                                                      "log_rho", "log_kappa"}
+                                                                      "log_rho", "log_kappa", "log_nu"}
     m = pd.read_csv(smoke_run / "results" / "evaluate" / "sim2real" / "metrics.csv")
     one = m[(m["context_objects"] == 1) & (m["context"] == "all") & (m["test"] == "all")].iloc[0]
     assert one["n"] == r["by_context"]["1"]["n_frames"] and 0 <= one["coverage_pct"] <= 100

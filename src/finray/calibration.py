@@ -3,14 +3,18 @@
 The sensor model, per frame with the network's force ``mu`` (N, the ensemble's mean)
 and its spread ``s`` (N, the heads' standard deviation):
 
-    F_sensor = g mu + b + e,   e ~ Normal(0, sigma^2 + (rho g mu)^2 + (kappa g s)^2)
+    F_sensor = g mu + b + e,   e / v ~ Student-t(nu),  v^2 = sigma^2 + (rho g mu)^2 + (kappa g s)^2
 
 ``g`` the gain, ``b`` the offset (N; a sensor that was not zeroed), ``sigma`` (N) the
 noise at rest, ``rho`` the relative error under load (the network's error grows with
 the force), ``kappa`` the scale of the ensemble's spread (a small ensemble's spread is
-a relative, not an absolute, measure of its error). Priors (:class:`Priors`): ``log g ~
-Normal(0, gain_log_sd)``, ``b ~ Normal(0, offset_sd_N)``; ``log sigma``, ``log rho``
-and ``log kappa`` uniform (scale-free) within bounds. The chain runs until it is at least ``min_tau_multiple`` autocorrelation
+a relative, not an absolute, measure of its error), ``nu`` the degrees of freedom: the
+network's errors on a new scene are heavy-tailed (most frames close, a few far off, e.g.
+at contact onset), which a normal law can only meet with a scale that makes most
+frames' intervals too wide. Priors (:class:`Priors`): ``log g ~ Normal(0, gain_log_sd)``,
+``b ~ Normal(0, offset_sd_N)``; ``log sigma``, ``log rho`` and ``log kappa`` uniform
+(scale-free) within bounds; ``nu ~ Gamma(2, rate 0.1)`` within bounds (Juárez & Steel
+2010: mean 20, from near-Cauchy to near-normal). The chain runs until it is at least ``min_tau_multiple`` autocorrelation
 times long for every parameter (emcee's integrated time); the diagnostics are kept
 with the posterior (:func:`fit_calibration`). :func:`predictive` gives each frame's
 median and interval from the posterior and the network's spread.
@@ -23,8 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-PARAMS = ("gain", "offset_N", "log_sigma_N", "log_rho", "log_kappa")
-LABELS = ("g", "b (N)", r"log $\sigma$ (N)", r"log $\rho$", r"log $\kappa$")
+PARAMS = ("gain", "offset_N", "log_sigma_N", "log_rho", "log_kappa", "log_nu")
+LABELS = ("g", "b (N)", r"log $\sigma$ (N)", r"log $\rho$", r"log $\kappa$", r"log $\nu$")
 
 
 class CalibrationError(ValueError):
@@ -39,6 +43,9 @@ class Priors:
     sigma_N: tuple[float, float] = (1e-3, 10.0)
     rho: tuple[float, float] = (1e-3, 1.0)
     kappa: tuple[float, float] = (1e-2, 100.0)
+    #: Student-t degrees of freedom: Gamma(shape, rate) within bounds
+    nu_gamma: tuple[float, float] = (2.0, 0.1)
+    nu: tuple[float, float] = (2.0, 200.0)
 
 
 @dataclass(frozen=True)
@@ -54,22 +61,31 @@ class Sampler:
 
 
 def log_posterior(theta: np.ndarray, mu, s, y, priors: Priors, weight: float = 1.0) -> np.ndarray:
-    """Log posterior (W,) of parameter rows ``theta`` (W, 5): gain, offset (N),
-    log sigma (N), log rho, log kappa; ``mu``, ``s``, ``y`` (N,) in N. ``weight``: each
-    frame's share of the likelihood (1 / the times a frame appears in ``y``)."""
+    """Log posterior (W,) of parameter rows ``theta`` (W, 6): gain, offset (N),
+    log sigma (N), log rho, log kappa, log nu; ``mu``, ``s``, ``y`` (N,) in N.
+    ``weight``: each frame's share of the likelihood (1 / the times a frame appears in
+    ``y``)."""
+    from scipy.special import gammaln
+
     theta = np.atleast_2d(theta)
-    g, b, ls, lr, lk = (theta[:, i:i + 1] for i in range(5))
+    g, b, ls, lr, lk, ln = (theta[:, i:i + 1] for i in range(len(PARAMS)))
     ok = g[:, 0] > 0
-    for v, (lo, hi) in ((ls, priors.sigma_N), (lr, priors.rho), (lk, priors.kappa)):
+    for v, (lo, hi) in ((ls, priors.sigma_N), (lr, priors.rho), (lk, priors.kappa), (ln, priors.nu)):
         ok &= (v[:, 0] >= np.log(lo)) & (v[:, 0] <= np.log(hi))
     out = np.full(len(theta), -np.inf)
     if not ok.any():
         return out
-    g, b, ls, lr, lk = g[ok], b[ok], ls[ok], lr[ok], lk[ok]
+    g, b, ls, lr, lk, ln = g[ok], b[ok], ls[ok], lr[ok], lk[ok], ln[ok]
+    nu = np.exp(ln)
     var = np.exp(2 * ls) + (np.exp(lr) * g * mu) ** 2 + (np.exp(lk) * g * s) ** 2
-    ll = -0.5 * np.sum((y - g * mu - b) ** 2 / var + np.log(2 * np.pi * var), axis=1)
+    z2 = (y - g * mu - b) ** 2 / var
+    ll = (len(y) * (gammaln((nu[:, 0] + 1) / 2) - gammaln(nu[:, 0] / 2) - 0.5 * np.log(np.pi * nu[:, 0]))
+          - 0.5 * np.sum(np.log(var) + (nu + 1) * np.log1p(z2 / nu), axis=1))
     lg = np.log(g[:, 0])
-    lp = -0.5 * (lg / priors.gain_log_sd) ** 2 - lg - 0.5 * (b[:, 0] / priors.offset_sd_N) ** 2
+    shape, rate = priors.nu_gamma
+    # the Gamma prior on nu, sampled as log nu (Jacobian nu)
+    lp = (-0.5 * (lg / priors.gain_log_sd) ** 2 - lg - 0.5 * (b[:, 0] / priors.offset_sd_N) ** 2
+          + shape * ln[:, 0] - rate * nu[:, 0])
     out[ok] = weight * ll + lp
     return out
 
@@ -82,12 +98,13 @@ def _start(mu, s, y, priors: Priors, weight: float = 1.0) -> np.ndarray:
     (g, b), *_ = np.linalg.lstsq(A, y, rcond=None)
     g = g if g > 0 else 1.0
     r = y - g * mu - b
-    x0 = np.array([g, b, np.log(max(np.std(r), 2 * priors.sigma_N[0])), np.log(0.05), 0.0])
+    x0 = np.array([g, b, np.log(max(np.std(r), 2 * priors.sigma_N[0])), np.log(0.05), 0.0,
+                   np.log(np.clip(20.0, *priors.nu))])
     best = minimize(lambda t: -log_posterior(t, mu, s, y, priors, weight)[0], x0, method="Nelder-Mead",
                     options={"maxiter": 4000, "xatol": 1e-6, "fatol": 1e-6})
     x = best.x if np.isfinite(best.fun) else x0
     # inside the bounds, so that every walker of the ball around it starts finite
-    for i, (lo, hi) in zip((2, 3, 4), (priors.sigma_N, priors.rho, priors.kappa)):
+    for i, (lo, hi) in zip((2, 3, 4, 5), (priors.sigma_N, priors.rho, priors.kappa, priors.nu)):
         x[i] = np.clip(x[i], np.log(lo) + 0.05, np.log(hi) - 0.05)
     return x
 
@@ -147,11 +164,11 @@ def fit_calibration(mu, s, y, priors: Priors | None = None, sampler: Sampler | N
 
 
 def summarise(samples: np.ndarray) -> dict:
-    """Median and 2.5/5/95/97.5 % quantiles per parameter; sigma (N), rho and kappa
+    """Median and 2.5/5/95/97.5 % quantiles per parameter; sigma (N), rho, kappa and nu
     also unlogged."""
     samples = np.asarray(samples)
     cols = dict(zip(PARAMS, samples.T))
-    for k in ("log_sigma_N", "log_rho", "log_kappa"):
+    for k in ("log_sigma_N", "log_rho", "log_kappa", "log_nu"):
         cols[k[4:]] = np.exp(cols[k])
     return {k: {"median": float(np.median(v)),
                 **{f"q{q:g}": float(np.percentile(v, q)) for q in (2.5, 5, 95, 97.5)}}
@@ -164,7 +181,7 @@ def predictive(calibration: dict, mu, s, level: float = 0.9, seed: int = 0,
     (the central ``level`` interval), from one draw per posterior sample."""
     theta = np.asarray(calibration["posterior"]["samples"], dtype=np.float64)
     g, b = theta[:, :1], theta[:, 1:2]
-    sig, rho, kap = np.exp(theta[:, 2:3]), np.exp(theta[:, 3:4]), np.exp(theta[:, 4:5])
+    sig, rho, kap, nu = (np.exp(theta[:, i:i + 1]) for i in (2, 3, 4, 5))
     mu, s = np.asarray(mu, dtype=np.float64).ravel(), np.asarray(s, dtype=np.float64).ravel()
     rng = np.random.default_rng(seed)
     q = (50.0, 50 * (1 - level), 50 * (1 + level))
@@ -172,7 +189,7 @@ def predictive(calibration: dict, mu, s, level: float = 0.9, seed: int = 0,
     for i in range(0, len(mu), chunk):
         m, sp = mu[None, i:i + chunk], s[None, i:i + chunk]
         sd = np.sqrt(sig ** 2 + (rho * g * m) ** 2 + (kap * g * sp) ** 2)
-        draws = g * m + b + sd * rng.standard_normal(sd.shape)
+        draws = g * m + b + sd * rng.standard_t(np.broadcast_to(nu, sd.shape))
         out[:, i:i + chunk] = np.percentile(draws, q, axis=0)
     return {"median": out[0], "lo": out[1], "hi": out[2], "level": level}
 
