@@ -1,7 +1,7 @@
 """Bayesian force calibration: a rig's sensor against the network, sampled with emcee.
 
 The sensor model, per frame with the network's force ``mu`` (N, the ensemble's mean)
-and its spread ``s`` (N, the heads' standard deviation):
+and its spread ``s`` (N, the heads' standard deviation, :func:`spread`):
 
     F_sensor = g mu + b + e,   e / v ~ Student-t(nu),  v^2 = sigma^2 + (rho g mu)^2 + (kappa g s)^2
 
@@ -58,6 +58,15 @@ class Sampler:
     max_steps: int = 20000
     min_tau_multiple: float = 50.0
     seed: int = 0
+
+
+def spread(members) -> np.ndarray:
+    """The heads' spread (N) per frame from their forces (M, N): the sample standard
+    deviation (ddof 1), whose square is unbiased whatever the number of heads, so that
+    a kappa fitted on the cross-fitting's heads holds for the ensemble's (ddof 0 would
+    make 2 heads' spread read 1/sqrt(2) of the scale, 4 heads' sqrt(3)/2)."""
+    members = np.asarray(members, dtype=np.float64)
+    return members.std(0, ddof=1) if len(members) > 1 else np.zeros(members.shape[1:])
 
 
 def log_posterior(theta: np.ndarray, mu, s, y, priors: Priors, weight: float = 1.0) -> np.ndarray:
@@ -279,7 +288,7 @@ def cross_fitted(model, features, force_N, units, fit, fold_members: int = 2):
         heads = fit_heads(model, features[~out], y[~out],
                           replace(fit, members=fold_members, seed=fit.seed + 101 * (j + 1)))
         P = head_forces(model, heads, features[out])
-        mu[out], sd[out] = P.mean(0), P.std(0)
+        mu[out], sd[out] = P.mean(0), spread(P)
     return mu, sd
 
 

@@ -497,10 +497,10 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
                           (cm.inferno(s)[..., :3] * 255).astype(np.uint8))
             row = {"frame": name, **{n: float(v) for n, v in zip(p.force_names, fvec)}}
             if calibration is not None:
-                from .calibration import predictive
+                from .calibration import predictive, spread
 
                 members = p.run_members(x)[0]
-                band = predictive(calibration, [members.mean()], [members.std()],
+                band = predictive(calibration, [members.mean()], spread(members[:, None]),
                                   calibration.get("level", 0.9), seed=len(rows))
                 row.update(force_N=float(band["median"][0]), lo_N=float(band["lo"][0]),
                            hi_N=float(band["hi"][0]), level=band["level"])

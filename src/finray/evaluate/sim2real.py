@@ -28,7 +28,7 @@ import pandas as pd
 
 from ..adapt import HeadFit, encoder_features, head_forces
 from ..calibration import (Priors, Sampler, coverage, fit_rig, fold_units, predictive,
-                           shard_times)
+                           shard_times, spread)
 from ..paper_reference import paper_value
 from .metrics import force_metrics
 
@@ -110,7 +110,7 @@ def run_sim2real(model_pt, lab_shards, sim_shards, sim_test_shards, size, cfg: S
 
     def record(k, context, test, heads, cal):
         mu_all = head_forces(model, heads, f_lab[test])
-        mu, sd = mu_all.mean(0), mu_all.std(0)
+        mu, sd = mu_all.mean(0), spread(mu_all)
         band = predictive(cal, mu, sd, cfg.level)
         tab = table[test]
         frames.append(pd.DataFrame({
@@ -129,7 +129,7 @@ def run_sim2real(model_pt, lab_shards, sim_shards, sim_test_shards, size, cfg: S
     cals.append(cal0)
     record(0, (), np.ones(len(y), bool), heads0, cal0)
     p_test = head_forces(model, heads0, f_test)
-    sim_band = predictive(cal0, p_test.mean(0), p_test.std(0), cfg.level)
+    sim_band = predictive(cal0, p_test.mean(0), spread(p_test), cfg.level)
     sim = {"n_frames": int(len(yt)), "coverage_pct": 100 * coverage(yt, sim_band),
            "metrics": force_metrics(yt, sim_band["median"]),
            "shards": len(sim_test_shards), "every": cfg.sim_every}
