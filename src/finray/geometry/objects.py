@@ -105,7 +105,7 @@ def object_shape(spec: dict, size_mm: float = 0.5, key: str = "object") -> Polyg
             raise GeometryError(f"{key}.fillet_mm", "the fillet removes the whole polygon")
     elif kind == "blob":  # seeded smooth random polygon (finray.geometry.blobs)
         shape = Polygon(blob_outline(spec["seed"], spec["diameter_mm"], spec.get("harmonics", 5),
-                                     spec.get("amplitude", 0.35), 0.5 * size_mm, key))
+                                     spec.get("amplitude", 0.4), 0.5 * size_mm, key))
     else:
         raise GeometryError(f"{key}.type", (
             f"unknown object type '{kind}' (one of {', '.join(OBJECT_TYPES)})"))
