@@ -5,8 +5,8 @@ A blob is a star-shaped closed curve around its reference point (the origin),
     r(theta) = R (1 + sum_k a_k cos(k theta + phi_k)),  k = 2 .. harmonics + 1,
 
 with amplitudes a_k = s u_k / sqrt(k) (u_k uniform in [0, 1], phases uniform) and a
-roughness s = amplitude v^2 per blob (v uniform in [0, 1]: smooth blobs are as common as
-rough ones): smooth ones stay convex, rough ones get concave lobes (a harmonic k bends
+roughness s = amplitude v^2 per blob (v uniform in [0, 1]: leaning to the smooth side, so
+that convex blobs stay common): smooth ones stay convex, rough ones get concave lobes (a harmonic k bends
 the curve inwards once a_k > 1 / (k^2 + 2)). At the default amplitude 0.4, ~60 % are
 concave, ~25 % with a solidity (area / convex hull area) below 0.95. The radius never
 falls below 40 % of R, so the curve is simple (one radius per angle). The curve is scaled
