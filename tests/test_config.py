@@ -31,6 +31,54 @@ def test_smoke_config_is_valid_and_small():
     assert {s.split for s in scenes(cfg)} == {"train", "shape", "material"}
 
 
+DIVERSE = yaml.safe_load((ROOT / "config" / "diverse.yaml").read_text())
+SLICE = yaml.safe_load((ROOT / "config" / "diverse_slice.yaml").read_text())
+
+
+def test_diverse_config_is_the_paper_config_plus_generated_objects():
+    """config/diverse.yaml: config/config.yaml unchanged plus 300 generated training
+    objects, all at the three heights; the held-out test scenes are the paper's."""
+    assert {k: v for k, v in DIVERSE.items() if k != "generated"} == FULL
+    paper, cfg = validate_config(FULL), validate_config(DIVERSE)
+    blobs = [n for n in cfg["objects"] if n not in paper["objects"]]
+    assert blobs == [f"blob_s{s:03d}" for s in range(300)]
+    assert {n: cfg["objects"][n] for n in paper["objects"]} == paper["objects"]
+    sc = scenes(cfg)
+    assert len(sc) == len(scenes(paper)) + 300 * 3
+    assert {s.height_mm for s in sc if s.object in blobs} == {20.0, 30.0, 40.0}
+    assert {(s.split, s.material) for s in sc if s.object in blobs} == {("train", "steel")}
+    held_out = sorted(s.id for s in sc if s.split != "train")
+    assert held_out == sorted(s.id for s in scenes(paper) if s.split != "train")
+    assert validate_config(cfg) == cfg  # a validated config validates again unchanged
+
+
+def test_diverse_slice_is_the_first_blobs_of_the_full_set():
+    """Merged after diverse.yaml (as Snakemake merges --configfile a b), the slice keeps
+    60 blobs with the same specs: their geometry and FEA jobs are the full set's."""
+    assert SLICE == {"generated": {"count": 60}}
+    merged = copy.deepcopy(DIVERSE)
+    merged["generated"].update(SLICE["generated"])
+    full, part = validate_config(DIVERSE), validate_config(merged)
+    blobs = [n for n in part["objects"] if n.startswith("blob_")]
+    assert blobs == [f"blob_s{s:03d}" for s in range(60)]
+    assert all(part["objects"][n] == full["objects"][n] for n in blobs)
+
+
+@pytest.mark.parametrize("key, value", [("seed", 7), ("size_mm", [5.0, 20.0]), ("harmonics", 3),
+                                        ("amplitude", 0.2), ("split", "shape"),
+                                        ("materials", ["steel", "ninjaflex"])])
+def test_generated_keys_are_in_every_blob_spec(key, value):
+    """Each generated.* value reaches each blob's objects entry (what its jobs declare)."""
+    base = {"objects": {"c": {"type": "circle", "diameter_mm": 10}}, "generated": {"count": 3}}
+    a = validate_config(base)
+    b = validate_config({**base, "generated": {"count": 3, key: value}})
+    blobs = [n for n in a["objects"] if n != "c"]
+    if key == "seed":
+        assert [n for n in b["objects"] if n != "c"] == ["blob_s007", "blob_s008", "blob_s009"]
+    else:
+        assert all(a["objects"][n] != b["objects"][n] for n in blobs)
+
+
 def test_defaults_filled():
     cfg = validate_config({"objects": {"c": {"type": "circle", "diameter_mm": 10}}})
     assert cfg["finger"]["ribs"]["angle_step_deg"] == 3.0
@@ -72,6 +120,16 @@ BAD = {
                                 "benchmarks.train_sizes"),
     "latency of an unknown model": (lambda c: c.setdefault("benchmarks", {}).update(latency_model="x"),
                                     "benchmarks.latency_model"),
+    "generated sizes reversed": (lambda c: c.update(generated={"count": 2, "size_mm": [25.0, 5.0]}),
+                                 "generated.size_mm"),
+    "generated name taken": (
+        lambda c: (c.update(generated={"count": 2}),
+                   c["objects"].update(blob_s001={"type": "circle", "diameter_mm": 10}))[0],
+        "generated.seed"),
+    "blob without seed": (lambda c: c["objects"].update(b={"type": "blob", "diameter_mm": 10}),
+                          "objects.b.seed"),
+    "blob too rough": (lambda c: c["objects"].update(b={"type": "blob", "seed": 1, "diameter_mm": 10,
+                                                        "amplitude": 0.9}), "objects.b.amplitude"),
     "unknown pitch object": (lambda c: c.setdefault("dataset", {}).update(pitch_object="nope"),
                              "dataset.pitch_object"),
 }

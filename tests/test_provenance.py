@@ -153,6 +153,8 @@ READERS: list[tuple[str, set[str]]] = [
                                         "sim2real"}),
     ("objects.*.materials", {"geometry_object", "fea_scene", "render_scene"} | _LISTS),
     ("objects.*", {"geometry_object"}),  # the shape
+    # one generated object more: its scenes, and what lists the training scenes
+    ("generated.count", {"geometry_object", "fea_scene", "render_scene", "geometry_gallery"} | _LISTS),
     # the emulated lab rig: read by the lab's rules only (never by training or predict)
     ("lab.seed", {"lab_take"}),
     ("lab.objects.*", {"lab_object"}),  # the shape
@@ -172,6 +174,10 @@ UNREAD = {
     "materials.neoprene.source": "documentation of the constants only",
     "dataset.seed": "no stage draws from it: training and evaluation use train.seed and "
                     "evaluate.seed",
+    # (tests/test_config.py::test_generated_keys_are_in_every_blob_spec: each reaches the
+    # objects entry of every generated object, whose provenance is that of objects.*)
+    **{f"generated.{k}": "the smoke config generates no objects (generated.count 0)"
+       for k in ("seed", "size_mm", "harmonics", "amplitude", "split", "materials")},
 }
 
 #: keys that cannot change alone (the config is refused), with the expected message
@@ -206,6 +212,8 @@ NEW_VALUES = {
                                  "high": [0.8, 0.9]},
     "dataset.occluder_value": 0.5,
     "dataset.pitch_object": "ring_d15",
+    "generated.split": "shape",
+    "generated.materials": ["steel", "neoprene"],
     "train.input_size": [128, 64],
     "train.forces": ["fx"],
     "train.bf16": False,

@@ -14,6 +14,7 @@ from pathlib import Path
 import jsonschema
 import yaml
 
+from .geometry.blobs import generated_objects
 from .geometry.finger import FingerParams, GeometryError, check_ribs, finger_polygon
 from .geometry.objects import object_shape, place_object
 
@@ -72,8 +73,8 @@ def validate_config(config: dict, base_dir: str | Path = ".") -> dict:
 
     Checks, in order: the JSON schema (types, units' ranges, unknown keys), the
     references between sections, the finger geometry (ribs fit) and that every
-    object can be placed at every contact height. Relative polygon-file paths are
-    resolved against ``base_dir``.
+    object (the generated ones added, see ``generated``) can be placed at every
+    contact height. Relative polygon-file paths are resolved against ``base_dir``.
     """
     cfg = copy.deepcopy(config) if config is not None else {}
     validator = _Validator(load_schema())
@@ -96,6 +97,7 @@ def validate_config(config: dict, base_dir: str | Path = ".") -> dict:
         finger_polygon(finger, cfg["mesh"]["arc_chord_mm"])
     except GeometryError as exc:
         raise ConfigError(exc.key, str(exc).split(": ", 1)[1]) from None
+    _add_generated(cfg)
     _check_stage_sections(cfg)
     for h in cfg["heights_mm"]:
         if h >= finger.height_mm:
@@ -116,6 +118,19 @@ def validate_config(config: dict, base_dir: str | Path = ".") -> dict:
             raise ConfigError(exc.key, str(exc).split(": ", 1)[1]) from None
     _check_lab(cfg, finger)
     return cfg
+
+
+def _add_generated(cfg: dict) -> None:
+    """Add the ``generated`` section's objects to ``objects`` (after the explicit ones).
+    A validated config validates again unchanged: an existing entry must be the same."""
+    try:
+        gen = generated_objects(cfg["generated"])
+    except GeometryError as exc:
+        raise ConfigError(exc.key, str(exc).split(": ", 1)[1]) from None
+    for name, spec in gen.items():
+        if cfg["objects"].setdefault(name, spec) != spec:
+            raise ConfigError("generated.seed", (
+                f"generated object '{name}' is also a key of objects (rename it or move the seeds)"))
 
 
 def _check_lab(cfg: dict, finger: FingerParams) -> None:

@@ -15,10 +15,11 @@ import shapely
 from shapely import affinity
 from shapely.geometry import Point, Polygon, box
 
+from .blobs import blob_outline
 from .finger import FingerParams, GeometryError, outer_polygon
 from .mesh import BOUNDARY_TAGS, TriMesh, polygon_rings, quality, triangulate_polygon
 
-OBJECT_TYPES = ("circle", "square", "ring", "ellipse", "polygon", "polygon_file")
+OBJECT_TYPES = ("circle", "square", "ring", "ellipse", "polygon", "polygon_file", "blob")
 
 
 def _circle(d: float, size_mm: float) -> Polygon:
@@ -102,6 +103,9 @@ def object_shape(spec: dict, size_mm: float = 0.5, key: str = "object") -> Polyg
         shape = _rounded(validate_vertices(pts, vkey), spec.get("fillet_mm", 0.0), size_mm)
         if not isinstance(shape, Polygon) or shape.is_empty:
             raise GeometryError(f"{key}.fillet_mm", "the fillet removes the whole polygon")
+    elif kind == "blob":  # seeded smooth random polygon (finray.geometry.blobs)
+        shape = Polygon(blob_outline(spec["seed"], spec["diameter_mm"], spec.get("harmonics", 5),
+                                     spec.get("amplitude", 0.4), 0.5 * size_mm, key))
     else:
         raise GeometryError(f"{key}.type", (
             f"unknown object type '{kind}' (one of {', '.join(OBJECT_TYPES)})"))
