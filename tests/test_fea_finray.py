@@ -1,8 +1,14 @@
 """The Fin Ray scene: equilibrium, no interpenetration, failures reported by step."""
+import os
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 from shapely.geometry import Point
 
+import finray
 from finray.config import default_config_path, load_config
 from finray.fea.output import material_law
 from finray.fea.simulate import (DeformableObject, SimulationError, SimulationOptions,
@@ -147,3 +153,32 @@ def test_equilibrium_check_fails_the_scene_and_leaves_a_report(scene_inputs, tmp
     assert "equilibrium error" in msg and "> tolerance 1e-300" in msg
     r = json.loads(report.read_text())
     assert r["converged"] is False and r["error"] == msg and r["cause"] == "equilibrium"
+
+
+SCENE = """
+import sys, numpy as np
+from finray.config import default_config_path, load_config
+from finray.fea.output import material_law
+from finray.fea.simulate import SimulationOptions, front_contact_circle, simulate
+from finray.geometry.finger import FingerParams, mesh_finger
+law = material_law(load_config(default_config_path()), "ninjaflex")
+r = simulate(mesh_finger(FingerParams(), size_mm=2.0, arc_chord_mm=0.25),
+             front_contact_circle(FingerParams(), 30.0, 20.0, gap_mm=0.1), law,
+             SimulationOptions(push_mm=2.0, frame_step_mm=1.0))
+np.savez(sys.argv[1], F=r.force_N_per_mm, B=r.base_reaction_N_per_mm,
+         u=r.finger_displacement_mm, s=r.finger_von_mises_MPa, n=r.n_pairs_object,
+         g=r.min_gap_object_mm)
+"""
+
+
+def test_scene_is_bit_reproducible_across_processes(tmp_path):
+    """Two processes solving the same scene write bit-identical arrays."""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        [str(Path(finray.__file__).parents[1]), os.environ.get("PYTHONPATH", "")])}
+    out = [tmp_path / f"run{i}.npz" for i in range(2)]
+    for f in out:
+        subprocess.run([sys.executable, "-c", SCENE, str(f)], check=True, env=env)
+    a, b = np.load(out[0]), np.load(out[1])
+    assert a["n"][-1] > 0  # in contact
+    for k in a.files:
+        assert np.array_equal(a[k], b[k], equal_nan=True), k

@@ -32,6 +32,10 @@ import numpy as np
 from ..geometry.mesh import split_p2_edges  # noqa: F401  (shared with the fea modules)
 
 ipctk.set_logger_level(ipctk.LoggerLevel.error)
+# one thread: ipctk's TBB loops add per-thread partial sums (energy, gradient, Hessian,
+# collision sets) in a schedule-dependent order, so results drifted ~1e-11 N run to run;
+# contact is ~10 % of a scene's time and workflow jobs get one core each anyway.
+ipctk.set_num_threads(1)
 
 
 @dataclass
