@@ -11,9 +11,12 @@ logs/ and the per-job benchmark records (results/benchmarks/**/*.tsv):
   TOL = 1e-9 or --rtol), float32 arrays to max(TOL, 1e-6) (a few float32 ulps), every
   string equal; columns/keys named like a timing (TIMING) are listed, not compared;
 - text files (md, txt, tex, html, pvd): equal line by line after masking the numbers on
-  lines that name a timing;
-- any other differing file (PNG, VTU, checkpoints, ...) is a mismatch unless its path
-  names a timing (a speed figure plots measured times).
+  lines that name a timing, the numbers followed by a time unit (``12.3 s``, ``1.9 ms/frame``)
+  and the cells of table columns (markdown or HTML) whose header names a timing;
+- checkpoints (``model.pt``, ``model.ts``): every weight tensor bit-identical, the other
+  entries as JSON (a checkpoint's training history holds its step times);
+- any other differing file (PNG, VTU, ...) is a mismatch unless its path names a timing
+  (a speed figure plots measured times) or it is a figure of TIMED_FIGURES.
 """
 import json
 import re
@@ -29,6 +32,11 @@ TIMING = re.compile(r"(time|timing|(^|_)ms(_|$)|(^|_)s(_per|$)|_s_|\d s/|load_av
 TEXT = {".md", ".txt", ".tex", ".html", ".pvd", ".rst", ".yaml", ".j2"}
 STAMPS = re.compile(rb"(comment Created by meshio[^\n]*|/(Creation|Mod)Date \(D:[^)]*\))")
 NUM = re.compile(r"[-+]?\d*\.?\d+(?:[eE][-+]?\d+)?")
+TIMED = re.compile(NUM.pattern + r"(?=\s*(?:ms|s|min|h)\b)")
+# a table header that names a time unit: "(s)", "(min, sum)", "s/scene", "ms/frame"
+UNIT_HEADER = re.compile(r"\((?:s|ms|min|h)\b|(?:^|\W)(?:s|ms|min)/")
+# figures that plot measured times beside results (finray.evaluate.figures)
+TIMED_FIGURES = {"material_generalisation": "its right panel plots the FEA's and the network's time per material"}
 
 
 def files(run):
@@ -87,7 +95,11 @@ def compare_table(a, b, sep):
 
 def compare_json(a, b):
     """(problems, ignored timing keys) of two JSON files."""
-    fa, fb = flat(json.loads(Path(a).read_text())), flat(json.loads(Path(b).read_text()))
+    return _compare_flat(flat(json.loads(Path(a).read_text())), flat(json.loads(Path(b).read_text())))
+
+
+def _compare_flat(fa, fb):
+    """(problems, ignored timing keys) of two {dotted key: leaf} documents."""
     if fa.keys() != fb.keys():
         return [f"keys differ: {sorted(fa.keys() ^ fb.keys())[:5]}"], []
     bad, timing = [], []
@@ -123,20 +135,97 @@ def compare_npz(a, b):
         return bad
 
 
+def timed_columns(lines):
+    """Per line, the indices of its table cells under a header that names a timing
+    (markdown ``| a | b |`` tables, and HTML tables written a cell per line)."""
+    out, md_head, html_head, col = [], None, [], -1
+    for line in lines:
+        t = line.strip()
+        cols = set()
+        if t.startswith("|"):
+            cells = t.strip("|").split("|")
+            if md_head is None:
+                md_head = [i for i, c in enumerate(map(str.strip, cells))
+                           if TIMING.search(c) or UNIT_HEADER.search(c)]
+            cols = set(md_head)
+        else:
+            md_head = None
+        if t.startswith("<tr"):
+            col = -1
+        elif t.startswith("<thead"):
+            html_head = []
+        elif t.startswith("<th"):
+            head = re.sub(r"<[^>]+>", "", t).strip()
+            html_head.append(bool(TIMING.search(head) or UNIT_HEADER.search(head)))
+        elif t.startswith("<td"):
+            col += 1
+            if col < len(html_head) and html_head[col]:
+                cols = {0}
+        out.append(cols)
+    return out
+
+
+def _mask(line, cols):
+    """The line with its timed numbers and the numbers of its timed cells masked."""
+    line = TIMED.sub("#", line)
+    if line.strip().startswith("|"):  # cells without their padding (widths follow the numbers)
+        cells = line.strip().split("|")
+        line = "|".join((NUM.sub("#", c) if i - 1 in cols else c).strip() for i, c in enumerate(cells))
+    elif cols:
+        line = NUM.sub("#", line)
+    return line
+
+
 def compare_text(a, b):
-    """(problems, timing lines) of two text files, numbers masked on timing lines."""
+    """(problems, timing lines) of two text files, numbers masked on timing lines, after
+    time units and in timing columns."""
     la, lb = Path(a).read_text().splitlines(), Path(b).read_text().splitlines()
     if len(la) != len(lb):
         return [f"{len(la)} vs {len(lb)} lines"], []
     bad, timing = [], []
-    for i, (x, y) in enumerate(zip(la, lb), 1):
+    for i, (x, y, cols) in enumerate(zip(la, lb, timed_columns(la)), 1):
         if x == y:
             continue
-        if TIMING.search(x) and NUM.sub("#", x) == NUM.sub("#", y):
+        if (TIMING.search(x) and NUM.sub("#", x) == NUM.sub("#", y)) or _mask(x, cols) == _mask(y, cols):
             timing.append(f"line {i}")
         else:
             bad.append(f"line {i}: {x.strip()[:80]!r} vs {y.strip()[:80]!r}")
     return bad, timing
+
+
+def compare_checkpoint(a, b):
+    """(problems, timing keys) of two torch checkpoints (``.pt``: a dict with a state
+    dict; ``.ts``: TorchScript): tensors bit-identical, other entries as JSON."""
+    import torch
+
+    def load(p):
+        if p.suffix == ".ts":
+            return {"state_dict": dict(torch.jit.load(str(p), map_location="cpu").state_dict())}
+        return torch.load(p, map_location="cpu", weights_only=False)
+
+    ca, cb = load(Path(a)), load(Path(b))
+    bad, rest = [], ({}, {})
+    for side, ck in zip(rest, (ca, cb)):
+        for k, v in flat_torch(ck).items():
+            side[k] = v
+    ta = {k: v for k, v in rest[0].items() if isinstance(v, torch.Tensor)}
+    tb = {k: v for k, v in rest[1].items() if isinstance(v, torch.Tensor)}
+    if ta.keys() != tb.keys():
+        return [f"tensors differ: {sorted(ta.keys() ^ tb.keys())[:5]}"], []
+    bad += [f"{k}: tensor differs" for k in ta if not torch.equal(ta[k], tb[k])]
+    ja = {k: v for k, v in rest[0].items() if k not in ta}
+    jb = {k: v for k, v in rest[1].items() if k not in tb}
+    more, timing = _compare_flat(ja, jb)
+    return bad + more, timing
+
+
+def flat_torch(obj, key=""):
+    """{dotted key: leaf} of a checkpoint (dicts and lists; tensors are leaves)."""
+    if isinstance(obj, dict):
+        return {k: v for kk, vv in obj.items() for k, v in flat_torch(vv, f"{key}.{kk}").items()}
+    if isinstance(obj, (list, tuple)):
+        return {k: v for i, vv in enumerate(obj) for k, v in flat_torch(vv, f"{key}[{i}]").items()}
+    return {key: obj}
 
 
 def main(argv=None):
@@ -168,11 +257,15 @@ def main(argv=None):
                 bad = compare_npz(pa, pb)
             elif suf in TEXT:
                 bad, timing = compare_text(pa, pb)
+            elif suf in (".pt", ".ts"):
+                bad, timing = compare_checkpoint(pa, pb)
             elif TIMING.search(rel):
                 bad, timing = [], ["whole file (its path names a timing)"]
+            elif pa.stem in TIMED_FIGURES:
+                bad, timing = [], [f"whole figure ({TIMED_FIGURES[pa.stem]})"]
             else:
                 bad = ["bytes differ"]
-        except (ValueError, OSError, json.JSONDecodeError) as exc:
+        except (ValueError, OSError, RuntimeError, json.JSONDecodeError) as exc:
             bad = [f"unreadable: {exc}"]
         if bad:
             mismatches.append(f"{rel}: " + "; ".join(bad[:5]))
