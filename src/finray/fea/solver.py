@@ -52,6 +52,12 @@ try:  # CHOLMOD (scikit-sparse): symbolic analysis reused across Newton iteratio
     HAVE_CHOLMOD = True
 except Exception:  # pragma: no cover - depends on the machine
     HAVE_CHOLMOD = False
+try:  # CHOLMOD bundled in cvxopt's wheels: the same reuse without SuiteSparse's headers
+    import cvxopt as _cvxopt
+    import cvxopt.cholmod as _cvx_cholmod
+    HAVE_CVXOPT = True
+except Exception:  # pragma: no cover
+    HAVE_CVXOPT = False
 try:
     import cholespy as _cholespy
     HAVE_CHOLESPY = True
@@ -85,21 +91,32 @@ class LinearSolver:
     reused while the matrix pattern is a subset of the analysed one; ``mode``
     "simplicial" by default (faster than "supernodal" for these 2D systems with
     Debian's reference BLAS and still with OpenBLAS); "auto" times one of each and
-    keeps the faster, at the cost of a run-to-run dependence), "cholespy"
-    (a fresh factorisation each call), "splu" (scipy SuperLU), or "auto" (the first
-    one available in that order).
+    keeps the faster, at the cost of a run-to-run dependence), "cvxopt" (the CHOLMOD
+    that cvxopt's wheels bundle, supernodal LL' with their OpenBLAS; the same reuse of
+    the analysis, no system package needed), "cholespy" (a fresh analysis and
+    factorisation each call), "splu" (scipy SuperLU), or "auto" (the first one
+    available in that order).
     """
 
     def __init__(self, backend: str = "auto", mode: str = "simplicial"):
         self.mode = mode  # CHOLMOD: "simplicial", "supernodal" or "auto" (timed once)
         if backend == "auto":
-            backend = "cholmod" if HAVE_CHOLMOD else ("cholespy" if HAVE_CHOLESPY else "splu")
+            backend = next((b for b, ok in (("cholmod", HAVE_CHOLMOD), ("cvxopt", HAVE_CVXOPT),
+                                             ("cholespy", HAVE_CHOLESPY)) if ok), "splu")
+        if backend not in ("cholmod", "cvxopt", "cholespy", "splu"):
+            raise ValueError(f"unknown linear solver {backend!r}: use auto, cholmod, cvxopt, "
+                             f"cholespy or splu")
         self.backend = backend
+        if backend == "cvxopt":
+            self.mode = "supernodal"
         self._factor = None
         self._base = None  # sorted int64 keys (row * n + col) of the base pattern
         self._base_csr = None
         self._base_n = -1
         self._extra = None  # sorted keys of the varying part seen so far
+        self._upper = None  # cvxopt: sorted keys of the analysed pattern's upper triangle
+        self._spm = None  # cvxopt: its lower triangle as a cvxopt matrix (values replaced)
+        self._pattern = None  # cvxopt: last A's (indices, indptr, upper mask, positions)
         self.n_analyses = 0
         self.n_factorizations = 0
         self.time_analyse = 0.0
@@ -175,21 +192,81 @@ class LinearSolver:
         P.sort_indices()
         # symmetric pattern: its CSR arrays are also its CSC arrays
         Pc = sp.csc_matrix((P.data, P.indices, P.indptr), shape=P.shape)
-        if self.mode == "auto":
-            self.mode = self._pick_mode(A)
-        self._factor = _cholmod_analyze(Pc, mode=self.mode)
+        if self.backend == "cvxopt":
+            self._factor = self._cvxopt_analyse(P)
+        else:
+            if self.mode == "auto":
+                self.mode = self._pick_mode(A)
+            self._factor = _cholmod_analyze(Pc, mode=self.mode)
         self.n_analyses += 1
         self.time_analyse += time.perf_counter() - t0
+
+    @staticmethod
+    def _upper_keys(A: sp.csr_matrix) -> tuple[np.ndarray, np.ndarray]:
+        """Keys (row * n + col, sorted) and mask of the upper triangle of A (CSR, sorted)."""
+        n = A.shape[0]
+        rows = np.repeat(np.arange(n, dtype=np.int64), np.diff(A.indptr))
+        upper = A.indices >= rows
+        return rows[upper] * n + A.indices[upper], upper
+
+    def _cvxopt_analyse(self, P: sp.csr_matrix):
+        """Symbolic factorisation of the symmetric pattern P (CSR, sorted) by cvxopt's
+        CHOLMOD. Its lower triangle in CSC has the arrays of P's upper triangle in CSR,
+        so the values of any A inside P go in by the sorted upper-triangle keys."""
+        n = P.shape[0]
+        self._upper, _ = self._upper_keys(P)
+        r, c = np.divmod(self._upper, n)
+        # lower triangle: (row = c, column = r); cvxopt sorts it to CSC, i.e. key order
+        self._spm = _cvxopt.spmatrix(_cvxopt.matrix(np.ones(len(r))), _cvxopt.matrix(c),
+                                     _cvxopt.matrix(r), (n, n))
+        self._pattern = None
+        _cvx_cholmod.options["supernodal"] = 2  # LL': a non-positive pivot raises
+        return _cvx_cholmod.symbolic(self._spm, uplo="L")
+
+    def _solve_cvxopt(self, A: sp.csr_matrix, b: np.ndarray) -> np.ndarray:
+        same = (self._pattern is not None and len(self._pattern[0]) == len(A.indices)
+                and np.array_equal(self._pattern[0], A.indices)
+                and np.array_equal(self._pattern[1], A.indptr))
+        if not same:  # where A's upper-triangle values go in the analysed pattern
+            keys, upper = self._upper_keys(A)
+            pos = np.minimum(np.searchsorted(self._upper, keys), len(self._upper) - 1)
+            if not np.array_equal(self._upper[pos], keys):  # outside the analysed pattern
+                self._ensure_analysis(A, None)
+                pos = np.searchsorted(self._upper, keys)
+            self._pattern = (A.indices.copy(), A.indptr.copy(), upper, pos)
+        _, _, upper, pos = self._pattern
+        # explicit zeros fill the rest: CHOLMOD's numeric step assumes the analysed
+        # pattern (an entry outside it would be dropped silently)
+        vals = np.zeros(len(self._upper))
+        vals[pos] = A.data[upper]
+        self._spm.V = _cvxopt.matrix(vals)
+        t0 = time.perf_counter()
+        try:
+            _cvx_cholmod.numeric(self._spm, self._factor)
+        except ArithmeticError as e:  # the column of the failed pivot
+            self.time_factor += time.perf_counter() - t0
+            raise NotPositiveDefinite(f"not positive definite (pivot of column {e})") from None
+        self.n_factorizations += 1
+        t1 = time.perf_counter()
+        x = _cvxopt.matrix(np.asarray(b, float).reshape(-1, 1))
+        _cvx_cholmod.solve(self._factor, x)
+        self.time_factor += t1 - t0
+        self.time_solve += time.perf_counter() - t1
+        return np.array(x).ravel()
 
     def solve(self, A: sp.csr_matrix, b: np.ndarray, extra: sp.spmatrix | None = None) -> np.ndarray:
         """Solve A x = b for symmetric positive definite A (CSR, both triangles).
 
         ``extra``: the contribution to A whose pattern changes between calls (its
         pattern is merged into the analysed one when new entries appear).
-        Raises :class:`NotPositiveDefinite` (cholmod) if A is not positive definite.
+        Raises :class:`NotPositiveDefinite` (cholmod, cvxopt, cholespy) if A is not
+        positive definite.
         """
         A = A.tocsr()
         A.sort_indices()
+        if self.backend == "cvxopt":
+            self._ensure_analysis(A, extra)
+            return self._solve_cvxopt(A, b)
         if self.backend == "cholmod":
             self._ensure_analysis(A, extra)
             t0 = time.perf_counter()
