@@ -138,11 +138,12 @@ def test_block_dragged_under_normal_load_slips_at_mu_N():
 
 
 def test_linear_solver_backends_agree():
-    """CHOLMOD (reused analysis), cholespy and SuperLU give the same contact solution."""
+    """CHOLMOD (scikit-sparse's or cvxopt's, reused analysis), cholespy and SuperLU give
+    the same contact solution."""
     from finray.fea import solver as S
 
     backends = ["splu"] + (["cholmod"] if S.HAVE_CHOLMOD else []) \
-        + (["cholespy"] if S.HAVE_CHOLESPY else [])
+        + (["cvxopt"] if S.HAVE_CVXOPT else []) + (["cholespy"] if S.HAVE_CHOLESPY else [])
     mesh = rectangle_mesh(np.linspace(-3, 3, 13), np.linspace(-2, 0, 5), order=2)
     cp, ce = circle_polyline([0.0, 3.05], 3.0, 200)
     fixed = np.where(np.abs(mesh.points[:, 1] + 2) < 1e-9)[0]

@@ -18,8 +18,8 @@ the object never enters the finger. The force the finger exerts on the object is
 Newton: the exact Hessian is factorised first (quadratic convergence); when it is
 not positive definite, the material tangents are projected to PSD per Gauss point
 and the contact Hessians per contact (ipctk's "abs" projection) and the system is
-factorised again. The sparse Cholesky (CHOLMOD) reuses its symbolic analysis while
-the pattern stays inside the analysed one. Each step is cut to the collision-free
+factorised again. The sparse Cholesky (CHOLMOD, from scikit-sparse or cvxopt's wheels)
+reuses its symbolic analysis while the pattern stays inside the analysed one. Each step is cut to the collision-free
 fraction found by continuous collision detection, then backtracked (Armijo) so
 that the energy decreases: no accepted state is interpenetrating or has an
 inverted element. Convergence needs both criteria of :class:`NewtonOptions`: the
@@ -39,6 +39,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
+import numba as nb
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
@@ -84,6 +85,25 @@ class SimulationError(RuntimeError):
 # ----------------------------------------------------------------------------------
 # Linear solver
 # ----------------------------------------------------------------------------------
+@nb.njit(cache=True)
+def _scatter_upper(a_ptr, a_ind, a_val, p_ptr, p_ind, out):
+    """out[k] = A[i, j] for every upper-triangle entry (j >= i) of A (CSR, sorted), k its
+    position in the upper-triangle CSR pattern P (p_ptr, p_ind; sorted). False when an
+    entry of A lies outside P."""
+    for i in range(len(a_ptr) - 1):
+        k, k_end = p_ptr[i], p_ptr[i + 1]
+        for e in range(a_ptr[i], a_ptr[i + 1]):
+            j = a_ind[e]
+            if j < i:
+                continue
+            while k < k_end and p_ind[k] < j:
+                k += 1
+            if k == k_end or p_ind[k] != j:
+                return False
+            out[k] = a_val[e]
+    return True
+
+
 class LinearSolver:
     """Sparse SPD solver.
 
@@ -114,9 +134,8 @@ class LinearSolver:
         self._base_csr = None
         self._base_n = -1
         self._extra = None  # sorted keys of the varying part seen so far
-        self._upper = None  # cvxopt: sorted keys of the analysed pattern's upper triangle
-        self._spm = None  # cvxopt: its lower triangle as a cvxopt matrix (values replaced)
-        self._pattern = None  # cvxopt: last A's (indices, indptr, upper mask, positions)
+        self._upper = None  # cvxopt: (indptr, indices) of the analysed upper triangle
+        self._spm = None  # cvxopt: its transpose, a cvxopt matrix (values replaced)
         self.n_analyses = 0
         self.n_factorizations = 0
         self.time_analyse = 0.0
@@ -201,44 +220,27 @@ class LinearSolver:
         self.n_analyses += 1
         self.time_analyse += time.perf_counter() - t0
 
-    @staticmethod
-    def _upper_keys(A: sp.csr_matrix) -> tuple[np.ndarray, np.ndarray]:
-        """Keys (row * n + col, sorted) and mask of the upper triangle of A (CSR, sorted)."""
-        n = A.shape[0]
-        rows = np.repeat(np.arange(n, dtype=np.int64), np.diff(A.indptr))
-        upper = A.indices >= rows
-        return rows[upper] * n + A.indices[upper], upper
-
     def _cvxopt_analyse(self, P: sp.csr_matrix):
         """Symbolic factorisation of the symmetric pattern P (CSR, sorted) by cvxopt's
-        CHOLMOD. Its lower triangle in CSC has the arrays of P's upper triangle in CSR,
-        so the values of any A inside P go in by the sorted upper-triangle keys."""
-        n = P.shape[0]
-        self._upper, _ = self._upper_keys(P)
-        r, c = np.divmod(self._upper, n)
-        # lower triangle: (row = c, column = r); cvxopt sorts it to CSC, i.e. key order
-        self._spm = _cvxopt.spmatrix(_cvxopt.matrix(np.ones(len(r))), _cvxopt.matrix(c),
-                                     _cvxopt.matrix(r), (n, n))
-        self._pattern = None
+        CHOLMOD. The lower triangle in CSC has the arrays of the upper triangle in CSR."""
+        U = sp.triu(P, format="csr")
+        U.sort_indices()
+        self._upper = (U.indptr.astype(np.int64), U.indices.astype(np.int64))
+        rows = np.repeat(np.arange(P.shape[0], dtype=np.int64), np.diff(U.indptr))
+        # lower triangle: (row = U's column, column = U's row); cvxopt keeps U's order
+        self._spm = _cvxopt.spmatrix(_cvxopt.matrix(np.ones(U.nnz)), _cvxopt.matrix(self._upper[1]),
+                                     _cvxopt.matrix(rows), P.shape)
         _cvx_cholmod.options["supernodal"] = 2  # LL': a non-positive pivot raises
         return _cvx_cholmod.symbolic(self._spm, uplo="L")
 
     def _solve_cvxopt(self, A: sp.csr_matrix, b: np.ndarray) -> np.ndarray:
-        same = (self._pattern is not None and len(self._pattern[0]) == len(A.indices)
-                and np.array_equal(self._pattern[0], A.indices)
-                and np.array_equal(self._pattern[1], A.indptr))
-        if not same:  # where A's upper-triangle values go in the analysed pattern
-            keys, upper = self._upper_keys(A)
-            pos = np.minimum(np.searchsorted(self._upper, keys), len(self._upper) - 1)
-            if not np.array_equal(self._upper[pos], keys):  # outside the analysed pattern
-                self._ensure_analysis(A, None)
-                pos = np.searchsorted(self._upper, keys)
-            self._pattern = (A.indices.copy(), A.indptr.copy(), upper, pos)
-        _, _, upper, pos = self._pattern
-        # explicit zeros fill the rest: CHOLMOD's numeric step assumes the analysed
-        # pattern (an entry outside it would be dropped silently)
-        vals = np.zeros(len(self._upper))
-        vals[pos] = A.data[upper]
+        # explicit zeros fill the analysed pattern where A has no entry: CHOLMOD's
+        # numeric step assumes that pattern (an entry outside it would be dropped)
+        vals = np.zeros(len(self._upper[1]))
+        if not _scatter_upper(A.indptr, A.indices, A.data, *self._upper, vals):
+            self._ensure_analysis(A, None)  # an entry outside the analysed pattern
+            vals = np.zeros(len(self._upper[1]))
+            _scatter_upper(A.indptr, A.indices, A.data, *self._upper, vals)
         self._spm.V = _cvxopt.matrix(vals)
         t0 = time.perf_counter()
         try:
