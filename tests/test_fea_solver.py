@@ -123,18 +123,32 @@ def test_cvxopt_backend_solves_spd_with_a_growing_pattern():
 
 
 def test_cvxopt_backend_raises_not_positive_definite():
-    """An indefinite matrix raises NotPositiveDefinite (the Newton solver then projects
-    the Hessian), and the solver recovers on the next SPD matrix."""
+    """Supernodal LL' raises NotPositiveDefinite on an indefinite matrix; simplicial LDL'
+    (the default, as scikit-sparse's) solves it and raises on a zero pivot only; both
+    recover on the next SPD matrix (the Newton solver projects the Hessian on a raise
+    and checks a direction for descent)."""
+    import scipy.sparse as sp
     from finray.fea import solver as S
 
     pytest.importorskip("cvxopt")
     A = _spd()
-    ls = S.LinearSolver("cvxopt")
-    b = np.ones(A.shape[0])
+    n = A.shape[0]
+    b = np.ones(n)
+    indefinite = (A - 50.0 * sp.eye(n)).tocsr()
+    ll = S.LinearSolver("cvxopt", mode="supernodal")
     with pytest.raises(S.NotPositiveDefinite, match="not positive definite"):
-        ls.solve(A - 50.0 * S.sp.eye(A.shape[0], format="csr"), b)
-    x = ls.solve(A, b)
-    assert np.abs(A @ x - b).max() < 1e-10
+        ll.solve(indefinite, b)
+    ldl = S.LinearSolver("cvxopt")
+    assert ldl.mode == "simplicial"
+    x = ldl.solve(indefinite, b)
+    assert np.abs(indefinite @ x - b).max() < 1e-10
+    d = np.ones(n)
+    d[0] = 0.0
+    with pytest.raises(S.NotPositiveDefinite, match="column 0"):
+        S.LinearSolver("cvxopt").solve(sp.diags(d, format="csr"), b)
+    for ls in (ll, ldl):
+        x = ls.solve(A, b)
+        assert np.abs(A @ x - b).max() < 1e-10
 
 
 def test_unknown_linear_solver_is_one_line():

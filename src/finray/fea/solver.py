@@ -112,8 +112,10 @@ class LinearSolver:
     "simplicial" by default (faster than "supernodal" for these 2D systems with
     Debian's reference BLAS and still with OpenBLAS); "auto" times one of each and
     keeps the faster, at the cost of a run-to-run dependence), "cvxopt" (the CHOLMOD
-    that cvxopt's wheels bundle, supernodal LL' with their OpenBLAS; the same reuse of
-    the analysis, no system package needed), "cholespy" (a fresh analysis and
+    that cvxopt's wheels bundle, no system package needed; the same reuse of the
+    analysis and the same ``mode``: "simplicial" LDL' like scikit-sparse's, which
+    solves indefinite systems and raises only on a zero pivot, or "supernodal" LL',
+    which raises on any non-positive pivot), "cholespy" (a fresh analysis and
     factorisation each call), "splu" (scipy SuperLU), or "auto" (the first one
     available in that order).
     """
@@ -127,8 +129,6 @@ class LinearSolver:
             raise ValueError(f"unknown linear solver {backend!r}: use auto, cholmod, cvxopt, "
                              f"cholespy or splu")
         self.backend = backend
-        if backend == "cvxopt":
-            self.mode = "supernodal"
         self._factor = None
         self._base = None  # sorted int64 keys (row * n + col) of the base pattern
         self._base_csr = None
@@ -230,7 +230,11 @@ class LinearSolver:
         # lower triangle: (row = U's column, column = U's row); cvxopt keeps U's order
         self._spm = _cvxopt.spmatrix(_cvxopt.matrix(np.ones(U.nnz)), _cvxopt.matrix(self._upper[1]),
                                      _cvxopt.matrix(rows), P.shape)
-        _cvx_cholmod.options["supernodal"] = 2  # LL': a non-positive pivot raises
+        # simplicial LDL' as scikit-sparse's default: the same Newton path (an indefinite
+        # Hessian gives a direction that newton() checks for descent); supernodal LL'
+        # (raises on a non-positive pivot, so more projected Hessians) moved some frames'
+        # forces by up to 7 % at slip events
+        _cvx_cholmod.options["supernodal"] = {"simplicial": 0, "auto": 1}.get(self.mode, 2)
         return _cvx_cholmod.symbolic(self._spm, uplo="L")
 
     def _solve_cvxopt(self, A: sp.csr_matrix, b: np.ndarray) -> np.ndarray:
@@ -245,7 +249,7 @@ class LinearSolver:
         t0 = time.perf_counter()
         try:
             _cvx_cholmod.numeric(self._spm, self._factor)
-        except ArithmeticError as e:  # the column of the failed pivot
+        except ArithmeticError as e:  # the column of the failed (zero or, LL', negative) pivot
             self.time_factor += time.perf_counter() - t0
             raise NotPositiveDefinite(f"not positive definite (pivot of column {e})") from None
         self.n_factorizations += 1
@@ -261,8 +265,9 @@ class LinearSolver:
 
         ``extra``: the contribution to A whose pattern changes between calls (its
         pattern is merged into the analysed one when new entries appear).
-        Raises :class:`NotPositiveDefinite` (cholmod, cvxopt, cholespy) if A is not
-        positive definite.
+        Raises :class:`NotPositiveDefinite` where the factorisation fails: cholespy and
+        supernodal CHOLMOD on any non-positive pivot, simplicial CHOLMOD (LDL') on a
+        zero pivot only (an indefinite A then gives a solution: callers check descent).
         """
         A = A.tocsr()
         A.sort_indices()
