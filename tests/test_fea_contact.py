@@ -138,11 +138,12 @@ def test_block_dragged_under_normal_load_slips_at_mu_N():
 
 
 def test_linear_solver_backends_agree():
-    """CHOLMOD (reused analysis), cholespy and SuperLU give the same contact solution."""
+    """CHOLMOD (scikit-sparse's or cvxopt's, reused analysis), cholespy and SuperLU give
+    the same contact solution."""
     from finray.fea import solver as S
 
     backends = ["splu"] + (["cholmod"] if S.HAVE_CHOLMOD else []) \
-        + (["cholespy"] if S.HAVE_CHOLESPY else [])
+        + (["cvxopt"] if S.HAVE_CVXOPT else []) + (["cholespy"] if S.HAVE_CHOLESPY else [])
     mesh = rectangle_mesh(np.linspace(-3, 3, 13), np.linspace(-2, 0, 5), order=2)
     cp, ce = circle_polyline([0.0, 3.05], 3.0, 200)
     fixed = np.where(np.abs(mesh.points[:, 1] + 2) < 1e-9)[0]
@@ -182,3 +183,24 @@ def test_contact_evaluation_is_bit_reproducible():
     for _ in range(10):
         p = cm.pairs(U)
         assert all(np.array_equal(p[k], p0[k]) for k in p0)
+
+
+def test_reused_broad_phase_candidates_find_every_pair():
+    """Candidates found at rest are reused for a state in which every vertex moved by
+    up to the margin: two segments 2 x 0.99 margin + 0.999 dhat apart, moved towards
+    each other, touch within dhat and are found, as a fresh broad phase finds them."""
+    dhat = 0.02
+    m = ContactModel.CANDIDATE_MARGIN_MM
+    h = dhat + 2 * 0.99 * m - 0.001 * dhat
+    pts = np.array([[-1.0, 0.0], [1.0, 0.0], [-1.0, h], [1.0, h]])
+    segs = np.array([[0, 1], [3, 2]])
+    params = ContactParams(dhat=dhat, kappa=1.0, mu=0.0)
+    cm = ContactModel(pts, segs, np.array([0, 0, 1, 1]), params=params)
+    U0 = np.zeros((4, 2))
+    assert cm.energy(U0) == 0.0  # apart at rest: no pair, candidates kept
+    U = np.array([[0.0, 1.0], [0.0, 1.0], [0.0, -1.0], [0.0, -1.0]]) * 0.99 * m
+    E = cm.energy(U)
+    assert cm._cand[0] is not None and np.array_equal(cm._cand[1], cm.vertices(U0))  # reused
+    fresh = ContactModel(pts, segs, np.array([0, 0, 1, 1]), params=params)
+    assert E > 0 and E == pytest.approx(fresh.energy(U), rel=1e-12)
+    assert cm.pairs(U)["d"].size == fresh.pairs(U)["d"].size > 0

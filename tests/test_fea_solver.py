@@ -92,3 +92,67 @@ def test_gradient_fallback_is_counted():
     model.linsolve.solve = ascent
     newton(model, np.zeros(model.n), NewtonOptions(max_iterations=3))
     assert model.counters["gradient_fallbacks"] == 3
+
+
+# -- the cvxopt backend (CHOLMOD from wheels) ----------------------------------------
+def _spd(n=60, seed=0):
+    import scipy.sparse as sp
+    L = sp.random(n, n, density=0.05, random_state=seed)
+    return (L @ L.T + 2.0 * sp.eye(n)).tocsr()
+
+
+def test_cvxopt_backend_solves_spd_with_a_growing_pattern():
+    """Solutions to 1e-10 with the analysis reused, extended by new (contact) entries
+    and by an entry outside both the analysed pattern and ``extra``."""
+    import scipy.sparse as sp
+    from finray.fea import solver as S
+
+    pytest.importorskip("cvxopt")
+    assert S.LinearSolver("auto").backend == ("cholmod" if S.HAVE_CHOLMOD else "cvxopt")
+    A = _spd()
+    n = A.shape[0]
+    b = np.random.default_rng(1).normal(size=n)
+    ls = S.LinearSolver("cvxopt")
+    E = sp.csr_matrix(([0.5, 0.5, 1.0, 1.0], ([3, 40, 3, 40], [40, 3, 3, 40])), shape=(n, n))
+    F = sp.csr_matrix(([0.3, 0.3, 1.0, 1.0], ([5, 50, 5, 50], [50, 5, 5, 50])), shape=(n, n))
+    for M, extra in ((A, None), (2.0 * A, None), (A + E, E), (A + E + F, E)):
+        x = ls.solve(M, b, extra)
+        assert np.abs(M @ x - b).max() < 1e-10 * np.abs(b).max()
+    assert ls.n_analyses == 3  # first, the new extra, the entry outside both
+    assert ls.n_factorizations == 4
+
+
+def test_cvxopt_backend_raises_not_positive_definite():
+    """Supernodal LL' raises NotPositiveDefinite on an indefinite matrix; simplicial LDL'
+    (the default, as scikit-sparse's) solves it and raises on a zero pivot only; both
+    recover on the next SPD matrix (the Newton solver projects the Hessian on a raise
+    and checks a direction for descent)."""
+    import scipy.sparse as sp
+    from finray.fea import solver as S
+
+    pytest.importorskip("cvxopt")
+    A = _spd()
+    n = A.shape[0]
+    b = np.ones(n)
+    indefinite = (A - 50.0 * sp.eye(n)).tocsr()
+    ll = S.LinearSolver("cvxopt", mode="supernodal")
+    with pytest.raises(S.NotPositiveDefinite, match="not positive definite"):
+        ll.solve(indefinite, b)
+    ldl = S.LinearSolver("cvxopt")
+    assert ldl.mode == "simplicial"
+    x = ldl.solve(indefinite, b)
+    assert np.abs(indefinite @ x - b).max() < 1e-10
+    d = np.ones(n)
+    d[0] = 0.0
+    with pytest.raises(S.NotPositiveDefinite, match="column 0"):
+        S.LinearSolver("cvxopt").solve(sp.diags(d, format="csr"), b)
+    for ls in (ll, ldl):
+        x = ls.solve(A, b)
+        assert np.abs(A @ x - b).max() < 1e-10
+
+
+def test_unknown_linear_solver_is_one_line():
+    from finray.fea import solver as S
+
+    with pytest.raises(ValueError, match="unknown linear solver 'mkl'"):
+        S.LinearSolver("mkl")

@@ -356,6 +356,7 @@ class ElasticAssembler:
             self.block_slices.append(slice(s, s + len(b.triangles)))
             s += len(b.triangles)
         self.G, det = reference_gradients(self.points, self.tri, dN)
+        self._G_nodes = None  # shape gradients at the element nodes (nodal_stress)
         if (det <= 0).any():
             raise ValueError("inverted or degenerate reference elements")
         self.wdet = det * self.qw[None, :] * 0.5  # reference triangle area = 1/2
@@ -469,10 +470,10 @@ class ElasticAssembler:
         """
         from .material import von_mises
 
-        n = self.npe
-        L = NODE_BARY[n]
-        _, dN = shape_functions(n, L)
-        G, _ = reference_gradients(self.points, self.tri, dN)  # (M, n_nodes_el, n, 2)
+        G = self._G_nodes
+        if G is None:  # shape gradients at the element nodes: fixed, computed once
+            _, dN = shape_functions(self.npe, NODE_BARY[self.npe])
+            G = self._G_nodes = reference_gradients(self.points, self.tri, dN)[0]  # (M, n, n, 2)
         Ue = U[self.tri]
         F = np.einsum("mni,mqnJ->mqiJ", Ue, G)
         F[..., 0, 0] += 1.0

@@ -91,7 +91,8 @@ class SimulationOptions:
     gap_probe_mm : gaps larger than this are reported as NaN.
     self_neighbour_mm : finger self pairs closer than this along the boundary are
         neighbours, not contacts.
-    linear_solver : "auto", "cholmod", "cholespy" or "splu".
+    linear_solver : "auto", "cholmod", "cvxopt", "cholespy" or "splu"
+        (:class:`~finray.fea.solver.LinearSolver`).
     psd : "auto" (exact Hessian, projected when not positive definite), True, False.
     stress : compute nodal von Mises stresses.
     log_every_s : a progress line (frame k/n, travel mm, load steps, elapsed s) in the

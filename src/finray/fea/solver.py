@@ -18,8 +18,8 @@ the object never enters the finger. The force the finger exerts on the object is
 Newton: the exact Hessian is factorised first (quadratic convergence); when it is
 not positive definite, the material tangents are projected to PSD per Gauss point
 and the contact Hessians per contact (ipctk's "abs" projection) and the system is
-factorised again. The sparse Cholesky (CHOLMOD) reuses its symbolic analysis while
-the pattern stays inside the analysed one. Each step is cut to the collision-free
+factorised again. The sparse Cholesky (CHOLMOD, from scikit-sparse or cvxopt's wheels)
+reuses its symbolic analysis while the pattern stays inside the analysed one. Each step is cut to the collision-free
 fraction found by continuous collision detection, then backtracked (Armijo) so
 that the energy decreases: no accepted state is interpenetrating or has an
 inverted element. Convergence needs both criteria of :class:`NewtonOptions`: the
@@ -39,6 +39,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
+import numba as nb
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
@@ -52,6 +53,12 @@ try:  # CHOLMOD (scikit-sparse): symbolic analysis reused across Newton iteratio
     HAVE_CHOLMOD = True
 except Exception:  # pragma: no cover - depends on the machine
     HAVE_CHOLMOD = False
+try:  # CHOLMOD bundled in cvxopt's wheels: the same reuse without SuiteSparse's headers
+    import cvxopt as _cvxopt
+    import cvxopt.cholmod as _cvx_cholmod
+    HAVE_CVXOPT = True
+except Exception:  # pragma: no cover
+    HAVE_CVXOPT = False
 try:
     import cholespy as _cholespy
     HAVE_CHOLESPY = True
@@ -78,6 +85,25 @@ class SimulationError(RuntimeError):
 # ----------------------------------------------------------------------------------
 # Linear solver
 # ----------------------------------------------------------------------------------
+@nb.njit(cache=True)
+def _scatter_upper(a_ptr, a_ind, a_val, p_ptr, p_ind, out):
+    """out[k] = A[i, j] for every upper-triangle entry (j >= i) of A (CSR, sorted), k its
+    position in the upper-triangle CSR pattern P (p_ptr, p_ind; sorted). False when an
+    entry of A lies outside P."""
+    for i in range(len(a_ptr) - 1):
+        k, k_end = p_ptr[i], p_ptr[i + 1]
+        for e in range(a_ptr[i], a_ptr[i + 1]):
+            j = a_ind[e]
+            if j < i:
+                continue
+            while k < k_end and p_ind[k] < j:
+                k += 1
+            if k == k_end or p_ind[k] != j:
+                return False
+            out[k] = a_val[e]
+    return True
+
+
 class LinearSolver:
     """Sparse SPD solver.
 
@@ -85,21 +111,31 @@ class LinearSolver:
     reused while the matrix pattern is a subset of the analysed one; ``mode``
     "simplicial" by default (faster than "supernodal" for these 2D systems with
     Debian's reference BLAS and still with OpenBLAS); "auto" times one of each and
-    keeps the faster, at the cost of a run-to-run dependence), "cholespy"
-    (a fresh factorisation each call), "splu" (scipy SuperLU), or "auto" (the first
-    one available in that order).
+    keeps the faster, at the cost of a run-to-run dependence), "cvxopt" (the CHOLMOD
+    that cvxopt's wheels bundle, no system package needed; the same reuse of the
+    analysis and the same ``mode``: "simplicial" LDL' like scikit-sparse's, which
+    solves indefinite systems and raises only on a zero pivot, or "supernodal" LL',
+    which raises on any non-positive pivot), "cholespy" (a fresh analysis and
+    factorisation each call), "splu" (scipy SuperLU), or "auto" (the first one
+    available in that order).
     """
 
     def __init__(self, backend: str = "auto", mode: str = "simplicial"):
         self.mode = mode  # CHOLMOD: "simplicial", "supernodal" or "auto" (timed once)
         if backend == "auto":
-            backend = "cholmod" if HAVE_CHOLMOD else ("cholespy" if HAVE_CHOLESPY else "splu")
+            backend = next((b for b, ok in (("cholmod", HAVE_CHOLMOD), ("cvxopt", HAVE_CVXOPT),
+                                             ("cholespy", HAVE_CHOLESPY)) if ok), "splu")
+        if backend not in ("cholmod", "cvxopt", "cholespy", "splu"):
+            raise ValueError(f"unknown linear solver {backend!r}: use auto, cholmod, cvxopt, "
+                             f"cholespy or splu")
         self.backend = backend
         self._factor = None
         self._base = None  # sorted int64 keys (row * n + col) of the base pattern
         self._base_csr = None
         self._base_n = -1
         self._extra = None  # sorted keys of the varying part seen so far
+        self._upper = None  # cvxopt: (indptr, indices) of the analysed upper triangle
+        self._spm = None  # cvxopt: its transpose, a cvxopt matrix (values replaced)
         self.n_analyses = 0
         self.n_factorizations = 0
         self.time_analyse = 0.0
@@ -175,21 +211,69 @@ class LinearSolver:
         P.sort_indices()
         # symmetric pattern: its CSR arrays are also its CSC arrays
         Pc = sp.csc_matrix((P.data, P.indices, P.indptr), shape=P.shape)
-        if self.mode == "auto":
-            self.mode = self._pick_mode(A)
-        self._factor = _cholmod_analyze(Pc, mode=self.mode)
+        if self.backend == "cvxopt":
+            self._factor = self._cvxopt_analyse(P)
+        else:
+            if self.mode == "auto":
+                self.mode = self._pick_mode(A)
+            self._factor = _cholmod_analyze(Pc, mode=self.mode)
         self.n_analyses += 1
         self.time_analyse += time.perf_counter() - t0
+
+    def _cvxopt_analyse(self, P: sp.csr_matrix):
+        """Symbolic factorisation of the symmetric pattern P (CSR, sorted) by cvxopt's
+        CHOLMOD. The lower triangle in CSC has the arrays of the upper triangle in CSR."""
+        U = sp.triu(P, format="csr")
+        U.sort_indices()
+        self._upper = (U.indptr.astype(np.int64), U.indices.astype(np.int64))
+        rows = np.repeat(np.arange(P.shape[0], dtype=np.int64), np.diff(U.indptr))
+        # lower triangle: (row = U's column, column = U's row); cvxopt keeps U's order
+        self._spm = _cvxopt.spmatrix(_cvxopt.matrix(np.ones(U.nnz)), _cvxopt.matrix(self._upper[1]),
+                                     _cvxopt.matrix(rows), P.shape)
+        # simplicial LDL' as scikit-sparse's default: the same Newton path (an indefinite
+        # Hessian gives a direction that newton() checks for descent); supernodal LL'
+        # (raises on a non-positive pivot, so more projected Hessians) moved some frames'
+        # forces by up to 7 % at slip events
+        _cvx_cholmod.options["supernodal"] = {"simplicial": 0, "auto": 1}.get(self.mode, 2)
+        return _cvx_cholmod.symbolic(self._spm, uplo="L")
+
+    def _solve_cvxopt(self, A: sp.csr_matrix, b: np.ndarray) -> np.ndarray:
+        # explicit zeros fill the analysed pattern where A has no entry: CHOLMOD's
+        # numeric step assumes that pattern (an entry outside it would be dropped)
+        vals = np.zeros(len(self._upper[1]))
+        if not _scatter_upper(A.indptr, A.indices, A.data, *self._upper, vals):
+            self._ensure_analysis(A, None)  # an entry outside the analysed pattern
+            vals = np.zeros(len(self._upper[1]))
+            _scatter_upper(A.indptr, A.indices, A.data, *self._upper, vals)
+        self._spm.V = _cvxopt.matrix(vals)
+        t0 = time.perf_counter()
+        try:
+            _cvx_cholmod.numeric(self._spm, self._factor)
+        except ArithmeticError as e:  # the column of the failed (zero or, LL', negative) pivot
+            self.time_factor += time.perf_counter() - t0
+            raise NotPositiveDefinite(f"not positive definite (pivot of column {e})") from None
+        self.n_factorizations += 1
+        t1 = time.perf_counter()
+        x = _cvxopt.matrix(np.asarray(b, float).reshape(-1, 1))
+        _cvx_cholmod.solve(self._factor, x)
+        self.time_factor += t1 - t0
+        self.time_solve += time.perf_counter() - t1
+        return np.array(x).ravel()
 
     def solve(self, A: sp.csr_matrix, b: np.ndarray, extra: sp.spmatrix | None = None) -> np.ndarray:
         """Solve A x = b for symmetric positive definite A (CSR, both triangles).
 
         ``extra``: the contribution to A whose pattern changes between calls (its
         pattern is merged into the analysed one when new entries appear).
-        Raises :class:`NotPositiveDefinite` (cholmod) if A is not positive definite.
+        Raises :class:`NotPositiveDefinite` where the factorisation fails: cholespy and
+        supernodal CHOLMOD on any non-positive pivot, simplicial CHOLMOD (LDL') on a
+        zero pivot only (an indefinite A then gives a solution: callers check descent).
         """
         A = A.tocsr()
         A.sort_indices()
+        if self.backend == "cvxopt":
+            self._ensure_analysis(A, extra)
+            return self._solve_cvxopt(A, b)
         if self.backend == "cholmod":
             self._ensure_analysis(A, extra)
             t0 = time.perf_counter()
