@@ -64,10 +64,10 @@ def close(a, b, tol=None):
 
 
 def flat(obj, key=""):
-    """{dotted key: leaf} of a JSON document."""
+    """{dotted key: leaf} of a JSON document or a checkpoint (tensors are leaves)."""
     if isinstance(obj, dict):
         return {k: v for kk, vv in obj.items() for k, v in flat(vv, f"{key}.{kk}").items()}
-    if isinstance(obj, list):
+    if isinstance(obj, (list, tuple)):
         return {k: v for i, vv in enumerate(obj) for k, v in flat(vv, f"{key}[{i}]").items()}
     return {key: obj}
 
@@ -203,29 +203,15 @@ def compare_checkpoint(a, b):
             return {"state_dict": dict(torch.jit.load(str(p), map_location="cpu").state_dict())}
         return torch.load(p, map_location="cpu", weights_only=False)
 
-    ca, cb = load(Path(a)), load(Path(b))
-    bad, rest = [], ({}, {})
-    for side, ck in zip(rest, (ca, cb)):
-        for k, v in flat_torch(ck).items():
-            side[k] = v
-    ta = {k: v for k, v in rest[0].items() if isinstance(v, torch.Tensor)}
-    tb = {k: v for k, v in rest[1].items() if isinstance(v, torch.Tensor)}
+    fa, fb = flat(load(Path(a))), flat(load(Path(b)))
+    ta = {k: v for k, v in fa.items() if isinstance(v, torch.Tensor)}
+    tb = {k: v for k, v in fb.items() if isinstance(v, torch.Tensor)}
     if ta.keys() != tb.keys():
         return [f"tensors differ: {sorted(ta.keys() ^ tb.keys())[:5]}"], []
-    bad += [f"{k}: tensor differs" for k in ta if not torch.equal(ta[k], tb[k])]
-    ja = {k: v for k, v in rest[0].items() if k not in ta}
-    jb = {k: v for k, v in rest[1].items() if k not in tb}
-    more, timing = _compare_flat(ja, jb)
+    bad = [f"{k}: tensor differs" for k in ta if not torch.equal(ta[k], tb[k])]
+    more, timing = _compare_flat({k: v for k, v in fa.items() if k not in ta},
+                                 {k: v for k, v in fb.items() if k not in tb})
     return bad + more, timing
-
-
-def flat_torch(obj, key=""):
-    """{dotted key: leaf} of a checkpoint (dicts and lists; tensors are leaves)."""
-    if isinstance(obj, dict):
-        return {k: v for kk, vv in obj.items() for k, v in flat_torch(vv, f"{key}.{kk}").items()}
-    if isinstance(obj, (list, tuple)):
-        return {k: v for i, vv in enumerate(obj) for k, v in flat_torch(vv, f"{key}[{i}]").items()}
-    return {key: obj}
 
 
 def main(argv=None):
