@@ -204,3 +204,24 @@ def test_reused_broad_phase_candidates_find_every_pair():
     fresh = ContactModel(pts, segs, np.array([0, 0, 1, 1]), params=params)
     assert E > 0 and E == pytest.approx(fresh.energy(U), rel=1e-12)
     assert cm.pairs(U)["d"].size == fresh.pairs(U)["d"].size > 0
+
+
+def test_gap_probe_matches_the_barrier_pair_set():
+    """The k-d tree gap probe finds, per side pair, the same smallest distance as ipctk's
+    pair set built at the probe distance, and never a pair beyond it or a segment's
+    own end point."""
+    mesh = rectangle_mesh(np.linspace(-4, 4, 81), np.linspace(-1, 0, 3), order=2)
+    cp, ce = segment_polyline([-4.5, 0.3], [4.5, 0.05], 300)
+    fixed = np.where(np.abs(mesh.points[:, 1] + 1.0) < 1e-9)[0]
+    model, cm = block_and_rigid(mesh, cp, ce, top_edges(mesh, 0.0),
+                                ContactParams(dhat=0.02, kappa=0.5, mu=0.0), fixed)
+    U = np.zeros_like(model.points)
+    U[: len(mesh.points)] = 0.01 * np.random.default_rng(2).standard_normal((len(mesh.points), 2))
+    for dist in (0.1, 0.5, 1.0):
+        pr, ref = cm.probe(U, dist), cm.pairs(U, dist)
+        assert pr["d"].size and (pr["d"] < dist).all() and (pr["v0"] != pr["v1"]).all()
+        for same in (True, False):
+            a, b = (pr["b0"] == pr["b1"]) == same, (ref["b0"] == ref["b1"]) == same
+            assert a.any() == b.any()
+            if a.any():
+                assert pr["d"][a].min() == pytest.approx(ref["d"][b].min(), rel=1e-12)

@@ -32,7 +32,9 @@ are counted in ``Model.counters``, never silent.
 Load stepping (:func:`march`): adaptive steps (halved on failure, doubled after
 easy steps, bounded by the frame spacing), a linear predictor from the previous
 increment, and friction normal forces/tangents lagged at the step start and
-re-lagged at the solution ``friction_lag_iterations`` times.
+re-lagged ``friction_lag_iterations`` times within the step's Newton solve: first
+once its step falls below ``friction_relag_dx`` (the quadratic regime, so the lag
+point is within ~dx² of that solve's solution), then at each convergence.
 """
 from __future__ import annotations
 
@@ -572,8 +574,15 @@ class NewtonResult:
     note: str = ""
 
 
-def newton(model: Model, q0: np.ndarray, opts: NewtonOptions | None = None) -> NewtonResult:
+def newton(model: Model, q0: np.ndarray, opts: NewtonOptions | None = None,
+           relag=None, relags: int = 0, relag_dx: float = 0.0) -> NewtonResult:
     """Minimise the model's potential from q0 (must be valid and intersection-free).
+
+    ``relag(q)`` changes the potential (friction re-lagged at q) ``relags`` times
+    during the solve: the first once a full Newton step of at most ``relag_dx`` (mm)
+    has been taken (0: at convergence), the others at convergence, where the solve
+    then goes on; a re-lag that the next step already satisfies ends them. One
+    solve instead of a solve per re-lag saves the convergence check of each.
 
     Converged: Newton step below ``opts.tol_dx`` and residual below
     ``opts.tol_residual`` (both). A backtracking line search that finds no
@@ -590,6 +599,16 @@ def newton(model: Model, q0: np.ndarray, opts: NewtonOptions | None = None) -> N
     if not np.isfinite(E):
         return NewtonResult(q, False, 0, "initial state has an inverted element", E)
     hist = []
+    relags = relags if relag is not None else 0
+    since_relag = None  # Newton steps since the last re-lag
+
+    def do_relag(q):
+        nonlocal relags, since_relag
+        relag(q)
+        relags -= 1
+        since_relag = 0
+        return model.evaluate(q, 2)
+
     for it in range(1, opts.max_iterations + 1):
         if not (np.all(np.isfinite(g)) and np.isfinite(H.data).all()):
             return NewtonResult(q, False, it, "non-finite gradient or Hessian", E, hist)
@@ -630,6 +649,9 @@ def newton(model: Model, q0: np.ndarray, opts: NewtonOptions | None = None) -> N
                 E_try = model.energy(q_try)
                 if np.isfinite(E_try) and E_try <= E + 1e-12 * max(1.0, abs(E)):
                     q, E = q_try, E_try
+            if relags > 0 and since_relag != 1:  # re-lag at the solution and go on
+                E, g, H = do_relag(q)
+                continue
             cnt["residual_max_rel"] = max(cnt["residual_max_rel"], res)
             return NewtonResult(q, True, it, "", E, hist, res)
         # continuous collision detection bounds the step
@@ -664,7 +686,12 @@ def newton(model: Model, q0: np.ndarray, opts: NewtonOptions | None = None) -> N
         model.stats["line_search_s"] += time.perf_counter() - t0
         hist[-1][5] = alpha
         q = q_try
-        E, g, H = model.evaluate(q, 2)
+        if since_relag is not None:
+            since_relag += 1
+        if relags > 0 and since_relag is None and alpha == 1.0 and dmax <= relag_dx:
+            E, g, H = do_relag(q)
+        else:
+            E, g, H = model.evaluate(q, 2)
     # hist rows: [E, |g|, |d|, argmax, ccd alpha, alpha, residual]
     res_last = model.residual_norm(g, opts.residual_floor)
     dmax_last = hist[-1][2] if hist else np.nan
@@ -685,7 +712,8 @@ class StepOptions:
     grow: float = 2.0
     easy_iterations: int = 6  # grow the step when Newton took at most this many
     max_retries: int = 12  # step cuts in a row before giving up
-    friction_lag_iterations: int = 0  # extra solves with friction re-lagged at the solution
+    friction_lag_iterations: int = 0  # friction re-lags within each step's solve
+    friction_relag_dx: float = 1e-3  # mm: the first re-lag once Newton's step is this small
     predictor: bool = True
     max_driver_lag: float | None = 1e-3  # mm; a larger lag means the object is blocked
 
@@ -729,20 +757,12 @@ def march(model: Model, q: np.ndarray, targets, frames: np.ndarray,
                 q_init = q
                 if so.predictor and q_prev is not None and s > s_prev:
                     q_init = _predict(model, q, q_prev, (s_new - s) / (s - s_prev))
-                res = newton(model, q_init, no)
+                relag = None
+                if friction and model.contact is not None and model.contact.params.mu > 0:
+                    relag = lambda q_: model.contact.update_friction(model.U(q_))  # noqa: E731
+                res = newton(model, q_init, no, relag, so.friction_lag_iterations,
+                             so.friction_relag_dx)
                 iters = res.iterations
-                if res.converged and friction and model.contact is not None \
-                        and model.contact.params.mu > 0:
-                    for _ in range(so.friction_lag_iterations):
-                        model.contact.update_friction(model.U(res.q))
-                        r2 = newton(model, res.q, no)
-                        iters += r2.iterations
-                        if not r2.converged:
-                            res = r2
-                            break
-                        res = r2
-                        if r2.iterations <= 1:
-                            break
                 iters_frame += iters
                 if res.converged and model.has_driver and so.max_driver_lag is not None:
                     lag = float(np.abs(model.t(res.q) - model.t_target).max())
