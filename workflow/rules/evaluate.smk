@@ -158,9 +158,9 @@ rule evaluate_diversity:
     benchmark:
         f"{RESULTS}/benchmarks/evaluate/diversity.tsv"
     threads: 1
+    # as the shape and material experiments together (47 + 45 s, 0.67 GB RSS each in
+    # the paper's run), which score a third model and the camera path besides
     resources:
-        # as the shape and material experiments together (47 + 45 s, 0.67 GB RSS each
-        # in the paper's run), which score a third model and the camera path besides
         mem_mb=1300,
         runtime=5,
     conda:
