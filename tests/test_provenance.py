@@ -154,7 +154,10 @@ READERS: list[tuple[str, set[str]]] = [
     ("objects.*.materials", {"geometry_object", "fea_scene", "render_scene"} | _LISTS),
     ("objects.*", {"geometry_object"}),  # the shape
     # one generated object more: its scenes, and what lists the training scenes
-    ("generated.count", {"geometry_object", "fea_scene", "render_scene", "geometry_gallery"} | _LISTS),
+    # (and, as a generated object now trains, the diversity comparison: the paper-objects
+    # model is a new train_model job; its evaluation feeds the summary and the speed table)
+    ("generated.count", {"geometry_object", "fea_scene", "render_scene", "geometry_gallery",
+                         "evaluate_diversity", "evaluate_speed", "summary"} | _LISTS),
     # the emulated lab rig: read by the lab's rules only (never by training or predict)
     ("lab.seed", {"lab_take"}),
     ("lab.objects.*", {"lab_object"}),  # the shape
@@ -177,7 +180,7 @@ UNREAD = {
     # (tests/test_config.py::test_generated_keys_are_in_every_blob_spec: each reaches the
     # objects entry of every generated object, whose provenance is that of objects.*)
     **{f"generated.{k}": "the smoke config generates no objects (generated.count 0)"
-       for k in ("seed", "size_mm", "harmonics", "amplitude", "split", "materials")},
+       for k in ("seed", "size_mm", "harmonics", "amplitude", "split", "materials", "compare_model")},
 }
 
 #: keys that cannot change alone (the config is refused), with the expected message
@@ -214,6 +217,7 @@ NEW_VALUES = {
     "dataset.pitch_object": "ring_d15",
     "generated.split": "shape",
     "generated.materials": ["steel", "neoprene"],
+    "generated.compare_model": "occlusion",
     "train.input_size": [128, 64],
     "train.forces": ["fx"],
     "train.bf16": False,
@@ -323,8 +327,9 @@ class Planner:
     def __init__(self, workdir: Path):
         self.workdir = workdir
 
-    def _build(self, api, configfile: Path):
-        wf = api.workflow(ResourceSettings(cores=1), ConfigSettings(configfiles=[configfile]),
+    def _build(self, api, configfile: Path | list[Path]):
+        files = list(configfile) if isinstance(configfile, (list, tuple)) else [configfile]
+        wf = api.workflow(ResourceSettings(cores=1), ConfigSettings(configfiles=files),
                           snakefile=ROOT / "Snakefile", workdir=self.workdir)
         wf.dag(DAGSettings())
         w = wf._workflow
@@ -507,3 +512,53 @@ def test_named_mappings(planner, smoke, tmp_path):
         assert replanned(key, "geometry_finger") == jobs["geometry_finger"], key
     assert replanned(("render", "stress_ref_MPa"), "render_scene") == sorted(jobs["render_scene"])
     assert replanned(("train", "seed"), "train_model") == sorted(jobs["train_model"])
+
+
+# ------------------------------------------------- training on generated objects
+DIVERSE = ROOT / "config" / "diverse.yaml"
+DIVERSE_SLICE = ROOT / "config" / "diverse_slice.yaml"
+
+
+def _train_and_diversity_jobs(planner, configfiles):
+    """``({model: (params, sorted input)} of train_model, outputs of evaluate_diversity)``."""
+    def fn(w):
+        train = {j.wildcards.model: ({k: v for k, v in j.params.items()}, sorted(map(str, j.input)))
+                 for j in w.dag.jobs if j.rule.name == "train_model"}
+        return train, sorted(str(f) for j in w.dag.jobs if j.rule.name == "evaluate_diversity"
+                             for f in j.output)
+    return planner._run(fn, configfiles)
+
+
+def test_diversity_comparison_is_planned_with_generated_objects_only(tmp_path):
+    """config/diverse.yaml (and its slice) plans plain_paper_objects, the same job as the
+    paper config's plain model apart from its name (params, input shards), and the
+    comparison; the paper and smoke configs plan neither."""
+    planner = Planner(tmp_path)
+    models = {"plain", "occlusion", "pitch", "camera"}
+    paper, none = _train_and_diversity_jobs(planner, [ROOT / "config" / "config.yaml"])
+    assert set(paper) == models and none == []
+    smoke, none = _train_and_diversity_jobs(planner, [SMOKE])
+    assert set(smoke) == models and none == []
+    for files, n_blobs in (([DIVERSE, DIVERSE_SLICE], 60), ([DIVERSE], 300)):
+        train, diversity = _train_and_diversity_jobs(planner, files)
+        assert set(train) == models | {"plain_paper_objects"}, files
+        assert train["plain_paper_objects"] == paper["plain"], files
+        shards = train["plain"][1]
+        blobs = [f for f in shards if f.startswith("results/dataset/shards/blob_s")]
+        assert len(blobs) == 3 * n_blobs and sorted(set(shards) - set(blobs)) == paper["plain"][1]
+        assert train["plain"][0] == paper["plain"][0]  # the same settings, more objects
+        assert "results/evaluate/diversity/table.csv" in diversity
+        assert "results/evaluate/diversity/summary.json" in diversity
+
+
+def test_diversity_needs_generated_training_objects(tmp_path):
+    """generated.compare_model null, or generated objects that do not train: nothing planned."""
+    planner = Planner(tmp_path)
+    raw = yaml.safe_load(SMOKE.read_text())
+    for gen in ({"count": 2, "compare_model": None}, {"count": 2, "split": "shape"}):
+        f = _write(tmp_path, "gen", {**raw, "generated": gen})
+        train, diversity = _train_and_diversity_jobs(planner, [f])
+        assert "plain_paper_objects" not in train and diversity == [], gen
+    f = _write(tmp_path, "gen", {**raw, "generated": {"count": 2, "compare_model": "occlusion"}})
+    train, diversity = _train_and_diversity_jobs(planner, [f])
+    assert train["occlusion_paper_objects"][0] == train["occlusion"][0] and diversity

@@ -14,7 +14,7 @@ from pathlib import Path
 import jsonschema
 import yaml
 
-from .geometry.blobs import generated_objects
+from .geometry.blobs import blob_name, generated_objects
 from .geometry.finger import FingerParams, GeometryError, check_ribs, finger_polygon
 from .geometry.objects import object_shape, place_object
 
@@ -117,6 +117,7 @@ def validate_config(config: dict, base_dir: str | Path = ".") -> dict:
         except GeometryError as exc:
             raise ConfigError(exc.key, str(exc).split(": ", 1)[1]) from None
     _check_lab(cfg, finger)
+    _check_diversity(cfg)
     return cfg
 
 
@@ -131,6 +132,42 @@ def _add_generated(cfg: dict) -> None:
         if cfg["objects"].setdefault(name, spec) != spec:
             raise ConfigError("generated.seed", (
                 f"generated object '{name}' is also a key of objects (rename it or move the seeds)"))
+
+
+#: Suffix of the model trained on the paper's objects only (``generated.compare_model``).
+PAPER_OBJECTS_SUFFIX = "_paper_objects"
+
+
+def generated_training_objects(cfg: dict) -> list[str]:
+    """Names of the generated objects in the training split (a validated config), sorted."""
+    gen = cfg["generated"]
+    if gen["split"] != "train" or not gen["count"]:
+        return []
+    return sorted(blob_name(s) for s in range(gen["seed"], gen["seed"] + gen["count"]))
+
+
+def diversity_models(cfg: dict) -> tuple[str, str] | None:
+    """``(paper-objects model, model)`` of the diversity comparison: ``generated.compare_model``
+    trained on the paper's objects only beside the same model trained with the generated
+    ones; None where no generated object trains or ``compare_model`` is null."""
+    base = cfg["generated"]["compare_model"]
+    if base is None or not generated_training_objects(cfg):
+        return None
+    return f"{base}{PAPER_OBJECTS_SUFFIX}", base
+
+
+def _check_diversity(cfg: dict) -> None:
+    """The compared model is one of train.models, and its paper-objects twin is not."""
+    pair = diversity_models(cfg)
+    if pair is None:
+        return
+    models = cfg["train"]["models"]
+    if pair[1] not in models:
+        raise ConfigError("generated.compare_model", (
+            f"'{pair[1]}' is not a key of train.models ({', '.join(sorted(models))}); null: no comparison"))
+    if pair[0] in models:
+        raise ConfigError("generated.compare_model", (
+            f"train.models already has '{pair[0]}', the name of its paper-objects model"))
 
 
 def _check_lab(cfg: dict, finger: FingerParams) -> None:

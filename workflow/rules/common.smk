@@ -8,7 +8,8 @@ import zlib
 import yaml
 from snakemake.utils import update_config
 
-from finray.config import ConfigError, object_is_meshed, scenes, validate_config
+from finray.config import (ConfigError, diversity_models, generated_training_objects,
+                           object_is_meshed, scenes, validate_config)
 from finray.dataset import pitch_object, scene_splits
 from finray.dataset.shards import SHARD_KEYS
 from finray.lab.as_built import as_built_fea, as_built_finger, as_built_material
@@ -170,18 +171,39 @@ def rendered_views():
     return views
 
 
-def shard_files(splits=None, pitch=None):
-    """Shards of every rendered view (optionally of some splits, or one pitch only), sorted:
-    the order of the objects in the config does not change what a job reads."""
+def shard_files(splits=None, pitch=None, exclude_objects=()):
+    """Shards of every rendered view (optionally of some splits, or one pitch only, less
+    those of ``exclude_objects``), sorted: the order of the objects in the config does not
+    change what a job reads."""
     return sorted(
         f"{DATASET}/shards/{s.object}/{s.material}/h{s.height_mm:g}/p{pitch_label(p)}.npz"
         for s, p in rendered_views()
         if (splits is None or s.split in splits) and (pitch is None or p == pitch)
+        and s.object not in exclude_objects
     )
 
 
+# The diversity comparison (generated.compare_model): (paper-objects model, model), or None
+# where no generated object trains. The paper-objects model is the job a config without
+# the generated objects runs for that model: the same params, the paper objects' shards.
+DIVERSITY = diversity_models(config)
+GENERATED_TRAIN = frozenset(generated_training_objects(config))
+
+
+def trained_model(name):
+    """The train.models entry a trained model follows (the paper-objects model: its model's)."""
+    return DIVERSITY[1] if DIVERSITY and name == DIVERSITY[0] else name
+
+
+def train_shards(wildcards):
+    """A model's training shards (front views of the train split); the paper-objects model
+    of the diversity comparison gets those of the non-generated objects only."""
+    exclude = GENERATED_TRAIN if DIVERSITY and wildcards.model == DIVERSITY[0] else ()
+    return shard_files(splits=["train"], pitch=0.0, exclude_objects=exclude)
+
+
 def model_augment(wildcards):
-    return canonical(config["train"]["models"][wildcards.model])
+    return canonical(config["train"]["models"][trained_model(wildcards.model)])
 
 
 def model_names():

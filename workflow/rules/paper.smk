@@ -16,7 +16,8 @@ rule evaluate_speed:
         # every stage and study has run, so that its benchmark files are complete
         stages=[f"{DATASET}/manifest.csv"]
         + expand(f"{TRAIN}/{{model}}/model.ts", model=model_names())
-        + expand(f"{EVALUATE}/{{experiment}}/metrics.json", experiment=EXPERIMENTS),
+        + expand(f"{EVALUATE}/{{experiment}}/metrics.json", experiment=EXPERIMENTS)
+        + diversity_files(),  # (with generated training objects: the comparison)
         studies=[f"{RESULTS}/benchmarks/{name}" for name in (
             "fea_pareto.csv", "fea_stability.csv", "render_throughput.json", "train_pareto.csv")],
     output:
@@ -173,6 +174,7 @@ rule summary:
         lab_qa=f"{RESULTS}/lab/qa.json",
         lab_takes=f"{RESULTS}/lab/qa.csv",
         sim2real=f"{EVALUATE}/sim2real/summary.json",
+        diversity=diversity_files(),  # none unless the config has generated training objects
     output:
         json=f"{RESULTS}/summary.json",
     params:

@@ -1,9 +1,11 @@
-# Training: one job per model of train.models (e.g. without and with occlusion).
+# Training: one job per model of train.models (e.g. without and with occlusion), and with
+# generated training objects the paper-objects model of the diversity comparison
+# (<generated.compare_model>_paper_objects, see common.smk).
 
 
 rule train_model:
     input:
-        shards=shard_files(splits=["train"], pitch=0.0),
+        shards=train_shards,
     output:
         model=f"{TRAIN}/{{model}}/model.pt",
         torchscript=f"{TRAIN}/{{model}}/model.ts",

@@ -17,6 +17,8 @@ with log_to(snakemake.log[0]):
                            snakemake.params.lab)  # emulated takes, not recordings
     # sim-to-real on the emulated takes, with the calibrated force
     s["sim2real"] = json.loads(Path(snakemake.input.sim2real).read_text())
+    for path in snakemake.input.diversity:  # training on generated objects (config/diverse.yaml)
+        s["diversity"] = json.loads(Path(path).read_text())
     s["paper"] = snakemake.params.paper  # the paper's reference numbers (finray/paper_reference.yaml)
     with open(snakemake.output.json, "w") as f:
         json.dump(s, f, indent=1)

@@ -270,7 +270,8 @@ NAMED = [("experiments", "*"), ("experiments", "*", "*", "*", "groups"),
          ("viewpoint", "nrmse_pct_by_distance", "*"), ("viewpoint", "nrmse_pct_by_distance", "*", "*"),
          ("viewpoint", "fy_nrmse_pct", "*"),
          ("setup", "occlusion_levels"),
-         ("sim2real", "by_context"), ("sim2real", "by_context", "*", "per_object")]
+         ("sim2real", "by_context"), ("sim2real", "by_context", "*", "per_object"),
+         ("diversity", "tests", "*", "groups")]
 
 
 def key_structure(node, path: tuple = ()):
