@@ -17,8 +17,10 @@ stresses MPa):
 """
 from __future__ import annotations
 
+import functools
 import json
 import time
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -93,8 +95,25 @@ def write_result_npz(path: Path, finger: TriMesh, obj, result: SimulationResult)
     )
 
 
+class _Zlib1:
+    """zlib at level 1 for meshio's VTU writer, which compresses at zlib's default (6):
+    2.5x faster on these arrays for files ~1 % larger (any level decompresses alike)."""
+    compress = staticmethod(functools.partial(zlib.compress, level=1))
+    decompress = staticmethod(zlib.decompress)
+
+
 def write_vtu_series(outdir: Path, finger: TriMesh, obj, result: SimulationResult) -> None:
     """ParaView series: reference mesh + displacement ``u`` and ``von_mises_MPa``."""
+    import meshio.vtu._vtu as vtu
+
+    saved, vtu.zlib = vtu.zlib, _Zlib1
+    try:
+        _write_vtu_series(outdir, finger, obj, result)
+    finally:
+        vtu.zlib = saved
+
+
+def _write_vtu_series(outdir: Path, finger: TriMesh, obj, result: SimulationResult) -> None:
     import meshio
 
     vdir = outdir / "vtu"

@@ -80,9 +80,9 @@ class SimulationOptions:
         the object lags its target by force / stiffness (~1e-6 mm).
     initial_step_mm, max_step_mm, min_step_mm, max_retries : load stepping.
     friction_lag_iterations : re-lags of friction within each step's Newton solve,
-        the first once its step is below 1e-3 mm (:class:`StepOptions`), near the
-        solution (0: lagged at the step start only; 1 makes Fy ~3 % and Fx ~0.6 %
-        more accurate at ~15 % more cost).
+        each at a converged solution (:class:`StepOptions`; 0: lagged at the step
+        start only; 1 makes Fy ~3 % and Fx ~0.6 % more accurate at about 2 more Newton
+        iterations per step).
     newton : :class:`NewtonOptions` (tol_dx mm, tol_residual, max_iterations).
     equilibrium_tol : largest ``|force on object - clamp reaction| / max(|force|,
         |reaction|, equilibrium_floor_N_per_mm)`` allowed at a recorded frame.

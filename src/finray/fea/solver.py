@@ -713,7 +713,9 @@ class StepOptions:
     easy_iterations: int = 6  # grow the step when Newton took at most this many
     max_retries: int = 12  # step cuts in a row before giving up
     friction_lag_iterations: int = 0  # friction re-lags within each step's solve
-    friction_relag_dx: float = 1e-3  # mm: the first re-lag once Newton's step is this small
+    # mm: the first re-lag once Newton's step is this small (0: at convergence). 1e-3 saves
+    # ~13 % of the factorisations but moved a steel scene's force by 6 % at a slip event
+    friction_relag_dx: float = 0.0
     predictor: bool = True
     max_driver_lag: float | None = 1e-3  # mm; a larger lag means the object is blocked
 
