@@ -2,6 +2,7 @@
 import os
 import sys
 from dataclasses import fields
+from types import SimpleNamespace
 
 import zlib
 
@@ -390,3 +391,39 @@ def lab_polygon_input(wildcards):
 def lab_take_seed(wildcards):
     """The take's seed: lab.seed and its name (adding a take leaves the others alone)."""
     return config["lab"]["seed"] + zlib.crc32(f"{wildcards.object}_h{wildcards.height}".encode()) % 100000
+
+
+# The diversity comparison (evaluate.smk's evaluate_diversity, DIVERSITY_DIR there)
+def diversity_files():
+    """The comparison's summary where the config plans it (generated training objects and
+    generated.compare_model), else nothing."""
+    return [f"{DIVERSITY_DIR}/summary.json"] if DIVERSITY else []
+
+
+def _diversity_or_stop():
+    if not DIVERSITY:
+        raise ValueError(f"{DIVERSITY_DIR} needs generated training objects (generated.count > 0, "
+                         "split train) and generated.compare_model: see config/diverse.yaml")
+    return DIVERSITY
+
+
+def diversity_inputs(wildcards):
+    """Test shards of the shape and material experiments; both models and their histories."""
+    paper, model = _diversity_or_stop()
+    tests = {f"{t}_shards": experiment_setup(SimpleNamespace(experiment=t))["shards"]
+             for t in DIVERSITY_TESTS}
+    return {**tests, "models": [model_file(paper), model_file(model)],
+            "histories": [f"{TRAIN}/{m}/history.json" for m in (paper, model)]}
+
+
+def diversity_params(wildcards):
+    """Grouping of each test set (as its experiment's), the models' names and the number
+    of training objects of each (the paper's, and those plus the generated ones)."""
+    paper, model = _diversity_or_stop()
+    train = [n for n, o in config["objects"].items() if o["split"] == "train"]
+    n_gen = sum(n in GENERATED_TRAIN for n in train)
+    return canonical({
+        "tests": {t: experiment_setup(SimpleNamespace(experiment=t))["group_col"] for t in DIVERSITY_TESTS},
+        "setup": {"model": model, "models": {"paper_objects": paper, "with_generated": model},
+                  "n_generated": n_gen,
+                  "train_objects": {"paper_objects": len(train) - n_gen, "with_generated": len(train)}}})

@@ -32,9 +32,8 @@ are counted in ``Model.counters``, never silent.
 Load stepping (:func:`march`): adaptive steps (halved on failure, doubled after
 easy steps, bounded by the frame spacing), a linear predictor from the previous
 increment, and friction normal forces/tangents lagged at the step start and
-re-lagged ``friction_lag_iterations`` times within the step's Newton solve: first
-once its step falls below ``friction_relag_dx`` (the quadratic regime, so the lag
-point is within ~dx² of that solve's solution), then at each convergence.
+re-lagged ``friction_lag_iterations`` times within the step's Newton solve, at each
+convergence (or first once its step falls below ``friction_relag_dx``, off by default).
 """
 from __future__ import annotations
 
@@ -649,7 +648,8 @@ def newton(model: Model, q0: np.ndarray, opts: NewtonOptions | None = None,
                 E_try = model.energy(q_try)
                 if np.isfinite(E_try) and E_try <= E + 1e-12 * max(1.0, abs(E)):
                     q, E = q_try, E_try
-            if relags > 0 and since_relag != 1:  # re-lag at the solution and go on
+            # re-lag at the solution and go on, unless the last re-lag needed no step
+            if relags > 0 and since_relag != 0:
                 E, g, H = do_relag(q)
                 continue
             cnt["residual_max_rel"] = max(cnt["residual_max_rel"], res)
