@@ -182,3 +182,21 @@ def test_scene_is_bit_reproducible_across_processes(tmp_path):
     assert a["n"][-1] > 0  # in contact
     for k in a.files:
         assert np.array_equal(a[k], b[k], equal_nan=True), k
+
+
+def test_chord_steps_keep_the_forces_with_fewer_factorisations(finger):
+    """Reusing the last factorisation near the solution (chord steps, also right after the
+    friction re-lag) ends at the same equilibrium as full Newton, to the Newton tolerance,
+    with fewer factorisations; every chord solve is counted."""
+    obj = front_contact_circle(FingerParams(), 30.0, 10.0)
+    runs = {}
+    for chord in (0.0, 1e-2):
+        runs[chord] = simulate(finger, obj, FINGER, SimulationOptions(
+            push_mm=3.0, newton=NewtonOptions(chord_dx=chord)))
+    full, chord = runs[0.0], runs[1e-2]
+    assert full.meta["n_chord_solves"] == 0 < chord.meta["n_chord_solves"]
+    assert chord.meta["n_factorizations"] < full.meta["n_factorizations"]
+    assert abs(full.force_N[-1, 0]) > 0.1
+    # both to the Newton tolerance (residual 1e-3 of the force scale)
+    np.testing.assert_allclose(chord.force_N, full.force_N, rtol=0, atol=1e-3 * np.abs(full.force_N).max())
+    check_frames(chord)

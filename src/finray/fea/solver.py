@@ -139,6 +139,8 @@ class LinearSolver:
         self._spm = None  # cvxopt: its transpose, a cvxopt matrix (values replaced)
         self.n_analyses = 0
         self.n_factorizations = 0
+        self.n_resolves = 0  # solves with an earlier factorisation (resolve)
+        self._last = None  # b -> x with the last factorisation
         self.time_analyse = 0.0
         self.time_factor = 0.0
         self.time_solve = 0.0
@@ -255,11 +257,17 @@ class LinearSolver:
             raise NotPositiveDefinite(f"not positive definite (pivot of column {e})") from None
         self.n_factorizations += 1
         t1 = time.perf_counter()
-        x = _cvxopt.matrix(np.asarray(b, float).reshape(-1, 1))
-        _cvx_cholmod.solve(self._factor, x)
+        factor = self._factor
+
+        def solve(b):
+            x = _cvxopt.matrix(np.asarray(b, float).reshape(-1, 1))
+            _cvx_cholmod.solve(factor, x)
+            return np.array(x).ravel()
+        self._last = solve
+        x = solve(b)
         self.time_factor += t1 - t0
         self.time_solve += time.perf_counter() - t1
-        return np.array(x).ravel()
+        return x
 
     def solve(self, A: sp.csr_matrix, b: np.ndarray, extra: sp.spmatrix | None = None) -> np.ndarray:
         """Solve A x = b for symmetric positive definite A (CSR, both triangles).
@@ -287,10 +295,12 @@ class LinearSolver:
                 raise NotPositiveDefinite(str(e)) from None
             self.n_factorizations += 1
             t1 = time.perf_counter()
-            x = self._factor(b)
+            factor = self._factor
+            self._last = lambda b: np.asarray(factor(b)).ravel()
+            x = self._last(b)
             self.time_factor += t1 - t0
             self.time_solve += time.perf_counter() - t1
-            return np.asarray(x).ravel()
+            return x
         if self.backend == "cholespy":
             t0 = time.perf_counter()
             n = A.shape[0]
@@ -302,18 +312,35 @@ class LinearSolver:
             except ValueError as e:  # "Matrix is not positive definite!"
                 self.time_factor += time.perf_counter() - t0
                 raise NotPositiveDefinite(str(e)) from None
-            x = np.zeros(n)
-            s.solve(np.ascontiguousarray(b, dtype=float), x)
+            def solve(b):
+                x = np.zeros(n)
+                s.solve(np.ascontiguousarray(b, dtype=float), x)
+                return x
+            self._last = solve
+            x = solve(b)
             self.n_factorizations += 1
             self.time_factor += time.perf_counter() - t0
             return x
         t0 = time.perf_counter()
         try:
-            x = spla.splu(A.tocsc()).solve(b)
+            lu = spla.splu(A.tocsc())
         except RuntimeError as e:  # exactly singular
             raise np.linalg.LinAlgError(str(e)) from None
+        self._last = lu.solve
+        x = lu.solve(b)
         self.n_factorizations += 1
         self.time_factor += time.perf_counter() - t0
+        return x
+
+    def resolve(self, b: np.ndarray) -> np.ndarray | None:
+        """Solve with the last factorisation (of an earlier matrix: a chord step), or
+        None before the first."""
+        if self._last is None:
+            return None
+        t0 = time.perf_counter()
+        x = self._last(b)
+        self.n_resolves += 1
+        self.time_solve += time.perf_counter() - t0
         return x
 
 
@@ -554,6 +581,11 @@ class NewtonOptions:
     residual_floor: float = 1e-12  # N/mm
     armijo: float = 1e-4
     min_alpha: float = 1e-10
+    # chord steps: after a full step below chord_dx (mm), the next direction reuses the
+    # last factorisation; kept when it is at most chord_contraction times that step (the
+    # Hessian has hardly changed), else a new factorisation is made (0: never)
+    chord_dx: float = 1e-2
+    chord_contraction: float = 0.5
 
 
 @dataclass
@@ -598,14 +630,18 @@ def newton(model: Model, q0: np.ndarray, opts: NewtonOptions | None = None,
     if not np.isfinite(E):
         return NewtonResult(q, False, 0, "initial state has an inverted element", E)
     hist = []
+    last_step = np.inf  # |dx| of the last full Newton step taken
     relags = relags if relag is not None else 0
     since_relag = None  # Newton steps since the last re-lag
 
     def do_relag(q):
-        nonlocal relags, since_relag
+        nonlocal relags, since_relag, last_step
         relag(q)
         relags -= 1
         since_relag = 0
+        # re-lagging near the solution hardly changes the Hessian: a chord step may
+        # follow, if it is below chord_contraction * chord_dx
+        last_step = opts.chord_dx * (1 - 1e-12)
         return model.evaluate(q, 2)
 
     for it in range(1, opts.max_iterations + 1):
@@ -613,7 +649,12 @@ def newton(model: Model, q0: np.ndarray, opts: NewtonOptions | None = None,
             return NewtonResult(q, False, it, "non-finite gradient or Hessian", E, hist)
         t0 = time.perf_counter()
         d = None
-        if model.psd is not True:
+        if last_step < opts.chord_dx:  # near the solution: try the last factorisation
+            d = model.linsolve.resolve(-g)
+            if d is not None and not (np.all(np.isfinite(d)) and float(g @ d) < 0 and np.abs(d).max()
+                                      <= opts.chord_contraction * last_step):
+                d = None
+        if d is None and model.psd is not True:
             try:
                 d = model.linsolve.solve(H, -g, model.last_extra)
                 if not np.all(np.isfinite(d)) or float(g @ d) >= 0:
@@ -685,6 +726,7 @@ def newton(model: Model, q0: np.ndarray, opts: NewtonOptions | None = None,
                                     f"{opts.tol_residual:.0e})", E, hist, res)
         model.stats["line_search_s"] += time.perf_counter() - t0
         hist[-1][5] = alpha
+        last_step = dmax if alpha == 1.0 else np.inf
         q = q_try
         if since_relag is not None:
             since_relag += 1
