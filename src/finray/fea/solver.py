@@ -19,7 +19,10 @@ Newton: the exact Hessian is factorised first (quadratic convergence); when it i
 not positive definite, the material tangents are projected to PSD per Gauss point
 and the contact Hessians per contact (ipctk's "abs" projection) and the system is
 factorised again. The sparse Cholesky (CHOLMOD, from scikit-sparse or cvxopt's wheels)
-reuses its symbolic analysis while the pattern stays inside the analysed one. Each step is cut to the collision-free
+reuses its symbolic analysis while the pattern stays inside the analysed one. Near the
+solution (after a full step below ``chord_dx``, or a friction re-lag) the direction is
+first computed with the last factorisation (a chord step), kept only when it contracts
+(``chord_contraction``). Each step is cut to the collision-free
 fraction found by continuous collision detection, then backtracked (Armijo) so
 that the energy decreases: no accepted state is interpenetrating or has an
 inverted element. Convergence needs both criteria of :class:`NewtonOptions`: the
