@@ -225,3 +225,25 @@ def test_gap_probe_matches_the_barrier_pair_set():
             assert a.any() == b.any()
             if a.any():
                 assert pr["d"][a].min() == pytest.approx(ref["d"][b].min(), rel=1e-12)
+
+
+def test_resolve_reuses_the_last_factorisation():
+    """Every backend's resolve solves with the matrix it factorised last (None before any);
+    a chord step is that solve for a new right-hand side."""
+    import scipy.sparse as sp
+
+    from finray.fea import solver as S
+
+    backends = ["splu"] + (["cholmod"] if S.HAVE_CHOLMOD else []) \
+        + (["cvxopt"] if S.HAVE_CVXOPT else []) + (["cholespy"] if S.HAVE_CHOLESPY else [])
+    n = 40
+    A = sp.diags([-np.ones(n - 1), 2.5 * np.ones(n), -np.ones(n - 1)], [-1, 0, 1], format="csr")
+    b1, b2 = np.arange(1.0, n + 1), np.cos(np.arange(n))
+    for name in backends:
+        ls = S.LinearSolver(name)
+        assert ls.resolve(b1) is None
+        x1 = ls.solve(A, b1)
+        x2 = ls.resolve(b2)
+        np.testing.assert_allclose(A @ x1, b1, atol=1e-10)
+        np.testing.assert_allclose(A @ x2, b2, atol=1e-10)
+        assert ls.n_factorizations == 1 and ls.n_resolves == 1

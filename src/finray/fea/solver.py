@@ -256,6 +256,7 @@ class LinearSolver:
         try:
             _cvx_cholmod.numeric(self._spm, self._factor)
         except ArithmeticError as e:  # the column of the failed (zero or, LL', negative) pivot
+            self._last = None  # the factor is overwritten in place
             self.time_factor += time.perf_counter() - t0
             raise NotPositiveDefinite(f"not positive definite (pivot of column {e})") from None
         self.n_factorizations += 1
@@ -294,6 +295,7 @@ class LinearSolver:
             try:
                 self._factor.cholesky_inplace(Ac)
             except CholmodNotPositiveDefiniteError as e:
+                self._last = None  # the factor is overwritten in place
                 self.time_factor += time.perf_counter() - t0
                 raise NotPositiveDefinite(str(e)) from None
             self.n_factorizations += 1
@@ -341,7 +343,10 @@ class LinearSolver:
         if self._last is None:
             return None
         t0 = time.perf_counter()
-        x = self._last(b)
+        try:
+            x = self._last(b)
+        except (ArithmeticError, ValueError, RuntimeError):
+            return None
         self.n_resolves += 1
         self.time_solve += time.perf_counter() - t0
         return x
