@@ -206,27 +206,6 @@ def test_reused_broad_phase_candidates_find_every_pair():
     assert cm.pairs(U)["d"].size == fresh.pairs(U)["d"].size > 0
 
 
-def test_gap_probe_matches_the_barrier_pair_set():
-    """The k-d tree gap probe finds, per side pair, the same smallest distance as ipctk's
-    pair set built at the probe distance, and never a pair beyond it or a segment's
-    own end point."""
-    mesh = rectangle_mesh(np.linspace(-4, 4, 81), np.linspace(-1, 0, 3), order=2)
-    cp, ce = segment_polyline([-4.5, 0.3], [4.5, 0.05], 300)
-    fixed = np.where(np.abs(mesh.points[:, 1] + 1.0) < 1e-9)[0]
-    model, cm = block_and_rigid(mesh, cp, ce, top_edges(mesh, 0.0),
-                                ContactParams(dhat=0.02, kappa=0.5, mu=0.0), fixed)
-    U = np.zeros_like(model.points)
-    U[: len(mesh.points)] = 0.01 * np.random.default_rng(2).standard_normal((len(mesh.points), 2))
-    for dist in (0.1, 0.5, 1.0):
-        pr, ref = cm.probe(U, dist), cm.pairs(U, dist)
-        assert pr["d"].size and (pr["d"] < dist).all() and (pr["v0"] != pr["v1"]).all()
-        for same in (True, False):
-            a, b = (pr["b0"] == pr["b1"]) == same, (ref["b0"] == ref["b1"]) == same
-            assert a.any() == b.any()
-            if a.any():
-                assert pr["d"][a].min() == pytest.approx(ref["d"][b].min(), rel=1e-12)
-
-
 def test_resolve_reuses_the_last_factorisation():
     """Every backend's resolve solves with the matrix it factorised last (None before any);
     a chord step is that solve for a new right-hand side."""
@@ -247,3 +226,28 @@ def test_resolve_reuses_the_last_factorisation():
         np.testing.assert_allclose(A @ x1, b1, atol=1e-10)
         np.testing.assert_allclose(A @ x2, b2, atol=1e-10)
         assert ls.n_factorizations == 1 and ls.n_resolves == 1
+
+
+def test_cvxopt_pattern_is_the_union_of_base_and_contact_entries():
+    """The analysed pattern (built as a cvxopt sum of the base and the extra entries) is
+    the upper triangle of their union, sorted; a new contact entry re-analyses once."""
+    import scipy.sparse as sp
+
+    from finray.fea import solver as S
+
+    if not S.HAVE_CVXOPT:
+        pytest.skip("cvxopt is not installed")
+    n = 30
+    base = sp.diags([-np.ones(n - 1), 3.0 * np.ones(n), -np.ones(n - 1)], [-1, 0, 1], format="csr")
+    extra = sp.csr_matrix((np.full(4, -0.5), ([2, 17, 17, 2], [17, 2, 17, 2])), shape=(n, n))
+    ls = S.LinearSolver("cvxopt")
+    b = np.ones(n)
+    ls.solve(base, b, extra=None)
+    x = ls.solve(base + extra, b, extra=extra)
+    np.testing.assert_allclose((base + extra) @ x, b, atol=1e-10)
+    U = sp.triu(abs(base) + abs(extra), format="csr")  # the union's upper triangle
+    U.sort_indices()
+    assert np.array_equal(ls._upper[0], U.indptr) and np.array_equal(ls._upper[1], U.indices)
+    assert ls.n_analyses == 2
+    ls.solve(base + extra, b, extra=extra)
+    assert ls.n_analyses == 2  # inside the analysed pattern: no new analysis

@@ -28,7 +28,6 @@ from dataclasses import dataclass
 
 import ipctk
 import numpy as np
-from scipy.spatial import cKDTree
 
 from ..geometry.mesh import split_p2_edges  # noqa: F401  (shared with the fea modules)
 
@@ -148,6 +147,9 @@ class ContactModel:
         col.use_area_weighting = True
         col.collision_set_type = ipctk.NormalCollisions.CollisionSetType.IMPROVED_MAX_APPROX
         if dhat is not None and dhat != self.params.dhat:
+            # a probe (pairs(), not the barrier): the same pairs without their weights,
+            # which cost a third of the build
+            col.use_area_weighting = False
             col.build(self.mesh, V, dhat, 0.0, self.broad_phase)
         else:  # the same pairs as a fresh broad phase, at a fraction of its cost
             col.build(self._candidates(V), self.mesh, V, self.params.dhat, 0.0)
@@ -260,30 +262,6 @@ class ContactModel:
             v0[ne:] = ids[:, 0]
             v1[ne:] = ids[:, 1]
         return {"b0": self.body[v0], "b1": self.body[v1], "d": d, "v0": v0, "v1": v1}
-
-    def probe(self, U_full: np.ndarray, distance: float) -> dict:
-        """Every point-segment pair within ``distance`` (mm) of each other, the
-        segment not ending at the point: the same arrays as :meth:`pairs`, ``v0`` the
-        segment's end nearer to the point's foot, ``d`` the exact distance. A k-d tree
-        query (scipy), a fraction of :meth:`pairs`' cost at a probe distance far above
-        dhat, where the barrier's set would hold thousands of pairs."""
-        V = self.vertices(U_full)
-        a, b = V[self.seg[:, 0]], V[self.seg[:, 1]]
-        half = 0.5 * np.linalg.norm(b - a, axis=1)
-        near = cKDTree(V).sparse_distance_matrix(
-            cKDTree(0.5 * (a + b)), distance + float(half.max(initial=0.0)),
-            output_type="ndarray")
-        p, k = near["i"].astype(np.int64), near["j"].astype(np.int64)
-        e = self.seg[k]
-        keep = (e[:, 0] != p) & (e[:, 1] != p) & (near["v"] <= distance + half[k])
-        p, e = p[keep], e[keep]
-        pa, ab = V[p] - V[e[:, 0]], V[e[:, 1]] - V[e[:, 0]]
-        t = np.einsum("ki,ki->k", pa, ab) / np.maximum(np.einsum("ki,ki->k", ab, ab), 1e-300)
-        d = point_segment_distance(V[p], V[e[:, 0]], V[e[:, 1]])
-        v0 = np.where(t < 0.5, e[:, 0], e[:, 1])
-        ok = d < distance
-        v0, p, d = v0[ok], p[ok], d[ok]
-        return {"b0": self.body[v0], "b1": self.body[p], "d": d, "v0": v0, "v1": p}
 
     def boundary_arclength(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(loop id, arc length s (mm, rest), loop length) of each collision vertex.

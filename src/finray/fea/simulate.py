@@ -295,19 +295,16 @@ def simulate(finger_mesh: TriMesh, obj: RigidObject | DeformableObject, material
             st = model.elastic.nodal_stress(U)["von_mises"]
             rec["vmf"].append(st[:Nf])
             rec["vmo"].append(st[Nf:])
-        # gaps: every pair within the probe distance; counts: the barrier's active set
-        for key, pr in (("gap", cm.probe(U, max(opts.gap_probe_mm, opts.contact.dhat))),
-                        ("n", cm.pairs(U))):
-            fo = pr["b0"] != pr["b1"]
-            fs = (pr["b0"] == 0) & (pr["b1"] == 0) & self_real(pr["v0"], pr["v1"])
-            d = pr["d"]
-            if key == "gap":
-                rec["gap_obj"].append(float(d[fo].min()) if fo.any() else np.nan)
-                rec["gap_self"].append(float(d[fs].min()) if fs.any() else np.nan)
-            else:
-                act = d < opts.contact.dhat
-                rec["n_obj"].append(int((fo & act).sum()))
-                rec["n_self"].append(int((fs & act).sum()))
+        pr = cm.pairs(U, max(opts.gap_probe_mm, opts.contact.dhat))
+        fo = (pr["b0"] != pr["b1"])
+        fs = (pr["b0"] == 0) & (pr["b1"] == 0)
+        fs &= self_real(pr["v0"], pr["v1"])
+        d = pr["d"]
+        act = d < opts.contact.dhat
+        rec["gap_obj"].append(float(d[fo].min()) if fo.any() else np.nan)
+        rec["gap_self"].append(float(d[fs].min()) if fs.any() else np.nan)
+        rec["n_obj"].append(int((fo & act).sum()))
+        rec["n_self"].append(int((fs & act).sum()))
         rec["iters"].append(info.get("newton_iterations", 0))
         rec["steps"].append(info.get("steps", 0))
         rec["wall"].append(info.get("wall_time_s", 0.0))

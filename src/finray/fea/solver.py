@@ -46,7 +46,6 @@ from dataclasses import dataclass, field
 import numba as nb
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from .assembly import ElasticAssembler, ElementBlock
 from .contact import ContactModel
@@ -140,6 +139,7 @@ class LinearSolver:
         self._extra = None  # sorted keys of the varying part seen so far
         self._upper = None  # cvxopt: (indptr, indices) of the analysed upper triangle
         self._spm = None  # cvxopt: its transpose, a cvxopt matrix (values replaced)
+        self._spm_base = None  # cvxopt: the base pattern's lower triangle
         self.n_analyses = 0
         self.n_factorizations = 0
         self.n_resolves = 0  # solves with an earlier factorisation (resolve)
@@ -197,6 +197,7 @@ class LinearSolver:
             self._base_n = n
             self._extra = np.empty(0, np.int64)
             self._factor = None
+            self._spm_base = None
         else:
             if extra is None:
                 keys = self._keys(A)
@@ -209,33 +210,43 @@ class LinearSolver:
                 return
             self._extra = np.union1d(self._extra, new)
         t0 = time.perf_counter()
-        P = self._base_csr
-        if len(self._extra):
-            r, c = np.divmod(self._extra, n)
-            P = P + sp.csr_matrix((np.ones(len(r)), (r, c)), shape=(n, n))
-        P = P.tocsr()
-        P.sort_indices()
-        # symmetric pattern: its CSR arrays are also its CSC arrays
-        Pc = sp.csc_matrix((P.data, P.indices, P.indptr), shape=P.shape)
         if self.backend == "cvxopt":
-            self._factor = self._cvxopt_analyse(P)
+            self._factor = self._cvxopt_analyse(n)
         else:
+            P = self._base_csr
+            if len(self._extra):
+                r, c = np.divmod(self._extra, n)
+                P = P + sp.csr_matrix((np.ones(len(r)), (r, c)), shape=(n, n))
+            P = P.tocsr()
+            P.sort_indices()
+            # symmetric pattern: its CSR arrays are also its CSC arrays
+            Pc = sp.csc_matrix((P.data, P.indices, P.indptr), shape=P.shape)
             if self.mode == "auto":
                 self.mode = self._pick_mode(A)
             self._factor = _cholmod_analyze(Pc, mode=self.mode)
         self.n_analyses += 1
         self.time_analyse += time.perf_counter() - t0
 
-    def _cvxopt_analyse(self, P: sp.csr_matrix):
-        """Symbolic factorisation of the symmetric pattern P (CSR, sorted) by cvxopt's
-        CHOLMOD. The lower triangle in CSC has the arrays of the upper triangle in CSR."""
-        U = sp.triu(P, format="csr")
-        U.sort_indices()
-        self._upper = (U.indptr.astype(np.int64), U.indices.astype(np.int64))
-        rows = np.repeat(np.arange(P.shape[0], dtype=np.int64), np.diff(U.indptr))
-        # lower triangle: (row = U's column, column = U's row); cvxopt keeps U's order
-        self._spm = _cvxopt.spmatrix(_cvxopt.matrix(np.ones(U.nnz)), _cvxopt.matrix(self._upper[1]),
-                                     _cvxopt.matrix(rows), P.shape)
+    @staticmethod
+    def _cvxopt_lower(r: np.ndarray, c: np.ndarray, n: int):
+        """cvxopt pattern (ones) of the lower triangle of the symmetric entries (r, c)."""
+        up = c >= r  # upper entry (r, c) is lower entry (c, r)
+        return _cvxopt.spmatrix(1.0, _cvxopt.matrix(c[up]), _cvxopt.matrix(r[up]), (n, n))
+
+    def _cvxopt_analyse(self, n: int):
+        """Symbolic factorisation by cvxopt's CHOLMOD of the lower triangle of the base
+        pattern plus the extra entries. The base's cvxopt matrix is built once; the
+        union is a cvxopt sum (in C): building the whole pattern from triplets cost
+        more than the analysis itself. The lower triangle in CSC has the arrays of the
+        upper triangle in CSR (``_upper``, for the values' scatter)."""
+        if getattr(self, "_spm_base", None) is None or self._spm_base.size != (n, n):
+            r, c = np.divmod(self._base, n)
+            self._spm_base = self._cvxopt_lower(r, c, n)
+        self._spm = 1.0 * self._spm_base  # a copy: its values get replaced
+        if len(self._extra):
+            self._spm = self._spm_base + self._cvxopt_lower(*np.divmod(self._extra, n), n)
+        colptr, rowind, _ = self._spm.CCS
+        self._upper = (np.array(colptr, np.int64).ravel(), np.array(rowind, np.int64).ravel())
         # simplicial LDL' as scikit-sparse's default: the same Newton path (an indefinite
         # Hessian gives a direction that newton() checks for descent); supernodal LL'
         # (raises on a non-positive pivot, so more projected Hessians) moved some frames'
@@ -328,6 +339,8 @@ class LinearSolver:
             return x
         t0 = time.perf_counter()
         try:
+            import scipy.sparse.linalg as spla  # the last resort only: 0.1 s of import
+
             lu = spla.splu(A.tocsc())
         except RuntimeError as e:  # exactly singular
             raise np.linalg.LinAlgError(str(e)) from None
