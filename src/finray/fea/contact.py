@@ -129,8 +129,8 @@ class ContactModel:
             self.ccd = ipctk.AdditiveCCD(self.params.ccd_max_iterations, 0.9)
         else:
             self.ccd = ipctk.TightInclusionCCD(1e-6, self.params.ccd_max_iterations, 0.8)
-        # a linear BVH: the fastest of ipctk's broad phases on these 2D boundaries
-        # (candidates in a third of HashGrid's time, CCD 25 % faster)
+        # a linear BVH: on a steel scene, CCD 25 % and the 1 mm pair probe 35 % faster
+        # than with ipctk's HashGrid
         self.broad_phase = ipctk.LBVH()
         self._cand = None  # (ipctk.Candidates, the vertices they were found at)
         self._tangential = None

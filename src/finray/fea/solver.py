@@ -239,7 +239,7 @@ class LinearSolver:
         union is a cvxopt sum (in C): building the whole pattern from triplets cost
         more than the analysis itself. The lower triangle in CSC has the arrays of the
         upper triangle in CSR (``_upper``, for the values' scatter)."""
-        if getattr(self, "_spm_base", None) is None or self._spm_base.size != (n, n):
+        if self._spm_base is None or self._spm_base.size != (n, n):
             r, c = np.divmod(self._base, n)
             self._spm_base = self._cvxopt_lower(r, c, n)
         self._spm = 1.0 * self._spm_base  # a copy: its values get replaced
