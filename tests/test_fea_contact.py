@@ -142,8 +142,7 @@ def test_linear_solver_backends_agree():
     the same contact solution."""
     from finray.fea import solver as S
 
-    backends = ["splu"] + (["cholmod"] if S.HAVE_CHOLMOD else []) \
-        + (["cvxopt"] if S.HAVE_CVXOPT else []) + (["cholespy"] if S.HAVE_CHOLESPY else [])
+    backends = S.available_backends()
     mesh = rectangle_mesh(np.linspace(-3, 3, 13), np.linspace(-2, 0, 5), order=2)
     cp, ce = circle_polyline([0.0, 3.05], 3.0, 200)
     fixed = np.where(np.abs(mesh.points[:, 1] + 2) < 1e-9)[0]
@@ -204,50 +203,3 @@ def test_reused_broad_phase_candidates_find_every_pair():
     fresh = ContactModel(pts, segs, np.array([0, 0, 1, 1]), params=params)
     assert E > 0 and E == pytest.approx(fresh.energy(U), rel=1e-12)
     assert cm.pairs(U)["d"].size == fresh.pairs(U)["d"].size > 0
-
-
-def test_resolve_reuses_the_last_factorisation():
-    """Every backend's resolve solves with the matrix it factorised last (None before any);
-    a chord step is that solve for a new right-hand side."""
-    import scipy.sparse as sp
-
-    from finray.fea import solver as S
-
-    backends = ["splu"] + (["cholmod"] if S.HAVE_CHOLMOD else []) \
-        + (["cvxopt"] if S.HAVE_CVXOPT else []) + (["cholespy"] if S.HAVE_CHOLESPY else [])
-    n = 40
-    A = sp.diags([-np.ones(n - 1), 2.5 * np.ones(n), -np.ones(n - 1)], [-1, 0, 1], format="csr")
-    b1, b2 = np.arange(1.0, n + 1), np.cos(np.arange(n))
-    for name in backends:
-        ls = S.LinearSolver(name)
-        assert ls.resolve(b1) is None
-        x1 = ls.solve(A, b1)
-        x2 = ls.resolve(b2)
-        np.testing.assert_allclose(A @ x1, b1, atol=1e-10)
-        np.testing.assert_allclose(A @ x2, b2, atol=1e-10)
-        assert ls.n_factorizations == 1 and ls.n_resolves == 1
-
-
-def test_cvxopt_pattern_is_the_union_of_base_and_contact_entries():
-    """The analysed pattern (built as a cvxopt sum of the base and the extra entries) is
-    the upper triangle of their union, sorted; a new contact entry re-analyses once."""
-    import scipy.sparse as sp
-
-    from finray.fea import solver as S
-
-    if not S.HAVE_CVXOPT:
-        pytest.skip("cvxopt is not installed")
-    n = 30
-    base = sp.diags([-np.ones(n - 1), 3.0 * np.ones(n), -np.ones(n - 1)], [-1, 0, 1], format="csr")
-    extra = sp.csr_matrix((np.full(4, -0.5), ([2, 17, 17, 2], [17, 2, 17, 2])), shape=(n, n))
-    ls = S.LinearSolver("cvxopt")
-    b = np.ones(n)
-    ls.solve(base, b, extra=None)
-    x = ls.solve(base + extra, b, extra=extra)
-    np.testing.assert_allclose((base + extra) @ x, b, atol=1e-10)
-    U = sp.triu(abs(base) + abs(extra), format="csr")  # the union's upper triangle
-    U.sort_indices()
-    assert np.array_equal(ls._upper[0], U.indptr) and np.array_equal(ls._upper[1], U.indices)
-    assert ls.n_analyses == 2
-    ls.solve(base + extra, b, extra=extra)
-    assert ls.n_analyses == 2  # inside the analysed pattern: no new analysis

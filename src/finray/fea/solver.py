@@ -107,6 +107,13 @@ def _scatter_upper(a_ptr, a_ind, a_val, p_ptr, p_ind, out):
     return True
 
 
+def available_backends() -> list[str]:
+    """The linear solver backends that import here, in the order "auto" prefers them
+    (SuperLU, always there, last)."""
+    return [b for b, ok in (("cholmod", HAVE_CHOLMOD), ("cvxopt", HAVE_CVXOPT),
+                            ("cholespy", HAVE_CHOLESPY), ("splu", True)) if ok]
+
+
 class LinearSolver:
     """Sparse SPD solver.
 
@@ -126,8 +133,7 @@ class LinearSolver:
     def __init__(self, backend: str = "auto", mode: str = "simplicial"):
         self.mode = mode  # CHOLMOD: "simplicial", "supernodal" or "auto" (timed once)
         if backend == "auto":
-            backend = next((b for b, ok in (("cholmod", HAVE_CHOLMOD), ("cvxopt", HAVE_CVXOPT),
-                                             ("cholespy", HAVE_CHOLESPY)) if ok), "splu")
+            backend = available_backends()[0]
         if backend not in ("cholmod", "cvxopt", "cholespy", "splu"):
             raise ValueError(f"unknown linear solver {backend!r}: use auto, cholmod, cvxopt, "
                              f"cholespy or splu")
@@ -242,9 +248,9 @@ class LinearSolver:
         if self._spm_base is None or self._spm_base.size != (n, n):
             r, c = np.divmod(self._base, n)
             self._spm_base = self._cvxopt_lower(r, c, n)
-        self._spm = 1.0 * self._spm_base  # a copy: its values get replaced
-        if len(self._extra):
-            self._spm = self._spm_base + self._cvxopt_lower(*np.divmod(self._extra, n), n)
+        # a new matrix either way: its values get replaced, the base's stay a pattern
+        self._spm = (self._spm_base + self._cvxopt_lower(*np.divmod(self._extra, n), n)
+                     if len(self._extra) else 1.0 * self._spm_base)
         colptr, rowind, _ = self._spm.CCS
         self._upper = (np.array(colptr, np.int64).ravel(), np.array(rowind, np.int64).ravel())
         # simplicial LDL' as scikit-sparse's default: the same Newton path (an indefinite
