@@ -72,7 +72,29 @@ def test_small_step_alone_is_not_convergence():
     # step) is at least as balanced
     assert model.residual_norm(model.evaluate(res.q, 1)[1]) <= opts.tol_residual
     assert model.counters == {"line_search_failures": 0, "gradient_fallbacks": 0,
-                              "residual_max_rel": res.residual}
+                              "residual_max_rel": res.residual, "chord_refused": 0}
+
+
+def test_chord_steps_assemble_no_hessian_in_vain(solution):
+    """A Hessian is assembled only where it is factorised: chord iterations evaluate the
+    gradient alone (order 1), a refused chord assembles it then. The solution is the
+    one without chord steps, to Newton's tolerance."""
+    found = {}
+    for chord_dx in (0.0, 1e-2):
+        model = strip()
+        orders = []
+        evaluate = model.evaluate
+        model.evaluate = lambda q, order=2, psd=None: orders.append(order) or evaluate(q, order, psd)
+        opts = NewtonOptions(tol_dx=1e-9, tol_residual=1e-9, chord_dx=chord_dx)
+        res = newton(model, perturbed(model, solution, 0.05), opts)
+        assert res.converged
+        found[chord_dx] = res.q
+        assert orders.count(2) == model.linsolve.n_factorizations
+        if chord_dx:
+            assert model.linsolve.n_resolves > 0 and orders.count(1) > 0
+        else:
+            assert model.linsolve.n_resolves == 0 and 1 not in orders
+    np.testing.assert_allclose(found[1e-2], found[0.0], atol=1e-8)
 
 
 def test_residual_is_relative_to_the_support_forces(solution):

@@ -474,21 +474,22 @@ class ElasticAssembler:
         if G is None:  # shape gradients at the element nodes: fixed, computed once
             _, dN = shape_functions(self.npe, NODE_BARY[self.npe])
             G = self._G_nodes = reference_gradients(self.points, self.tri, dN)[0]  # (M, n, n, 2)
-        Ue = U[self.tri]
-        F = np.einsum("mni,mqnJ->mqiJ", Ue, G)
+            ids = self.tri.ravel()
+            cnt = np.bincount(ids, minlength=self.n_nodes)
+            # the mean over the elements sharing each node, as one sparse product
+            self._node_mean = sp.csr_matrix((1.0 / cnt[ids], (ids, np.arange(len(ids)))),
+                                            shape=(self.n_nodes, len(ids)))
+            self._no_element = cnt == 0
+        # optimize=True swaps the operands: 5x faster here (same c_einsum, one thread)
+        F = np.einsum("mni,mqnJ->mqiJ", U[self.tri], G, optimize=True)
         F[..., 0, 0] += 1.0
         F[..., 1, 1] += 1.0
-        out = np.zeros((self.n_nodes, 4))
-        cnt = np.zeros(self.n_nodes)
+        vals = np.empty(F.shape[:2] + (4,))
         for b, s in zip(self.blocks, self.block_slices):
             sig, szz = b.material.cauchy(F[s])
-            vals = np.stack([sig[..., 0, 0], sig[..., 1, 1], sig[..., 0, 1], szz], axis=-1)
-            ids = self.tri[s].ravel()
-            np.add.at(out, ids, vals.reshape(-1, 4))
-            np.add.at(cnt, ids, 1.0)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            out /= cnt[:, None]
-        out[cnt == 0] = np.nan
+            vals[s] = np.stack([sig[..., 0, 0], sig[..., 1, 1], sig[..., 0, 1], szz], axis=-1)
+        out = self._node_mean @ vals.reshape(-1, 4)
+        out[self._no_element] = np.nan
         sig = np.zeros((self.n_nodes, 2, 2))
         sig[:, 0, 0], sig[:, 1, 1] = out[:, 0], out[:, 1]
         sig[:, 0, 1] = sig[:, 1, 0] = out[:, 2]

@@ -124,12 +124,16 @@ class NeoHookean:
 
     def cauchy(self, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """In-plane Cauchy stress (..., 2, 2) and the out-of-plane sigma_zz (MPa)."""
-        J, _ = self._det_inv(F)
-        P = self.pk1(F)
-        sig = np.einsum("...iJ,...kJ->...ik", P, F) / J[..., None, None]
-        # P_33 = mu (1 - 1) + lam ln J (F33 = 1): sigma_zz = lam ln J / J
-        szz = self.lam * np.log(J) / J
-        return sig, szz
+        a, b, c, d = F[..., 0, 0], F[..., 0, 1], F[..., 1, 0], F[..., 1, 1]
+        J = a * d - b * c
+        lnJ = np.log(J)
+        # sigma = P F^T / J = (mu (F F^T - I) + lam ln J I) / J; with F33 = 1,
+        # sigma_zz = lam ln J / J
+        sig = np.empty(F.shape)
+        sig[..., 0, 0] = (self.mu * (a * a + b * b - 1.0) + self.lam * lnJ) / J
+        sig[..., 1, 1] = (self.mu * (c * c + d * d - 1.0) + self.lam * lnJ) / J
+        sig[..., 0, 1] = sig[..., 1, 0] = self.mu * (a * c + b * d) / J
+        return sig, self.lam * lnJ / J
 
 
 def von_mises(sig: np.ndarray, szz: np.ndarray) -> np.ndarray:

@@ -350,6 +350,7 @@ def simulate(finger_mesh: TriMesh, obj: RigidObject | DeformableObject, material
         "cholmod_mode": model.linsolve.mode,
         "n_factorizations": model.linsolve.n_factorizations,
         "n_chord_solves": model.linsolve.n_resolves,  # with an earlier factorisation
+        "n_chord_refused": model.counters["chord_refused"],
         "line_search_failures": model.counters["line_search_failures"],
         "gradient_fallbacks": model.counters["gradient_fallbacks"],
         "residual_max_rel": model.counters["residual_max_rel"],

@@ -43,7 +43,6 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
-import numba as nb
 import numpy as np
 import scipy.sparse as sp
 
@@ -88,23 +87,36 @@ class SimulationError(RuntimeError):
 # ----------------------------------------------------------------------------------
 # Linear solver
 # ----------------------------------------------------------------------------------
-@nb.njit(cache=True)
-def _scatter_upper(a_ptr, a_ind, a_val, p_ptr, p_ind, out):
-    """out[k] = A[i, j] for every upper-triangle entry (j >= i) of A (CSR, sorted), k its
-    position in the upper-triangle CSR pattern P (p_ptr, p_ind; sorted). False when an
-    entry of A lies outside P."""
-    for i in range(len(a_ptr) - 1):
-        k, k_end = p_ptr[i], p_ptr[i + 1]
-        for e in range(a_ptr[i], a_ptr[i + 1]):
-            j = a_ind[e]
-            if j < i:
-                continue
-            while k < k_end and p_ind[k] < j:
-                k += 1
-            if k == k_end or p_ind[k] != j:
-                return False
-            out[k] = a_val[e]
-    return True
+class SplitMatrix:
+    """A symmetric matrix held as ``base + extra``: ``base`` CSR on a pattern fixed for
+    the model (elasticity), ``extra`` COO whose pattern varies (contact, driver spring).
+
+    :class:`LinearSolver`'s cvxopt path scatters both into its analysed pattern, so
+    the sum is formed only where something asks for it (:meth:`tocsr`).
+    """
+
+    def __init__(self, base: sp.csr_matrix, extra: sp.coo_matrix | None = None):
+        self.base = base
+        self.extra = extra
+        self.shape = base.shape
+        self._sum = None
+
+    def tocsr(self) -> sp.csr_matrix:
+        if self._sum is None:
+            self._sum = self.base if self.extra is None else (self.base + self.extra).tocsr()
+        return self._sum
+
+    def __matmul__(self, v: np.ndarray) -> np.ndarray:
+        out = self.base @ v
+        return out if self.extra is None else out + self.extra @ v
+
+    def diagonal(self) -> np.ndarray:
+        d = self.base.diagonal()
+        return d if self.extra is None else d + self.extra.diagonal()
+
+    def all_finite(self) -> bool:
+        return bool(np.isfinite(self.base.data).all() and
+                    (self.extra is None or np.isfinite(self.extra.data).all()))
 
 
 def available_backends() -> list[str]:
@@ -144,6 +156,9 @@ class LinearSolver:
         self._base_n = -1
         self._extra = None  # sorted keys of the varying part seen so far
         self._upper = None  # cvxopt: (indptr, indices) of the analysed upper triangle
+        self._upper_keys = None  # cvxopt: its sorted keys
+        self._base_up = None  # cvxopt: the base's upper-triangle entries (CSR positions)
+        self._base_pos = None  # cvxopt: their positions in the analysed upper triangle
         self._spm = None  # cvxopt: its transpose, a cvxopt matrix (values replaced)
         self._spm_base = None  # cvxopt: the base pattern's lower triangle
         self.n_analyses = 0
@@ -201,6 +216,7 @@ class LinearSolver:
             self._base_csr = sp.csr_matrix((np.ones(len(self._base)), A.indices.copy(),
                                             A.indptr.copy()), shape=A.shape)
             self._base_n = n
+            self._base_up = np.flatnonzero(self._base % n >= self._base // n)
             self._extra = np.empty(0, np.int64)
             self._factor = None
             self._spm_base = None
@@ -208,9 +224,8 @@ class LinearSolver:
             if extra is None:
                 keys = self._keys(A)
             else:
-                e = extra.tocsr()
-                e.sum_duplicates()
-                keys = self._keys(e)
+                e = extra.tocoo()
+                keys = np.unique(e.row.astype(np.int64) * n + e.col)
             new = self._missing(self._missing(keys, self._extra), self._base)
             if len(new) == 0 and self._factor is not None:
                 return
@@ -253,6 +268,15 @@ class LinearSolver:
                      if len(self._extra) else 1.0 * self._spm_base)
         colptr, rowind, _ = self._spm.CCS
         self._upper = (np.array(colptr, np.int64).ravel(), np.array(rowind, np.int64).ravel())
+        rows = np.repeat(np.arange(n, dtype=np.int64), np.diff(self._upper[0]))
+        self._upper_keys = rows * n + self._upper[1]
+        # base and extra keys are disjoint (extras are the keys outside the base): the
+        # base's upper entries are the analysed ones that are not extra, in key order
+        r, c = np.divmod(self._extra, n)
+        up = c >= r
+        is_extra = np.zeros(len(self._upper_keys), bool)
+        is_extra[np.searchsorted(self._upper_keys, self._extra[up])] = True
+        self._base_pos = np.flatnonzero(~is_extra)
         # simplicial LDL' as scikit-sparse's default: the same Newton path (an indefinite
         # Hessian gives a direction that newton() checks for descent); supernodal LL'
         # (raises on a non-positive pivot, so more projected Hessians) moved some frames'
@@ -260,14 +284,34 @@ class LinearSolver:
         _cvx_cholmod.options["supernodal"] = {"simplicial": 0, "auto": 1}.get(self.mode, 2)
         return _cvx_cholmod.symbolic(self._spm, uplo="L")
 
-    def _solve_cvxopt(self, A: sp.csr_matrix, b: np.ndarray) -> np.ndarray:
-        # explicit zeros fill the analysed pattern where A has no entry: CHOLMOD's
-        # numeric step assumes that pattern (an entry outside it would be dropped)
-        vals = np.zeros(len(self._upper[1]))
-        if not _scatter_upper(A.indptr, A.indices, A.data, *self._upper, vals):
-            self._ensure_analysis(A, None)  # an entry outside the analysed pattern
-            vals = np.zeros(len(self._upper[1]))
-            _scatter_upper(A.indptr, A.indices, A.data, *self._upper, vals)
+    def _cvxopt_values(self, A) -> np.ndarray | None:
+        """A's values on the analysed upper triangle (explicit zeros where A has no
+        entry: CHOLMOD's numeric step assumes that pattern), or None when an entry of
+        A lies outside it. A :class:`SplitMatrix`'s base goes by the positions found at
+        the analysis, its extra (and a plain matrix) by key."""
+        n = A.shape[0]
+        vals = np.zeros(len(self._upper_keys))
+        if isinstance(A, SplitMatrix):
+            vals[self._base_pos] = A.base.data[self._base_up]
+            rest = A.extra
+        else:
+            rest = A
+        if rest is not None and rest.nnz:
+            rest = rest.tocoo()
+            up = rest.col >= rest.row
+            keys = rest.row[up].astype(np.int64) * n + rest.col[up]
+            pos = np.minimum(np.searchsorted(self._upper_keys, keys), len(vals) - 1)
+            if not np.array_equal(self._upper_keys[pos], keys):
+                return None
+            np.add.at(vals, pos, rest.data[up])
+        return vals
+
+    def _solve_cvxopt(self, A, b: np.ndarray) -> np.ndarray:
+        vals = self._cvxopt_values(A)
+        if vals is None:  # an entry outside the analysed pattern
+            A = A.tocsr() if isinstance(A, SplitMatrix) else A
+            self._ensure_analysis(A, None)
+            vals = self._cvxopt_values(A)
         self._spm.V = _cvxopt.matrix(vals)
         t0 = time.perf_counter()
         try:
@@ -290,15 +334,25 @@ class LinearSolver:
         self.time_solve += time.perf_counter() - t1
         return x
 
-    def solve(self, A: sp.csr_matrix, b: np.ndarray, extra: sp.spmatrix | None = None) -> np.ndarray:
-        """Solve A x = b for symmetric positive definite A (CSR, both triangles).
+    def solve(self, A, b: np.ndarray, extra: sp.spmatrix | None = None) -> np.ndarray:
+        """Solve A x = b for symmetric positive definite A (CSR, both triangles, or a
+        :class:`SplitMatrix`, whose base must keep its pattern from call to call).
 
-        ``extra``: the contribution to A whose pattern changes between calls (its
-        pattern is merged into the analysed one when new entries appear).
+        ``extra``: for a CSR A, the contribution to A whose pattern changes between
+        calls (its pattern is merged into the analysed one when new entries appear); a
+        :class:`SplitMatrix` carries its own.
         Raises :class:`NotPositiveDefinite` where the factorisation fails: cholespy and
         supernodal CHOLMOD on any non-positive pivot, simplicial CHOLMOD (LDL') on a
         zero pivot only (an indefinite A then gives a solution: callers check descent).
         """
+        if isinstance(A, SplitMatrix):
+            if self.backend == "cvxopt":
+                if self._base is not None and len(self._base) != A.base.nnz:
+                    self._base = None  # another base pattern: analyse anew
+                self._ensure_analysis(A.base, A.extra if A.extra is not None
+                                      else sp.coo_matrix(A.shape))
+                return self._solve_cvxopt(A, b)
+            A, extra = A.tocsr(), A.extra
         A = A.tocsr()
         A.sort_indices()
         if self.backend == "cvxopt":
@@ -434,7 +488,6 @@ class Model:
             self.coll_red = dof_map.reshape(-1)[contact.full_dof_index()]
             self.coll_full = contact.full_dof_index()
         self.linsolve = LinearSolver(linear_solver)
-        self.last_extra = None
         # load-step context
         self.t_target = np.zeros(2)
         self.load = 0.0
@@ -442,10 +495,11 @@ class Model:
         self.stats = {"assembly_s": 0.0, "contact_s": 0.0, "solve_s": 0.0, "ccd_s": 0.0,
                       "line_search_s": 0.0}
         # per model (scene): backtracking that found no decrease, non-descent Newton
-        # directions replaced by scaled gradient descent, and the largest relative
-        # residual of a converged solve
+        # directions replaced by scaled gradient descent, the largest relative
+        # residual of a converged solve, and chord steps refused (a Hessian assembled
+        # and factorised instead)
         self.counters = {"line_search_failures": 0, "gradient_fallbacks": 0,
-                         "residual_max_rel": 0.0}
+                         "residual_max_rel": 0.0, "chord_refused": 0}
         self._fixed_dofs = np.flatnonzero(np.repeat(fixed, 2))
         self.force_scale = 0.0  # N/mm, set by evaluate() (see residual_norm)
 
@@ -484,7 +538,8 @@ class Model:
         return 0.5 * self.k_drive * float(dt @ dt)
 
     def evaluate(self, q: np.ndarray, order: int = 2, psd: bool | None = None):
-        """(E, g, H): energy, reduced gradient, reduced Hessian (CSR) at q.
+        """(E, g, H): energy, reduced gradient, reduced Hessian at q (a
+        :class:`SplitMatrix`: elasticity on its fixed pattern + contact and driver).
 
         ``psd``: project the material tangents and the contact Hessians to PSD
         (default: the model's ``psd`` setting; with "auto" the exact Hessian is
@@ -532,16 +587,12 @@ class Model:
         self.force_scale = float(np.sqrt(scale2))
         if order < 2:
             return E, g, None
-        H = self.elastic.pattern.matrix(Hdata)
+        C = None
         if extra_r:
             C = sp.coo_matrix((np.concatenate(extra_v), (np.concatenate(extra_r),
                                                           np.concatenate(extra_c))),
-                              shape=(self.n, self.n)).tocsr()
-            H = H + C
-            self.last_extra = C
-        else:
-            self.last_extra = None
-        return E, g, H
+                              shape=(self.n, self.n))
+        return E, g, SplitMatrix(self.elastic.pattern.matrix(Hdata), C)
 
     # -- reactions -----------------------------------------------------------------
     def contact_force(self, q: np.ndarray, nodes: np.ndarray, friction_only: bool = False) -> np.ndarray:
@@ -661,6 +712,13 @@ def newton(model: Model, q0: np.ndarray, opts: NewtonOptions | None = None,
     relags = relags if relag is not None else 0
     since_relag = None  # Newton steps since the last re-lag
 
+    def chord_next() -> bool:
+        return last_step < opts.chord_dx
+
+    def assemble(q):
+        # a chord step needs no Hessian (it is assembled if the chord is refused)
+        return model.evaluate(q, 1 if chord_next() else 2)
+
     def do_relag(q):
         nonlocal relags, since_relag, last_step
         relag(q)
@@ -669,21 +727,26 @@ def newton(model: Model, q0: np.ndarray, opts: NewtonOptions | None = None,
         # re-lagging near the solution hardly changes the Hessian: a chord step may
         # follow, if it is below chord_contraction * chord_dx
         last_step = opts.chord_dx * (1 - 1e-12)
-        return model.evaluate(q, 2)
+        return assemble(q)
 
     for it in range(1, opts.max_iterations + 1):
-        if not (np.all(np.isfinite(g)) and np.isfinite(H.data).all()):
+        if not (np.all(np.isfinite(g)) and (H is None or H.all_finite())):
             return NewtonResult(q, False, it, "non-finite gradient or Hessian", E, hist)
         t0 = time.perf_counter()
         d = None
-        if last_step < opts.chord_dx:  # near the solution: try the last factorisation
+        if chord_next():  # near the solution: try the last factorisation
             d = model.linsolve.resolve(-g)
             if d is not None and not (np.all(np.isfinite(d)) and float(g @ d) < 0 and np.abs(d).max()
                                       <= opts.chord_contraction * last_step):
                 d = None
+        if d is None and H is None:  # the chord was refused: the Hessian after all
+            cnt["chord_refused"] += 1
+            _, _, H = model.evaluate(q, 2)
+            if not H.all_finite():
+                return NewtonResult(q, False, it, "non-finite Hessian", E, hist)
         if d is None and model.psd is not True:
             try:
-                d = model.linsolve.solve(H, -g, model.last_extra)
+                d = model.linsolve.solve(H, -g)
                 if not np.all(np.isfinite(d)) or float(g @ d) >= 0:
                     d = None
             except np.linalg.LinAlgError:
@@ -693,7 +756,7 @@ def newton(model: Model, q0: np.ndarray, opts: NewtonOptions | None = None,
             if model.psd is not True:
                 _, _, H = model.evaluate(q, 2, psd=True)
             try:
-                d = model.linsolve.solve(H, -g, model.last_extra)
+                d = model.linsolve.solve(H, -g)
             except np.linalg.LinAlgError as e:
                 return NewtonResult(q, False, it, f"linear solve failed: {e}", E, hist)
         model.stats["solve_s"] += time.perf_counter() - t0
@@ -702,6 +765,8 @@ def newton(model: Model, q0: np.ndarray, opts: NewtonOptions | None = None,
         gd = float(g @ d)
         if gd >= 0:  # not a descent direction (should not happen with PSD Hessians)
             cnt["gradient_fallbacks"] += 1
+            if H is None:
+                _, _, H = model.evaluate(q, 2)
             d = -g / np.maximum(H.diagonal(), 1e-12)
             gd = float(g @ d)
         dmax = float(np.abs(d).max()) if len(d) else 0.0
@@ -760,7 +825,7 @@ def newton(model: Model, q0: np.ndarray, opts: NewtonOptions | None = None,
         if relags > 0 and since_relag is None and alpha == 1.0 and dmax <= relag_dx:
             E, g, H = do_relag(q)
         else:
-            E, g, H = model.evaluate(q, 2)
+            E, g, H = assemble(q)
     # hist rows: [E, |g|, |d|, argmax, ccd alpha, alpha, residual]
     res_last = model.residual_norm(g, opts.residual_floor)
     dmax_last = hist[-1][2] if hist else np.nan
