@@ -15,10 +15,13 @@ import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import shapely
 import triangle
-from shapely.geometry import Polygon
+
+if TYPE_CHECKING:  # shapely (40 ms of import) only where polygons are meshed
+    from shapely.geometry import Polygon
 
 #: Boundary tag ids. ``cavity`` are the surfaces inside the finger (rib faces,
 #: inner faces of the walls and the base), which touch each other when the ribs jam.
@@ -131,7 +134,9 @@ def resample_ring(coords: np.ndarray, max_len: float) -> np.ndarray:
 
 def polygon_rings(poly: Polygon, max_len: float) -> list[np.ndarray]:
     """Resampled rings of a polygon, exterior counter-clockwise then holes clockwise."""
-    poly = shapely.geometry.polygon.orient(poly, sign=1.0)
+    from shapely.geometry.polygon import orient
+
+    poly = orient(poly, sign=1.0)
     rings = [poly.exterior] + list(poly.interiors)
     return [resample_ring(np.asarray(r.coords)[:-1], max_len) for r in rings]
 
@@ -145,6 +150,8 @@ def triangulate_polygon(poly: Polygon, size_mm: float, min_angle_deg: float = 25
     minimum angle; ``a`` bounds the area to that of an equilateral triangle of
     edge ``size_mm``.
     """
+    from shapely.geometry import Polygon
+
     rings = polygon_rings(poly, size_mm)
     verts, segs, holes, offset = [], [], [], 0
     for k, r in enumerate(rings):
