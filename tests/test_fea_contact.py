@@ -203,3 +203,41 @@ def test_reused_broad_phase_candidates_find_every_pair():
     fresh = ContactModel(pts, segs, np.array([0, 0, 1, 1]), params=params)
     assert E > 0 and E == pytest.approx(fresh.energy(U), rel=1e-12)
     assert cm.pairs(U)["d"].size == fresh.pairs(U)["d"].size > 0
+
+
+def test_small_steps_skip_the_ccd_and_agree_with_it():
+    """Two segments 0.01 mm apart (inside dhat): a step that moves each towards the other
+    by less than SAFE_MOVE of the gap is whole without a CCD, as ipctk's CCD also finds;
+    a larger step goes to the CCD (which cuts it where they would touch); without an
+    evaluation at the step's start the CCD runs."""
+    import ipctk
+
+    gap = 0.01
+    pts = np.array([[-1.0, 0.0], [1.0, 0.0], [-1.0, gap], [1.0, gap]])
+    segs = np.array([[0, 1], [3, 2]])
+    cm = ContactModel(pts, segs, np.array([0, 0, 1, 1]), params=ContactParams(dhat=0.02, mu=0.0))
+    calls = []
+    ccd = ipctk.compute_collision_free_stepsize
+    U0 = np.zeros((4, 2))
+
+    def towards(move):
+        return np.array([[0.0, 1.0], [0.0, 1.0], [0.0, -1.0], [0.0, -1.0]]) * move
+
+    def full(U1):
+        return ccd(cm.mesh, cm.vertices(U0), cm.vertices(U1), 0.0, cm.broad_phase, cm.ccd)
+
+    import finray.fea.contact as C
+    try:
+        C.ipctk.compute_collision_free_stepsize = lambda *a: calls.append(1) or ccd(*a)
+        cm.energy(U0)
+        small = towards(0.99 * ContactModel.SAFE_MOVE * gap)
+        assert cm.max_step(U0, small) == 1.0 == full(small) and not calls
+        near = towards(0.49 * gap)  # closes to 2 % of the gap: the CCD's, whole
+        assert cm.max_step(U0, near) == 1.0 and len(calls) == 1
+        large = towards(0.6 * gap)  # they would cross: cut
+        alpha = cm.max_step(U0, large)
+        assert len(calls) == 2 and 0.0 < alpha < 1.0 and alpha == full(large)
+        cm.energy(towards(1e-4))  # the last evaluation is elsewhere
+        assert cm.max_step(U0, small) == 1.0 and len(calls) == 3
+    finally:
+        C.ipctk.compute_collision_free_stepsize = ccd

@@ -71,8 +71,9 @@ def test_small_step_alone_is_not_convergence():
     # reported: the last assembled state; the returned one (after the final tiny
     # step) is at least as balanced
     assert model.residual_norm(model.evaluate(res.q, 1)[1]) <= opts.tol_residual
-    assert model.counters == {"line_search_failures": 0, "gradient_fallbacks": 0,
-                              "residual_max_rel": res.residual, "chord_refused": 0}
+    assert {k: model.counters[k] for k in ("line_search_failures", "gradient_fallbacks",
+                                           "residual_max_rel")} == {
+        "line_search_failures": 0, "gradient_fallbacks": 0, "residual_max_rel": res.residual}
 
 
 def test_chord_steps_assemble_no_hessian_in_vain(solution):
