@@ -21,8 +21,8 @@ and the contact Hessians per contact (ipctk's "abs" projection) and the system i
 factorised again. The sparse Cholesky (CHOLMOD, from scikit-sparse or cvxopt's wheels)
 reuses its symbolic analysis while the pattern stays inside the analysed one. Near the
 solution (after a full step below ``chord_dx``, or a friction re-lag) the direction is
-first computed with the last factorisation (a chord step), kept only when it contracts
-(``chord_contraction``). Each step is cut to the collision-free
+first computed with the last factorisation (a chord step, for which no Hessian is
+assembled), kept only when it contracts (``chord_contraction``). Each step is cut to the collision-free
 fraction found by continuous collision detection, then backtracked (Armijo) so
 that the energy decreases: no accepted state is interpenetrating or has an
 inverted element. Convergence needs both criteria of :class:`NewtonOptions`: the
@@ -745,7 +745,9 @@ def newton(model: Model, q0: np.ndarray, opts: NewtonOptions | None = None,
                 d = None
         if d is None and H is None:  # the chord was refused: the Hessian after all
             cnt["chord_refused"] += 1
+            t1 = time.perf_counter()
             _, _, H = model.evaluate(q, 2)
+            t0 += time.perf_counter() - t1  # counted as assembly and contact, not solve
             if not H.all_finite():
                 return NewtonResult(q, False, it, "non-finite Hessian", E, hist)
         if d is None and model.psd is not True:
