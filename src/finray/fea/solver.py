@@ -119,6 +119,12 @@ class SplitMatrix:
                     (self.extra is None or np.isfinite(self.extra.data).all()))
 
 
+def _csr_keys(indptr: np.ndarray, indices: np.ndarray, n: int) -> np.ndarray:
+    """row * n + col of each entry of a CSR pattern (sorted when its indices are)."""
+    rows = np.repeat(np.arange(n, dtype=np.int64), np.diff(indptr))
+    return rows * n + indices
+
+
 def available_backends() -> list[str]:
     """The linear solver backends that import here, in the order "auto" prefers them
     (SuperLU, always there, last)."""
@@ -171,9 +177,7 @@ class LinearSolver:
 
     @staticmethod
     def _keys(A: sp.csr_matrix) -> np.ndarray:
-        n = A.shape[0]
-        rows = np.repeat(np.arange(n, dtype=np.int64), np.diff(A.indptr))
-        return rows * n + A.indices
+        return _csr_keys(A.indptr, A.indices, A.shape[0])
 
     @staticmethod
     def _missing(keys: np.ndarray, sorted_keys: np.ndarray | None) -> np.ndarray:
@@ -263,16 +267,15 @@ class LinearSolver:
         if self._spm_base is None or self._spm_base.size != (n, n):
             r, c = np.divmod(self._base, n)
             self._spm_base = self._cvxopt_lower(r, c, n)
+        r, c = np.divmod(self._extra, n)
         # a new matrix either way: its values get replaced, the base's stay a pattern
-        self._spm = (self._spm_base + self._cvxopt_lower(*np.divmod(self._extra, n), n)
+        self._spm = (self._spm_base + self._cvxopt_lower(r, c, n)
                      if len(self._extra) else 1.0 * self._spm_base)
         colptr, rowind, _ = self._spm.CCS
         self._upper = (np.array(colptr, np.int64).ravel(), np.array(rowind, np.int64).ravel())
-        rows = np.repeat(np.arange(n, dtype=np.int64), np.diff(self._upper[0]))
-        self._upper_keys = rows * n + self._upper[1]
+        self._upper_keys = _csr_keys(*self._upper, n)
         # base and extra keys are disjoint (extras are the keys outside the base): the
         # base's upper entries are the analysed ones that are not extra, in key order
-        r, c = np.divmod(self._extra, n)
         up = c >= r
         is_extra = np.zeros(len(self._upper_keys), bool)
         is_extra[np.searchsorted(self._upper_keys, self._extra[up])] = True
