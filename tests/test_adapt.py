@@ -42,6 +42,27 @@ def test_heads_learn_a_rig_that_differs_from_the_simulation(net):
     assert pred.std(0).mean() > 0  # bootstrap samples: the members differ
 
 
+def test_decayed_heads_spread_by_the_data_not_the_optimiser(net):
+    """150 copies of one rest frame whose sensor reads 0.01 N noise: the bootstrap leaves
+    their mean open by 0.01 / sqrt(150) = 0.8 mN, and that is the decayed heads' spread
+    there; at a constant learning rate the heads scatter several times as far, by where
+    their last mini-batches left them (and the fit is no better for it)."""
+    g = torch.Generator().manual_seed(1)
+    rest = torch.rand(1, 1, 64, 32, generator=g).expand(150, -1, -1, -1)
+    x = torch.cat([rest, torch.rand(150, 1, 64, 32, generator=g)])
+    f = encoder_features(net, x)
+    noise = 0.01 * np.random.default_rng(0).standard_normal(300)
+    rig = 1.5 * net.force(x)[:, 0].detach().numpy() + 0.3 + noise
+    se = 0.01 / np.sqrt(150)
+    out = {}
+    for decay in (False, True):
+        P = head_forces(net, fit_heads(net, f, rig, HeadFit(members=4, steps=300, lr=1e-2, lr_decay=decay)), f)
+        out[decay] = (P[:, :150].std(0, ddof=1).mean(), np.sqrt(np.mean((P.mean(0) - rig) ** 2)))
+    assert 0.5 * se < out[True][0] < 2 * se
+    assert out[False][0] > 3 * se
+    assert out[True][1] < 1.05 * out[False][1]
+
+
 def test_fit_heads_rejects_bad_labels(net):
     f = encoder_features(net, torch.rand(4, 1, 64, 32))
     with pytest.raises(ValueError, match="NaN"):

@@ -383,7 +383,7 @@ def _run_calibrate(args) -> int:
     raw = _raw_config(args.config)
     c = Sim2RealConfig.from_params((raw.get("evaluate") or {}).get("sim2real") or {})
     cal = calibrate_takes(args.takes, args.model, args.out, _ingest_params(raw), c.heads, c.folds,
-                          c.fold_members, c.priors, c.sampler, c.level,
+                          c.priors, c.sampler, c.level,
                           log=lambda m: print(m, flush=True))
     sm, dg = cal["summary"], cal["diagnostics"]
     for k in ("gain", "offset_N", "sigma_N", "rho", "kappa", "nu"):

@@ -42,7 +42,6 @@ def paper_mse_N2() -> dict[int, float]:
 @dataclass(frozen=True)
 class Sim2RealConfig:
     heads: HeadFit = field(default_factory=HeadFit)
-    fold_members: int = 2
     folds: str = "both"
     level: float = 0.9
     max_context: int = 2
@@ -54,7 +53,7 @@ class Sim2RealConfig:
     @classmethod
     def from_params(cls, p: dict) -> "Sim2RealConfig":
         pr = p.get("priors", {})
-        return cls(heads=HeadFit(**p.get("heads", {})), fold_members=int(p.get("fold_members", 2)),
+        return cls(heads=HeadFit(**p.get("heads", {})),
                    folds=str(p.get("folds", "both")),
                    level=float(p.get("level", 0.9)), max_context=int(p.get("max_context", 2)),
                    sim_every=int(p.get("sim_every", 4)), sim_folds=int(p.get("sim_folds", 5)),
@@ -124,7 +123,7 @@ def run_sim2real(model_pt, lab_shards, sim_shards, sim_test_shards, size, cfg: S
     # not fitted on (the training objects in folds): as a test object is new to them
     t1 = time.perf_counter()
     heads0, cal0 = fit_rig(model, f_sim, ys, [object_folds(ts["object"].to_numpy(), cfg.sim_folds)],
-                           cfg.heads, cfg.fold_members, cfg.priors, cfg.sampler, log=log)
+                           cfg.heads, cfg.priors, cfg.sampler, log=log)
     cal0.update(context_objects=0, context="none", fitted_on="simulated training frames, objects cross-fitted")
     cals.append(cal0)
     record(0, (), np.ones(len(y), bool), heads0, cal0)
@@ -142,7 +141,7 @@ def run_sim2real(model_pt, lab_shards, sim_shards, sim_test_shards, size, cfg: S
             ctx = table["group"].isin(context).to_numpy().copy()
             fit = replace(cfg.heads, seed=cfg.heads.seed + 7 * len(cals))
             heads, cal = fit_rig(model, f_lab[ctx], y[ctx], fold_units(table[ctx], cfg.folds), fit,
-                                 cfg.fold_members, cfg.priors, cfg.sampler, log=log)
+                                 cfg.priors, cfg.sampler, log=log)
             cal.update(context_objects=k, context=" + ".join(context), fitted_on="context takes")
             cals.append(cal)
             record(k, context, ~ctx, heads, cal)
