@@ -277,9 +277,8 @@ def cross_fitted(model, features, force_N, units, fit):
     Each fold fits as many heads as the ensemble has (``fit.members``): a spread from
     fewer heads is a noisier measure (that of 2 heads falls below a tenth of the
     heads' true spread on 8 % of frames, that of 4 on 0.14 %: chi-square with M - 1
-    degrees of freedom), and a calibration fitted on it
-    reads that noise as heavy tails, which widens the intervals of the ensemble it is
-    then applied to."""
+    degrees of freedom), and a calibration fitted on it reads that noise as heavy
+    tails, which widens the intervals of the ensemble it is then applied to."""
     from dataclasses import replace
 
     from .adapt import fit_heads, head_forces
