@@ -304,9 +304,8 @@ def simulate(finger_mesh: TriMesh, obj: RigidObject | DeformableObject, material
         probe = max(opts.gap_probe_mm, opts.contact.dhat)
         for radius in sorted({max(min(NEAR_PROBE_MM, probe), opts.contact.dhat), probe}):
             pr = cm.pairs(U, radius)
-            fo = (pr["b0"] != pr["b1"])
-            fs = (pr["b0"] == 0) & (pr["b1"] == 0)
-            fs &= self_real(pr["v0"], pr["v1"])
+            fo = pr["b0"] != pr["b1"]
+            fs = (pr["b0"] == 0) & (pr["b1"] == 0) & self_real(pr["v0"], pr["v1"])
             if fo.any() and fs.any():
                 break
         d = pr["d"]
