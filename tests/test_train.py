@@ -60,3 +60,49 @@ def test_checkpoint_and_torchscript_parity(tmp_path):
     assert ck["history"]["train_loss"] == hist.train_loss
     # the force comes out in N: mean of the predictions near the data's mean
     assert abs(float(f1.mean()) - float(f.mean())) < 3 * float(f.std())
+
+
+def test_cosine_schedule_warms_up_peaks_and_ends_at_zero():
+    from finray.train import lr_factor
+
+    total = 1000
+    f = [lr_factor(k, total, "cosine", 0.05) for k in range(total)]
+    assert f[0] == pytest.approx(1 / 51) and f[49] == pytest.approx(50 / 51)
+    assert max(f) == pytest.approx(1.0) and f.index(max(f)) == 50
+    assert all(a >= b for a, b in zip(f[50:], f[51:]))  # no rise after the warm-up
+    assert f[-1] < 1e-4
+    assert f[50 + 475] == pytest.approx(0.5, abs=1e-2)  # half-way down the cosine
+    assert {lr_factor(k, total, "constant") for k in range(total)} == {1.0}
+    with pytest.raises(ValueError, match="train.schedule"):
+        lr_factor(0, total, "step")
+
+
+def test_batchnorm_re_estimate_is_the_plain_average_over_the_frames():
+    from finray.model import FinRayNet
+    from finray.train import recalibrate_batchnorm
+
+    torch.manual_seed(0)
+    model = FinRayNet(NetConfig(in_channels=1, height=32, width=16, base_channels=4)).eval()
+    x = torch.rand(300, 1, 32, 16)
+    with torch.no_grad():
+        z = model.force_head[:3](model.encode(x)[0])  # the first batch-norm's input
+    n = recalibrate_batchnorm(model, x.split(64), torch.device("cpu"), False, False)
+    bn = model.force_head[3]
+    assert n == 300
+    assert torch.allclose(bn.running_mean, z.mean(0), atol=1e-5)
+    # per batch the unbiased variance, averaged over the batches (update_bn's estimate)
+    var = torch.stack([b.var(0) for b in z.split(64)]).mean(0)
+    assert torch.allclose(bn.running_var, var, rtol=1e-4)
+    assert bn.momentum == 0.1 and not model.training  # both restored
+
+
+def test_kept_epoch_follows_train_keep():
+    x, s, f = toy()
+    val = (x[:16], s[:16], f[:16])
+    net = NetConfig(height=32, width=16, base_channels=4)
+    _, last = train(x, s, f, val, net, TrainConfig(**CFG, keep="last"), log=lambda m: None)
+    assert last.best_epoch == 2 and len(last.lr) == 2 and last.lr[-1] < 1e-6
+    _, best = train(x, s, f, val, net, TrainConfig(**CFG, keep="val_force_rmse"), log=lambda m: None)
+    assert best.best_epoch == 1 + int(np.argmin(best.val_force_rmse_N))
+    with pytest.raises(ValueError, match="train.keep"):
+        train(x, s, f, val, net, TrainConfig(**CFG, keep="best"), log=lambda m: None)

@@ -47,6 +47,7 @@ class HeadFit:
     lr_decay: bool = True
     bootstrap: bool = True
     seed: int = 0
+    anchor: float = 0.0  # weight of the squared distance to the simulation's head (L2-SP)
 
 
 def encoder_features(model: FinRayNet, images, batch: int = 256) -> torch.Tensor:
@@ -79,9 +80,13 @@ def fit_heads(model: FinRayNet, features: torch.Tensor, force_N, fit: HeadFit,
         decay = torch.optim.lr_scheduler.CosineAnnealingLR(opt, fit.steps) if fit.lr_decay else None
         n = len(y)
         pool = torch.randint(0, n, (n,), generator=gen) if fit.bootstrap else torch.arange(n)
+        start = [p.detach().clone() for p in head.parameters()]
         for _ in range(fit.steps):
             idx = pool[torch.randint(0, n, (min(fit.batch, n),), generator=gen)]
             loss = ((head(features[idx])[:, 0] - target[idx]) ** 2).mean()
+            if fit.anchor > 0:
+                loss = loss + fit.anchor * sum(((p - q) ** 2).sum()
+                                               for p, q in zip(head.parameters(), start))
             opt.zero_grad(set_to_none=True)
             loss.backward()
             opt.step()

@@ -260,13 +260,44 @@ def shard_scene_params(wildcards):
     return canonical(scene)
 
 
-def model_file(name):
-    return f"{TRAIN}/{name}/model.ts"
+def model_file(name, train_dir=TRAIN):
+    return f"{train_dir}/{name}/model.ts"
 
 
-def eval_models(*names):
+def eval_models(*names, train_dir=TRAIN):
     """The models an experiment compares (name -> TorchScript), those of the config only."""
-    return {n: model_file(n) for n in names if n in config["train"]["models"]}
+    return {n: model_file(n, train_dir) for n in names if n in config["train"]["models"]}
+
+
+# The spread study (spread.smk): a variant s<seed>_<type> retrains every model with that
+# seed and numeric type (train.bf16: auto, fp32 = false, bf16 = true)
+SPREAD = f"{RESULTS}/evaluate/spread"
+SPREAD_TYPES = {"auto": "auto", "fp32": False, "bf16": True}
+
+
+def train_dir(wildcards):
+    """Where an experiment's models come from: the run's (results/train), or a seed
+    variant's of the spread study (a ``variant`` wildcard, spread.smk)."""
+    variant = getattr(wildcards, "variant", None)
+    return f"{SPREAD}/{variant}/train" if variant else TRAIN
+
+
+def spread_variant(seed, bf16):
+    """The variant name of a seed and a train.bf16 value."""
+    return f"s{seed}_" + {str(v).lower(): k for k, v in SPREAD_TYPES.items()}[str(bf16).lower()]
+
+
+def spread_variants():
+    """Every variant of evaluate.spread, seeds within each numeric type."""
+    sp = config["evaluate"]["spread"]
+    return [spread_variant(s, b) for b in sp["bf16"] for s in sp["seeds"]]
+
+
+def spread_train_params(wildcards):
+    """The run's train section with the variant's seed and bf16."""
+    seed, kind = wildcards.variant[1:].split("_")
+    return canonical({**section("train", drop=("models",)), "seed": int(seed),
+                      "bf16": SPREAD_TYPES[kind]})
 
 
 def pitch_series_shards():
@@ -283,22 +314,22 @@ def occlusion_level_order():
 
 def experiment_setup(wildcards):
     """Test shards, models and conditions of an experiment (see finray.evaluate)."""
-    e = wildcards.experiment
+    e, d = wildcards.experiment, train_dir(wildcards)
     if e in ("shape", "material"):  # also scored through the camera path on the renders
-        return {"shards": shard_files(splits=[e], pitch=0.0), "models": eval_models("plain", "camera"),
+        return {"shards": shard_files(splits=[e], pitch=0.0), "models": eval_models("plain", "camera", train_dir=d),
                 "group_col": "object" if e == "shape" else "material", "conditions": None,
                 "renders": render_index_files(pitch=0.0, splits=[e])}
     if e == "occlusion":
         return {"shards": shard_files(splits=["shape"], pitch=0.0),
-                "models": eval_models("plain", "occlusion"), "group_col": "object",
+                "models": eval_models("plain", "occlusion", train_dir=d), "group_col": "object",
                 "conditions": [[lvl, {"occlusion": lvl}] for lvl in occlusion_level_order()],
                 "renders": []}
     if e == "viewpoint":  # perspective renders of the held-out shapes (evaluate.viewpoint)
         return {"shards": shard_files(splits=["shape"], pitch=0.0),
-                "models": eval_models("plain", "pitch", "camera"), "group_col": "distance_mm",
+                "models": eval_models("plain", "pitch", "camera", train_dir=d), "group_col": "distance_mm",
                 "conditions": [[f"{p:g}", {"pitch_deg": p}] for p in series_pitches()],
                 "renders": viewpoint_indices()}
-    return {"shards": pitch_series_shards(), "models": eval_models("plain", "pitch"), "group_col": None,
+    return {"shards": pitch_series_shards(), "models": eval_models("plain", "pitch", train_dir=d), "group_col": None,
             "conditions": [[f"{p:g}", {"pitch_deg": p}] for p in series_pitches()], "renders": []}
 
 

@@ -20,7 +20,8 @@ rule train_pareto:
     params:
         benchmarks=section("benchmarks", keys=TRAIN_STUDY_KEYS + ("latency_frames",)),
         train=section("train", keys=("input_size", "base_channels", "val_fraction", "batch_size",
-                                     "seed", "bf16", "channels_last")),
+                                     "seed", "bf16", "channels_last", "schedule", "warmup_frac",
+                                     "bn_frames", "keep")),
     log:
         f"{RESULTS}/logs/train/benchmark_pareto.log",
     benchmark:

@@ -11,7 +11,9 @@ with log_to(snakemake.log[0]):
     cfg = TrainConfig(epochs=t["epochs"], batch_size=t["batch_size"], lr=t["lr"],
                       alpha_stress=t["alpha_stress"], alpha_force=t["alpha_force"], seed=t["seed"],
                       threads=snakemake.threads, bf16=t["bf16"], device=t["device"],
-                      channels_last=t["channels_last"], progress=False)
+                      channels_last=t["channels_last"], progress=False, schedule=t["schedule"],
+                      warmup_frac=t["warmup_frac"], bn_frames=t["bn_frames"], keep=t["keep"],
+                      compare_running_bn=p.get("diagnostics", False))
     d = p.dataset
     aug = AugmentConfig(**p.augment, **pitch_geometry(d, p.render, h, p.finger["extrusion_mm"]))
     occ = {k: tuple(v) for k, v in d["occlusion_levels"].items()}

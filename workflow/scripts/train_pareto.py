@@ -10,5 +10,6 @@ with log_to(snakemake.log[0]):
         every=b["train_every"], tolerance=b["train_tolerance"], budget_ms=b["train_budget_ms"],
         lr=b["train_lr"],
         latency_calls=b["latency_frames"], val_fraction=t["val_fraction"],
-        batch_size=t["batch_size"], seed=t["seed"], bf16=t["bf16"], channels_last=t["channels_last"])
+        batch_size=t["batch_size"], seed=t["seed"], bf16=t["bf16"], channels_last=t["channels_last"],
+        schedule={k: t[k] for k in ("schedule", "warmup_frac", "bn_frames", "keep")})
     print(table.to_string())

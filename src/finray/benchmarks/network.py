@@ -90,11 +90,13 @@ def run_time_vs_error(shards, out_csv, out_png, out_md, sizes, bases, configured
                       budget_ms: float = 1.0,
                       latency_calls: int = 200, val_fraction: float = 0.1, batch_size: int = 16,
                       lr: float = 1e-4, seed: int = 0, bf16: bool | str = "auto",
-                      channels_last: bool = True, log=print):
+                      channels_last: bool = True, schedule: dict | None = None, log=print):
     """Train and time every ``sizes x bases`` variant; write the table (CSV), the
     Pareto figure (PNG) and a summary (Markdown); returns the table (DataFrame).
 
-    ``configured``: ``(height, width, base)`` of the configured default model.
+    ``configured``: ``(height, width, base)`` of the configured default model;
+    ``schedule``: the training's ``schedule``, ``warmup_frac``, ``bn_frames`` and ``keep``
+    (:class:`finray.train.TrainConfig`; default: its defaults).
     """
     import pandas as pd
     import torch
@@ -106,7 +108,8 @@ def run_time_vs_error(shards, out_csv, out_png, out_md, sizes, bases, configured
     rows = []
     # a CPU cost study (one thread, as its latencies): on the CPU whatever the machine has
     cfg = TrainConfig(epochs=epochs, batch_size=batch_size, lr=lr, seed=seed, threads=1,
-                      bf16=bf16, device="cpu", channels_last=channels_last, progress=False)
+                      bf16=bf16, device="cpu", channels_last=channels_last, progress=False,
+                      **(schedule or {}))
     for h, w in sizes:
         data = load_split(shards, (h, w), every)
         val_ids = validation_scenes(data["scene_id"], val_fraction, seed)
@@ -119,7 +122,7 @@ def run_time_vs_error(shards, out_csv, out_png, out_md, sizes, bases, configured
             v = Variant(h, w, base)
             log(f"{v.label}: {len(tr['images'])} training frames, {len(va['images'])} validation")
             net = NetConfig(in_channels=1, base_channels=base, height=h, width=w)
-            # best epoch by validation loss, as in the real training
+            # the kept epoch, the schedule and batch-norm as in the real training
             with Stopwatch(cpu="thread") as clock:
                 model, hist = train(tr["images"], tr["stress"], tr["fx_N"],
                                     (va["images"], va["stress"], va["fx_N"]), net, cfg, log=log)

@@ -139,8 +139,9 @@ def training_data(manifest_csv, split: str = "train", pitch_deg: float = 0.0) ->
 
 
 def training_summary(h: dict, manifest_csv=None) -> dict:
-    """One model's ``history.json`` -> what the manuscript states: the epoch kept (lowest
-    validation loss, as :func:`finray.train.train` keeps it), its validation force RMSE,
+    """One model's ``history.json`` -> what the manuscript states: the epoch kept (as
+    :func:`finray.train.train` kept it, ``train.keep``), its validation force RMSE, the
+    learning-rate schedule and the batch-norm re-estimate,
     the force normalisation (mean and standard deviation of the training frames' force, N),
     the precision and the step time. A history written before ``best_epoch`` and the
     normalisation were recorded gets them by the same rules (the normalisation from the
@@ -148,6 +149,10 @@ def training_summary(h: dict, manifest_csv=None) -> dict:
     score = h["val_loss"] or h["train_loss"]
     best = h.get("best_epoch") or (h["epoch"][min(range(len(score)), key=score.__getitem__)]
                                    if score else None)
+    # a history written before the schedule was configurable: the paper's constant rate,
+    # the epoch kept by validation loss, training's running batch-norm averages
+    tc = h.get("train_config") or {}
+    keep = tc.get("keep", "val_loss")
     k = h["epoch"].index(best) if best in h["epoch"] else None
     val_rmse = h["val_force_rmse_N"][k] if k is not None and h["val_force_rmse_N"] else None
     mean, std = h.get("force_mean_N") or None, h.get("force_std_N") or None
@@ -160,7 +165,11 @@ def training_summary(h: dict, manifest_csv=None) -> dict:
             "train_seconds": h["train_seconds"], "n_train": h["n_train"],
             "n_val": h["n_val"], "n_val_scenes": len(h.get("validation_scenes", [])),
             "epochs": len(h["epoch"]), "best_epoch": best,
-            "selected_by": "validation loss" if h["val_loss"] else "training loss",
+            "selected_by": ("training loss" if not h["val_loss"] else
+                            {"val_force_rmse": "validation force RMSE", "val_loss": "validation loss",
+                             "last": "last epoch"}[keep]),
+            "lr": tc.get("lr"), "schedule": tc.get("schedule", "constant"),
+            "warmup_frac": tc.get("warmup_frac", 0.0), "bn_frames": tc.get("bn_frames", 0),
             "best_val_force_rmse_N": val_rmse,
             "force_mean_N": mean, "force_std_N": std,
             "precision": h.get("precision", ""), "step_ms": h.get("step_ms"),

@@ -1,0 +1,140 @@
+"""The spread study: every headline figure over training seeds and numeric types.
+
+A figure from one training is one draw. The spread study (``workflow/rules/spread.smk``)
+retrains every model per seed and numeric type (a *variant*, ``s<seed>_<type>``) and runs
+every experiment and sim-to-real on each; this module reads their outputs back:
+
+- :func:`headline_figures` -- one variant's figures, by name (force NRMSE in %,
+  log-stress MSE, sim-to-real MSE in N^2 and coverage in %, the kept epoch)
+- :func:`spread_table` -- per figure the default variant's value, mean, min, max, range
+- :func:`write_spread` -- ``summary.json``, ``spread.csv``, ``spread.md`` and the figure
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .summary import experiment_summary
+
+#: (path key of experiment_summary, label): the shard inputs, and the rendered frames
+#: through the Predictor where the experiment has them
+_PATHS = ((None, ""), ("camera", " (camera path)"))
+
+
+def headline_figures(exp_dirs: dict[str, str | Path], sim2real: dict,
+                     histories: dict[str, dict]) -> dict[str, float]:
+    """One variant's headline figures: ``{name: value}``.
+
+    ``exp_dirs``: experiment -> its output folder (``metrics.csv``); ``sim2real``: its
+    ``summary.json``; ``histories``: model -> its ``history.json``. Names read
+    ``<experiment> | <condition> | <predictor> | <measure>`` (all test frames pooled),
+    ``sim2real | <k> context | <measure>`` and ``train | <model> | <measure>``."""
+    out: dict[str, float] = {}
+    for exp, d in sorted(exp_dirs.items()):
+        for cond, preds in experiment_summary(d).items():
+            for pred, node in preds.items():
+                for key, label in _PATHS:
+                    m = (node.get(key) or {}).get("all") if key else node.get("all")
+                    if not m:
+                        continue
+                    name = f"{exp} | {cond} | {pred}{label}"
+                    out[f"{name} | force NRMSE %"] = m["nrmse_pct"]
+                    if m.get("stress_mse_log") is not None:
+                        out[f"{name} | log-stress MSE"] = m["stress_mse_log"]
+    for k, m in sorted(sim2real["by_context"].items(), key=lambda kv: int(kv[0])):
+        for c, measure in (("nrmse_pct", "NRMSE %"), ("mse_N2", "MSE N2"),
+                           ("coverage_pct", "coverage %")):
+            out[f"sim2real | {k} context | {measure}"] = m[c]
+    if sim2real.get("lab_coverage_pct_with_context") is not None:
+        out["sim2real | 1+ context pooled | coverage %"] = sim2real["lab_coverage_pct_with_context"]
+    sim = sim2real.get("simulated_test", {})
+    if sim:
+        out["sim2real | simulated held-out shapes, no-context heads | NRMSE %"] = \
+            sim["metrics"]["nrmse_pct"]
+        if "own_head" in sim:
+            out["sim2real | simulated held-out shapes, the model's own head | NRMSE %"] = \
+                sim["own_head"]["nrmse_pct"]
+    for model, h in sorted(histories.items()):
+        i = h["best_epoch"] - 1
+        out[f"train | {model} | kept epoch"] = float(h["best_epoch"])
+        if h.get("val_force_rmse_N"):
+            out[f"train | {model} | validation force RMSE N"] = h["val_force_rmse_N"][i]
+        if h.get("train_seconds") is not None:
+            out[f"train | {model} | training s"] = h["train_seconds"]
+    return {k: float(v) for k, v in out.items() if v is not None and np.isfinite(v)}
+
+
+def spread_table(figures: dict[str, dict[str, float]], default: str | None = None) -> pd.DataFrame:
+    """Per figure (rows, in name order): each variant's value (a column per variant),
+    ``default`` (that variant's value, NaN where it did not run), ``mean``, ``min``,
+    ``max``, ``range`` (max - min) and ``n`` (variants with the figure)."""
+    df = pd.DataFrame(figures).sort_index()
+    v = df.to_numpy(dtype=float)
+    stats = pd.DataFrame({"default": df[default] if default in df else np.nan,
+                          "mean": np.nanmean(v, axis=1), "min": np.nanmin(v, axis=1),
+                          "max": np.nanmax(v, axis=1), "n": np.isfinite(v).sum(axis=1)},
+                         index=df.index)
+    stats["range"] = stats["max"] - stats["min"]
+    out = pd.concat([stats[["default", "mean", "min", "max", "range", "n"]], df], axis=1)
+    out.index.name = "figure"
+    return out
+
+
+def _markdown(table: pd.DataFrame, variants: list[str], default: str) -> str:
+    cols = ["default", "mean", "min", "max", "range"]
+    head = (f"| figure | {default} (default) | mean | min | max | range | "
+            + " | ".join(variants) + " |")
+    lines = [head, "|---" + "|--:" * (len(cols) + len(variants)) + "|"]
+    for name, r in table.iterrows():
+        cells = [f"{r[c]:.4g}" if np.isfinite(r[c]) else "–" for c in cols + variants]
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def spread_figure(table: pd.DataFrame, variants: list[str], path) -> None:
+    """Each variant's force NRMSE (left) and sim-to-real coverage (right) per figure,
+    the range as a bar."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    panels = [(table[table.index.str.endswith("NRMSE %")], "force NRMSE (% of the largest force)"),
+              (table[table.index.str.endswith("coverage %")], "inside the interval (%)")]
+    rows = max(len(t) for t, _ in panels) or 1
+    fig, axes = plt.subplots(1, 2, figsize=(13, 0.22 * rows + 1.6), squeeze=False)
+    for ax, (t, label) in zip(axes[0], panels):
+        y = np.arange(len(t))
+        ax.hlines(y, t["min"], t["max"], color="0.6", lw=3, zorder=1)
+        for j, v in enumerate(variants):
+            ax.plot(t[v], y, "o", ms=3.5, color=f"C{j % 10}", label=v, zorder=2)
+        ax.set_yticks(y, t.index, fontsize=5.5)
+        ax.invert_yaxis()
+        ax.set_xlabel(label, fontsize=8)
+        ax.tick_params(axis="x", labelsize=7)
+        ax.grid(axis="x", lw=0.3)
+    axes[0][0].set_xscale("log")
+    axes[0][1].legend(fontsize=6, loc="lower right")
+    fig.suptitle("Spread over training seeds and numeric types (sim-to-real on the EMULATED "
+                 "lab takes)", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=150)
+    plt.close(fig)
+
+
+def write_spread(figures: dict[str, dict[str, float]], default: str, out: dict) -> pd.DataFrame:
+    """``out``: paths ``json``, ``csv``, ``table`` (Markdown) and ``figure``."""
+    variants = list(figures)
+    table = spread_table(figures, default)
+    table.to_csv(out["csv"], float_format="%.6g")
+    Path(out["table"]).write_text(_markdown(table, variants, default))
+    summary = {"variants": variants, "default": default,
+               "figures": {name: {c: (None if not np.isfinite(r[c]) else float(r[c]))
+                                  for c in ["default", "mean", "min", "max", "range"] + variants}
+                           for name, r in table.iterrows()}}
+    Path(out["json"]).write_text(json.dumps(summary, indent=1))
+    spread_figure(table, variants, out["figure"])
+    return table

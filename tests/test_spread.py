@@ -1,0 +1,34 @@
+"""The spread study's table: each figure's default, mean and range over the variants."""
+import json
+
+import numpy as np
+import pytest
+
+from finray.evaluate.spread import spread_table, write_spread
+
+
+FIGURES = {"s0_auto": {"shape | none | camera | force NRMSE %": 1.5, "sim2real | 2 context | coverage %": 90.0},
+           "s1_auto": {"shape | none | camera | force NRMSE %": 2.5, "sim2real | 2 context | coverage %": 80.0},
+           "s2_auto": {"shape | none | camera | force NRMSE %": 2.0}}
+
+
+def test_spread_table_gives_default_mean_and_range_per_figure():
+    t = spread_table(FIGURES, default="s1_auto")
+    r = t.loc["shape | none | camera | force NRMSE %"]
+    assert (r["default"], r["mean"], r["min"], r["max"], r["n"]) == (2.5, 2.0, 1.5, 2.5, 3)
+    assert r["range"] == pytest.approx(1.0)
+    c = t.loc["sim2real | 2 context | coverage %"]  # a figure one variant lacks
+    assert (c["mean"], c["n"], c["range"]) == (85.0, 2, 10.0) and np.isnan(c["s2_auto"])
+    assert np.isnan(spread_table(FIGURES, default="s9_auto")["default"]).all()
+
+
+def test_write_spread_round_trips_through_json(tmp_path):
+    out = {k: tmp_path / f"spread.{e}" for k, e in
+           (("json", "json"), ("csv", "csv"), ("table", "md"), ("figure", "png"))}
+    write_spread(FIGURES, "s0_auto", out)
+    s = json.loads(out["json"].read_text())
+    assert s["variants"] == list(FIGURES) and s["default"] == "s0_auto"
+    f = s["figures"]["sim2real | 2 context | coverage %"]
+    assert (f["default"], f["min"], f["max"], f["s2_auto"]) == (90.0, 80.0, 90.0, None)
+    assert "| shape | none | camera | force NRMSE % | 1.5 | 2 | 1.5 | 2.5 | 1 |" in out["table"].read_text()
+    assert out["figure"].stat().st_size > 0

@@ -1,0 +1,103 @@
+# The spread study (evaluate.spread): every model of train.models trained again for each
+# seed of evaluate.spread.seeds and each numeric type of evaluate.spread.bf16, every
+# experiment and sim-to-real run on each such variant, and each headline figure given as
+# the default seed's value, mean and range (results/evaluate/spread/). Not in the default
+# run: it trains len(seeds) x len(bf16) x 4 models (README, "Seeds and numeric types").
+#
+# A variant is s<seed>_<type>: type auto (train.bf16: auto, the machine's native type),
+# fp32 (false) or bf16 (true). Its models, experiments and sim-to-real live in
+# results/evaluate/spread/<variant>/, with the same rules' scripts as the run's own.
+
+wildcard_constraints:
+    variant=r"s\d+_(auto|fp32|bf16)",
+
+
+rule spread_train:
+    input:
+        shards=train_shards,
+    output:
+        model=f"{SPREAD}/{{variant}}/train/{{model}}/model.pt",
+        torchscript=f"{SPREAD}/{{variant}}/train/{{model}}/model.ts",
+        onnx=f"{SPREAD}/{{variant}}/train/{{model}}/model.onnx",
+        onnx_force=f"{SPREAD}/{{variant}}/train/{{model}}/model.force.onnx",
+        history=f"{SPREAD}/{{variant}}/train/{{model}}/history.json",
+        curves=f"{SPREAD}/{{variant}}/train/{{model}}/curves.png",
+    params:
+        train=spread_train_params,
+        augment=model_augment,
+        dataset=section("dataset", keys=SEGMENT_KEYS + ("crop_x_mm", "crop_y_mm", "occlusion_levels",
+                                                        "base_band")),
+        render=section("render", keys=("window_y_mm",)),
+        finger=section("finger", keys=("extrusion_mm", "base_width_mm")),
+        diagnostics=True,  # validation with training's running batch-norm averages too
+    log:
+        f"{RESULTS}/logs/spread/{{variant}}/train_{{model}}.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/studies/spread/{{variant}}_train_{{model}}.tsv"
+    threads: 1
+    resources:
+        mem_mb=2600,
+        runtime=60,
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/train_model.py"
+
+
+use rule evaluate_experiment as spread_experiment with:
+    output:
+        metrics=f"{SPREAD}/{{variant}}/{{experiment}}/metrics.csv",
+        summary=f"{SPREAD}/{{variant}}/{{experiment}}/metrics.json",
+        frames=f"{SPREAD}/{{variant}}/{{experiment}}/frames.csv",
+        examples=f"{SPREAD}/{{variant}}/{{experiment}}/examples.npz",
+        checks=f"{SPREAD}/{{variant}}/{{experiment}}/checks.json",
+    log:
+        f"{RESULTS}/logs/spread/{{variant}}/{{experiment}}.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/studies/spread/{{variant}}_{{experiment}}.tsv"
+
+
+use rule sim2real as spread_sim2real with:
+    input:
+        lab=[f"{LAB}/ingest/{t}/shard.npz" for t in lab_takes()],
+        model=lambda w: sim2real_model().replace(TRAIN, f"{SPREAD}/{w.variant}/train"),
+        sim=shard_files(splits=["train"], pitch=0.0),
+        sim_test=shard_files(splits=["shape"], pitch=0.0),
+    output:
+        metrics=f"{SPREAD}/{{variant}}/sim2real/metrics.csv",
+        frames=f"{SPREAD}/{{variant}}/sim2real/frames.csv",
+        summary=f"{SPREAD}/{{variant}}/sim2real/summary.json",
+        calibrations=f"{SPREAD}/{{variant}}/sim2real/calibrations.json",
+        corner=f"{SPREAD}/{{variant}}/sim2real/corner.pdf",
+    log:
+        f"{RESULTS}/logs/spread/{{variant}}/sim2real.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/studies/spread/{{variant}}_sim2real.tsv"
+
+
+rule spread_summary:
+    input:
+        experiments=expand(f"{SPREAD}/{{variant}}/{{experiment}}/metrics.json",
+                           variant=spread_variants(), experiment=EXPERIMENTS),
+        sim2real=expand(f"{SPREAD}/{{variant}}/sim2real/summary.json", variant=spread_variants()),
+        histories=expand(f"{SPREAD}/{{variant}}/train/{{model}}/history.json",
+                         variant=spread_variants(), model=model_names()),
+    output:
+        json=f"{SPREAD}/summary.json",
+        table=f"{SPREAD}/spread.md",
+        csv=f"{SPREAD}/spread.csv",
+        figure=report(f"{SPREAD}/spread.png", caption="../report/spread.rst", category="Training"),
+    params:
+        variants=spread_variants(),
+        # the variant that is the run's own set-up (its seed and numeric type)
+        default=spread_variant(config["train"]["seed"], config["train"]["bf16"]),
+    log:
+        f"{RESULTS}/logs/spread/summary.log",
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=5,
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/spread_summary.py"
