@@ -177,6 +177,10 @@ UNREAD = {
     "materials.neoprene.source": "documentation of the constants only",
     "dataset.seed": "no stage draws from it: training and evaluation use train.seed and "
                     "evaluate.seed",
+    # the spread study is a target of its own (spread.smk), not in the default run's DAG;
+    # test_workflow.py::test_smoke_spread runs it
+    "evaluate.spread.seeds": "read by the spread study only (results/evaluate/spread/)",
+    "evaluate.spread.types": "read by the spread study only (results/evaluate/spread/)",
     # (tests/test_config.py::test_generated_keys_are_in_every_blob_spec: each reaches the
     # objects entry of every generated object, whose provenance is that of objects.*)
     **{f"generated.{k}": "the smoke config generates no objects (generated.count 0)"

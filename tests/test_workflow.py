@@ -101,6 +101,32 @@ def test_smoke_dataset_and_training(smoke_run):
         assert (d / "model.ts").is_file() and (d / "curves.png").is_file()
 
 
+def test_smoke_spread(smoke_run):
+    """The spread study on the smoke config's two seeds: every model retrained per seed,
+    every headline figure per variant; the default seed's variant is the run itself
+    (training is deterministic), so its figures are the run's own."""
+    r = snakemake("--cores", "2", "--configfile", str(ROOT / "config" / "smoke.yaml"),
+                  "--directory", str(smoke_run), "results/evaluate/spread/summary.json", cwd=smoke_run)
+    assert r.returncode == 0, r.stderr[-3000:]
+    spread = smoke_run / "results" / "evaluate" / "spread"
+    s = json.loads((spread / "summary.json").read_text())
+    assert s["variants"] == ["s0_auto", "s1_auto"] and s["default"] == "s0_auto"
+    run = json.loads((smoke_run / "results" / "summary.json").read_text())
+    f = s["figures"]
+    for model in ("plain", "camera"):
+        shape = f[f"shape | all | {model} | force NRMSE %"]
+        assert shape["s0_auto"] == pytest.approx(run["experiments"]["shape"]["all"][model]["all"]["nrmse_pct"])
+        assert shape["min"] <= shape["mean"] <= shape["max"] and shape["s1_auto"] != shape["s0_auto"]
+    vp = f["viewpoint | 30 | camera | force NRMSE %"]
+    assert vp["s0_auto"] == pytest.approx(run["viewpoint"]["nrmse_pct"]["camera"]["30"])
+    cov = f["sim2real | 1 context | coverage %"]
+    assert cov["s0_auto"] == pytest.approx(run["sim2real"]["by_context"]["1"]["coverage_pct"])
+    h = json.loads((spread / "s1_auto" / "train" / "camera" / "history.json").read_text())
+    assert h["train_config"]["seed"] == 1 and len(h["val_force_rmse_running_bn_N"]) == 2
+    assert "| sim2real | 0 context | NRMSE % |" in (spread / "spread.md").read_text()
+    assert (spread / "spread.png").stat().st_size > 1000
+
+
 def test_smoke_renders_are_pixel_aligned(smoke_run):
     """Every front-view frame of the smoke run: the segmented camera image and the
     stress map's support (the pixels it is defined on: finger coverage >= 1/2; the

@@ -290,7 +290,7 @@ def spread_variant(seed, bf16):
 def spread_variants():
     """Every variant of evaluate.spread, seeds within each numeric type."""
     sp = config["evaluate"]["spread"]
-    return [spread_variant(s, b) for b in sp["bf16"] for s in sp["seeds"]]
+    return [f"s{s}_{t}" for t in sp["types"] for s in sp["seeds"]]
 
 
 def spread_train_params(wildcards):

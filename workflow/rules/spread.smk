@@ -1,5 +1,5 @@
 # The spread study (evaluate.spread): every model of train.models trained again for each
-# seed of evaluate.spread.seeds and each numeric type of evaluate.spread.bf16, every
+# seed of evaluate.spread.seeds and each numeric type of evaluate.spread.types, every
 # experiment and sim-to-real run on each such variant, and each headline figure given as
 # the default seed's value, mean and range (results/evaluate/spread/). Not in the default
 # run: it trains len(seeds) x len(bf16) x 4 models (README, "Seeds and numeric types").
