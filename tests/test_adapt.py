@@ -46,7 +46,9 @@ def test_decayed_heads_spread_by_the_data_not_the_optimiser(net):
     """150 copies of one rest frame whose sensor reads 0.01 N noise: the bootstrap leaves
     their mean open by 0.01 / sqrt(150) = 0.8 mN, and that is the decayed heads' spread
     there; at a constant learning rate the heads scatter several times as far, by where
-    their last mini-batches left them (and the fit is no better for it)."""
+    their last mini-batches left them (and the fit is no better for it). The whole head
+    is fitted (layers 0), where the jitter shows most; fitting the last layers only, the
+    decayed spread is the same."""
     g = torch.Generator().manual_seed(1)
     rest = torch.rand(1, 1, 64, 32, generator=g).expand(150, -1, -1, -1)
     x = torch.cat([rest, torch.rand(150, 1, 64, 32, generator=g)])
@@ -55,10 +57,12 @@ def test_decayed_heads_spread_by_the_data_not_the_optimiser(net):
     rig = 1.5 * net.force(x)[:, 0].detach().numpy() + 0.3 + noise
     se = 0.01 / np.sqrt(150)
     out = {}
-    for decay in (False, True):
-        P = head_forces(net, fit_heads(net, f, rig, HeadFit(members=4, steps=300, lr=1e-2, lr_decay=decay)), f)
+    for decay, layers in ((False, 0), (True, 0), ("last layers", 3)):
+        fit = HeadFit(members=4, steps=300, lr=1e-2, lr_decay=bool(decay), layers=layers)
+        P = head_forces(net, fit_heads(net, f, rig, fit), f)
         out[decay] = (P[:, :150].std(0, ddof=1).mean(), np.sqrt(np.mean((P.mean(0) - rig) ** 2)))
     assert 0.5 * se < out[True][0] < 2 * se
+    assert 0.5 * se < out["last layers"][0] < 2 * se
     assert out[False][0] > 3 * se
     assert out[True][1] < 1.05 * out[False][1]
 
@@ -129,3 +133,20 @@ def test_calibrate_errors_are_one_line(tmp_path, capsys):
                "--out", str(tmp_path / "c.json")])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and len(err.splitlines()) == 1 and "model.pt" in err
+
+
+def test_fit_heads_fits_the_last_layers_only(net):
+    """layers=3: the head's first two linear layers (and its batch-norm statistics) are
+    the simulation's, bit for bit; the last three are fitted; layers=0 fits all."""
+    x = torch.rand(64, 1, 64, 32, generator=torch.Generator().manual_seed(2))
+    f, y = encoder_features(net, x), np.linspace(0, 5, 64)
+    sim = [m for m in net.force_head if isinstance(m, torch.nn.Linear)]
+    for layers, kept in ((3, 2), (0, 0)):
+        head = fit_heads(net, f, y, HeadFit(members=1, steps=30, layers=layers))[0]
+        lin = [m for m in head if isinstance(m, torch.nn.Linear)]
+        assert len(lin) == len(sim) and not any(p.requires_grad for p in head.parameters())
+        for i, (a, b) in enumerate(zip(lin[:-1], sim[:-1])):
+            assert torch.equal(a.weight, b.weight) == (i < kept)
+        bn = [m for m in head if isinstance(m, torch.nn.BatchNorm1d)]
+        assert all(torch.equal(a.running_mean, b.running_mean) for a, b in
+                   zip(bn, [m for m in net.force_head if isinstance(m, torch.nn.BatchNorm1d)]))

@@ -123,7 +123,7 @@ def test_smoke_spread(smoke_run):
     assert cov["s0_auto"] == pytest.approx(run["sim2real"]["by_context"]["1"]["coverage_pct"])
     h = json.loads((spread / "s1_auto" / "train" / "camera" / "history.json").read_text())
     assert h["train_config"]["seed"] == 1 and len(h["val_force_rmse_running_bn_N"]) == 2
-    assert "| sim2real | 0 context | NRMSE % |" in (spread / "spread.md").read_text()
+    assert r"| sim2real \| 0 context \| NRMSE % |" in (spread / "spread.md").read_text()
     assert (spread / "spread.png").stat().st_size > 1000
 
 

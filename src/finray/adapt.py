@@ -33,7 +33,15 @@ from .model import FinRayNet
 class HeadFit:
     """How the heads are fitted: ``members`` heads of ``steps`` Adam steps (batches of
     ``batch``, learning rate ``lr``, decayed to 0 on a cosine where ``lr_decay``), each
-    on a bootstrap sample of the frames (``bootstrap``), seeded from ``seed``.
+    on a bootstrap sample of the frames (``bootstrap``), seeded from ``seed``; of each
+    head only the last ``layers`` linear layers are fitted (0: all).
+
+    Fitting the whole head made it worse than the simulation's own, even on frames like
+    those it was trained on: Adam moves every weight by up to ``lr`` a step whatever
+    its gradient, and the first layer's 131,072 weights (latent 1024 -> 128) are of the
+    order of 0.01, so a few hundred steps at 1e-3 overwrite what the simulation taught
+    it with noise. The last three layers (64 -> 32 -> 8 -> 1, 2,353 parameters) adapt
+    the force to a rig while the features the head learnt on 18,000 frames stay.
 
     The decay is what makes the members' spread a measure of the data: at a constant
     rate each head ends where its last mini-batches left it, and the heads then disagree
@@ -47,7 +55,7 @@ class HeadFit:
     lr_decay: bool = True
     bootstrap: bool = True
     seed: int = 0
-    anchor: float = 0.0  # weight of the squared distance to the simulation's head (L2-SP)
+    layers: int = 3  # fit the last this many linear layers only (0: every layer)
 
 
 def encoder_features(model: FinRayNet, images, batch: int = 256) -> torch.Tensor:
@@ -63,7 +71,8 @@ def fit_heads(model: FinRayNet, features: torch.Tensor, force_N, fit: HeadFit,
               component: int = 0) -> list[nn.Module]:
     """``fit.members`` copies of the model's force head, reduced to output
     ``component`` (0: along the push), each fitted to ``force_N`` (N,) on
-    ``features`` (N, F); batch-norm statistics stay the simulation's."""
+    ``features`` (N, F): its last ``fit.layers`` linear layers (all where 0), the
+    layers before them and the batch-norm statistics stay the simulation's."""
     y = torch.tensor(np.asarray(force_N, dtype=np.float32))
     if len(y) != len(features) or not len(y):
         raise ValueError(f"need as many forces as feature rows, got {len(y)} and {len(features)}")
@@ -71,27 +80,29 @@ def fit_heads(model: FinRayNet, features: torch.Tensor, force_N, fit: HeadFit,
         raise ValueError("the forces to fit contain NaN")
     mean, scale = model.force_mean_N[component], model.force_scale_N[component]
     target = (y - mean) / scale
+    template = _single_output(model.force_head, component).eval()  # batch-norm: frozen
+    linear = [i for i, mod in enumerate(template) if isinstance(mod, nn.Linear)]
+    start = linear[-fit.layers] if 0 < fit.layers < len(linear) else 0
+    frozen = template[:start].requires_grad_(False)
+    with torch.no_grad():  # the frozen layers' output, once for every member
+        z = frozen(features) if start else features
     heads = []
     for m in range(fit.members):
         gen = torch.Generator().manual_seed(fit.seed * 1000 + m)
-        head = _single_output(model.force_head, component)
-        head.eval()  # batch-norm: running statistics frozen
-        opt = torch.optim.Adam(head.parameters(), lr=fit.lr)
+        tail = copy.deepcopy(template[start:])
+        opt = torch.optim.Adam(tail.parameters(), lr=fit.lr)
         decay = torch.optim.lr_scheduler.CosineAnnealingLR(opt, fit.steps) if fit.lr_decay else None
         n = len(y)
         pool = torch.randint(0, n, (n,), generator=gen) if fit.bootstrap else torch.arange(n)
-        start = [p.detach().clone() for p in head.parameters()]
         for _ in range(fit.steps):
             idx = pool[torch.randint(0, n, (min(fit.batch, n),), generator=gen)]
-            loss = ((head(features[idx])[:, 0] - target[idx]) ** 2).mean()
-            if fit.anchor > 0:
-                loss = loss + fit.anchor * sum(((p - q) ** 2).sum()
-                                               for p, q in zip(head.parameters(), start))
+            loss = ((tail(z[idx])[:, 0] - target[idx]) ** 2).mean()
             opt.zero_grad(set_to_none=True)
             loss.backward()
             opt.step()
             if decay is not None:
                 decay.step()
+        head = nn.Sequential(*copy.deepcopy(frozen), *tail)
         head.requires_grad_(False)
         heads.append(head)
     return heads

@@ -7,8 +7,8 @@ model, so that its outputs are in N), the MSE taken over the components. Adam, s
 and deterministic: two runs with the same data and seed give identical losses.
 
 Where training differs from the paper (whose rate is a constant 1e-4 and whose kept
-weights are not said), and why: the epoch-to-epoch wander of a model's validation error
-at a constant rate made the kept weights one draw (issue 26).
+weights are not said), and why: at a constant rate a model's validation error wandered
+from epoch to epoch, and the kept weights were one draw of that wander.
 
 - ``schedule="cosine"`` (default): the rate rises linearly to ``lr`` over the first
   ``warmup_frac`` of the steps, then falls to 0 on a cosine; ``"constant"`` is the
@@ -360,8 +360,8 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
     log(f"{cfg.epochs} epochs of {n_batches} batches of {cfg.batch_size} "
         f"({n} frames), {cfg.threads} thread(s); learning rate {cfg.lr:g}, {cfg.schedule}"
         + (f" after a {cfg.warmup_frac:.0%} warm-up" if cfg.schedule == "cosine" else "")
-        + f"; batch-norm re-estimated on {min(cfg.bn_frames, n)} frames per epoch; "
-        f"kept: {cfg.keep.replace('_', ' ')}")
+        + (f"; batch-norm re-estimated on {min(cfg.bn_frames, n)} frames per epoch"
+           if cfg.bn_frames > 0 else "") + f"; kept: {cfg.keep.replace('_', ' ')}")
 
     def bn_batches(epoch: int, size: int = 256):
         """``bn_frames`` training frames, augmented as in training, from their own
@@ -443,6 +443,8 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
             hist.val_force_rmse_N.append(ev["force_rmse_N"])
             hist.val_force_rmse_components_N.append(ev["force_rmse_components_N"])
             msg += f", val loss {ev['loss']:.5f}, val force RMSE {ev['force_rmse_N']:.4f} N"
+            if hist.val_force_rmse_running_bn_N:
+                msg += f" ({hist.val_force_rmse_running_bn_N[-1]:.4f} N with training's batch-norm averages)"
             score = {"val_force_rmse": ev["force_rmse_N"], "val_loss": ev["loss"]}.get(cfg.keep, -epoch)
         else:
             score = hist.train_loss[-1] if cfg.keep != "last" else -epoch
@@ -636,7 +638,12 @@ def training_curves(hist: History, path: str | Path) -> None:
     ax[0].set_ylabel("loss (stress MSE + 10 force MSE)")
     ax[0].legend()
     if hist.val_force_rmse_N:
-        ax[1].plot(hist.epoch, hist.val_force_rmse_N, "s-")
+        ax[1].plot(hist.epoch, hist.val_force_rmse_N, "s-", label="batch-norm re-estimated"
+                   if hist.val_force_rmse_running_bn_N else None)
+    if hist.val_force_rmse_running_bn_N:
+        ax[1].plot(hist.epoch, hist.val_force_rmse_running_bn_N, "x--", color="0.5",
+                   label="training's running batch-norm averages")
+        ax[1].legend(fontsize=7)
     ax[1].set_xlabel("epoch")
     ax[1].set_ylabel("validation force RMSE (N)")
     fig.tight_layout()

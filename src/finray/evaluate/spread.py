@@ -90,7 +90,7 @@ def _markdown(table: pd.DataFrame, variants: list[str], default: str) -> str:
     lines = [head, "|---" + "|--:" * (len(cols) + len(variants)) + "|"]
     for name, r in table.iterrows():
         cells = [f"{r[c]:.4g}" if np.isfinite(r[c]) else "–" for c in cols + variants]
-        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+        lines.append(f"| {name.replace('|', chr(92) + '|')} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
 
@@ -102,22 +102,26 @@ def spread_figure(table: pd.DataFrame, variants: list[str], path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    panels = [(table[table.index.str.endswith("NRMSE %")], "force NRMSE (% of the largest force)"),
-              (table[table.index.str.endswith("coverage %")], "inside the interval (%)")]
-    rows = max(len(t) for t, _ in panels) or 1
-    fig, axes = plt.subplots(1, 2, figsize=(13, 0.22 * rows + 1.6), squeeze=False)
-    for ax, (t, label) in zip(axes[0], panels):
+    nrmse = table[table.index.str.endswith("NRMSE %")]
+    cov = table[table.index.str.endswith("coverage %")]
+    rows = max(len(nrmse), len(cov) + 1)
+    # the coverage panel as tall as its rows (one row each, as the NRMSE panel's)
+    fig, axes = plt.subplot_mosaic([["nrmse", "cov"], ["nrmse", "."]], figsize=(13, 0.2 * rows + 1.6),
+                                   width_ratios=[3, 1], height_ratios=[len(cov) + 1, rows - len(cov) - 1])
+    for key, t, label in (("nrmse", nrmse, "force NRMSE (% of the largest force)"),
+                          ("cov", cov, "inside the interval (%)")):
+        ax = axes[key]
         y = np.arange(len(t))
         ax.hlines(y, t["min"], t["max"], color="0.6", lw=3, zorder=1)
         for j, v in enumerate(variants):
             ax.plot(t[v], y, "o", ms=3.5, color=f"C{j % 10}", label=v, zorder=2)
         ax.set_yticks(y, t.index, fontsize=5.5)
-        ax.invert_yaxis()
+        ax.set_ylim(len(t) - 0.5, -0.5)
         ax.set_xlabel(label, fontsize=8)
         ax.tick_params(axis="x", labelsize=7)
         ax.grid(axis="x", lw=0.3)
-    axes[0][0].set_xscale("log")
-    axes[0][1].legend(fontsize=6, loc="lower right")
+    axes["nrmse"].set_xscale("log")
+    axes["cov"].legend(fontsize=6, loc="lower left")
     fig.suptitle("Spread over training seeds and numeric types (sim-to-real on the EMULATED "
                  "lab takes)", fontsize=9)
     fig.tight_layout()
