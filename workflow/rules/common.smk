@@ -316,7 +316,8 @@ def experiment_setup(wildcards):
     """Test shards, models and conditions of an experiment (see finray.evaluate)."""
     e, d = wildcards.experiment, train_dir(wildcards)
     if e in ("shape", "material"):  # also scored through the camera path on the renders
-        return {"shards": shard_files(splits=[e], pitch=0.0), "models": eval_models("plain", "camera", train_dir=d),
+        return {"shards": shard_files(splits=[e], pitch=0.0),
+                "models": eval_models("plain", "camera", train_dir=d),
                 "group_col": "object" if e == "shape" else "material", "conditions": None,
                 "renders": render_index_files(pitch=0.0, splits=[e])}
     if e == "occlusion":
@@ -326,10 +327,12 @@ def experiment_setup(wildcards):
                 "renders": []}
     if e == "viewpoint":  # perspective renders of the held-out shapes (evaluate.viewpoint)
         return {"shards": shard_files(splits=["shape"], pitch=0.0),
-                "models": eval_models("plain", "pitch", "camera", train_dir=d), "group_col": "distance_mm",
+                "models": eval_models("plain", "pitch", "camera", train_dir=d),
+                "group_col": "distance_mm",
                 "conditions": [[f"{p:g}", {"pitch_deg": p}] for p in series_pitches()],
                 "renders": viewpoint_indices()}
-    return {"shards": pitch_series_shards(), "models": eval_models("plain", "pitch", train_dir=d), "group_col": None,
+    return {"shards": pitch_series_shards(), "models": eval_models("plain", "pitch", train_dir=d),
+            "group_col": None,
             "conditions": [[f"{p:g}", {"pitch_deg": p}] for p in series_pitches()], "renders": []}
 
 
