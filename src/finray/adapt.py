@@ -86,13 +86,12 @@ def fit_heads(model: FinRayNet, features: torch.Tensor, force_N, fit: HeadFit,
     frozen = template[:start].requires_grad_(False)
     with torch.no_grad():  # the frozen layers' output, once for every member
         z = frozen(features) if start else features
-    heads = []
+    heads, n = [], len(y)
     for m in range(fit.members):
         gen = torch.Generator().manual_seed(fit.seed * 1000 + m)
         tail = copy.deepcopy(template[start:])
         opt = torch.optim.Adam(tail.parameters(), lr=fit.lr)
         decay = torch.optim.lr_scheduler.CosineAnnealingLR(opt, fit.steps) if fit.lr_decay else None
-        n = len(y)
         pool = torch.randint(0, n, (n,), generator=gen) if fit.bootstrap else torch.arange(n)
         for _ in range(fit.steps):
             idx = pool[torch.randint(0, n, (min(fit.batch, n),), generator=gen)]

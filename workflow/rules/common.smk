@@ -399,9 +399,9 @@ def all_targets():
 LAB = f"{RESULTS}/lab"
 
 
-def sim2real_model():
+def sim2real_model(train_dir=TRAIN):
     """The network sim-to-real starts from: the camera model where configured, else plain."""
-    return f"{TRAIN}/{'camera' if 'camera' in config['train']['models'] else 'plain'}/model.pt"
+    return f"{train_dir}/{'camera' if 'camera' in config['train']['models'] else 'plain'}/model.pt"
 
 
 def lab_takes():

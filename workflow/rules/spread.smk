@@ -60,7 +60,7 @@ use rule evaluate_experiment as spread_experiment with:
 use rule sim2real as spread_sim2real with:
     input:
         lab=[f"{LAB}/ingest/{t}/shard.npz" for t in lab_takes()],
-        model=lambda w: sim2real_model().replace(TRAIN, f"{SPREAD}/{w.variant}/train"),
+        model=lambda w: sim2real_model(train_dir(w)),
         sim=shard_files(splits=["train"], pitch=0.0),
         sim_test=shard_files(splits=["shape"], pitch=0.0),
     output:

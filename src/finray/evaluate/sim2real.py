@@ -25,7 +25,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import torch
 
 from ..adapt import HeadFit, encoder_features, head_forces
 from ..calibration import (Priors, Sampler, coverage, fit_rig, fold_units, predictive,
@@ -130,9 +129,7 @@ def run_sim2real(model_pt, lab_shards, sim_shards, sim_test_shards, size, cfg: S
     record(0, (), np.ones(len(y), bool), heads0, cal0)
     p_test = head_forces(model, heads0, f_test)
     sim_band = predictive(cal0, p_test.mean(0), spread(p_test), cfg.level)
-    with torch.inference_mode():  # the simulation's own head on the same frames
-        own = torch.cat([model.force(torch.from_numpy(xt[i:i + 256]))[:, 0]
-                         for i in range(0, len(xt), 256)]).numpy()
+    own = head_forces(model, [model.force_head], f_test)[0]  # the simulation's own head
     sim = {"n_frames": int(len(yt)), "coverage_pct": 100 * coverage(yt, sim_band),
            "metrics": force_metrics(yt, sim_band["median"]),
            "raw_metrics": force_metrics(yt, p_test.mean(0)), "own_head": force_metrics(yt, own),
