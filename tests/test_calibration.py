@@ -91,8 +91,16 @@ def test_fold_units():
     assert list(half) == ["1st half"] * 2 + ["2nd half"] * 2 + ["1st half"] * 2 + ["2nd half"] * 2
     assert len(fold_units(t, "take")) == 1 and len(fold_units(t, "half")) == 1
     assert [list(u) for u in fold_units(t[t["take"] == "a"], "take")] == [list(half[:4])]  # one take: halves
-    with pytest.raises(ValueError, match="take, half or both"):
+    with pytest.raises(ValueError, match="object, take, half, both"):
+        fold_units(t, "objects")
+    with pytest.raises(ValueError, match="an 'object' column"):
         fold_units(t, "object")
+    # object folds: each object out with all its takes; one object: as "both"
+    t = t.assign(object=["cyl"] * 4 + ["cube"] * 4)
+    [obj] = fold_units(t, "object")
+    assert list(obj) == list(t["object"])
+    one = t.assign(object="cyl")
+    assert [list(u) for u in fold_units(one, "object")] == [list(u) for u in fold_units(one, "both")]
 
 
 def test_read_calibration_errors(tmp_path):

@@ -53,6 +53,13 @@ def test_training_refuses_cuda_before_any_work(tmp_path):
     assert not (tmp_path / "out").exists()
 
 
+def test_training_refuses_a_frame_stride_below_one_before_any_work(tmp_path):
+    with pytest.raises(ValueError, match="^train.frame_every must be >= 1, got 0$"):
+        train_from_shards([tmp_path / "missing.npz"], tmp_path / "out", NET,
+                          TrainConfig(**CFG, device="cpu"), None, frame_every=0)
+    assert not (tmp_path / "out").exists()
+
+
 @pytest.mark.skipif(HAS_GPU, reason="auto is the GPU there")
 def test_cpu_and_auto_train_alike_on_a_cpu_machine():
     x, s, f = toy(64)

@@ -181,6 +181,8 @@ UNREAD = {
     # test_workflow.py::test_smoke_spread runs it
     "evaluate.spread.seeds": "read by the spread study only (results/evaluate/spread/)",
     "evaluate.spread.types": "read by the spread study only (results/evaluate/spread/)",
+    "benchmarks.training_budget.seeds": "read by the training-budget study only (its own target)",
+    "benchmarks.training_budget.points": "read by the training-budget study only (its own target)",
     # (tests/test_config.py::test_generated_keys_are_in_every_blob_spec: each reaches the
     # objects entry of every generated object, whose provenance is that of objects.*)
     **{f"generated.{k}": "the smoke config generates no objects (generated.count 0)"
@@ -210,6 +212,7 @@ NEW_VALUES = {
     "render.frames_per_scene": 30,
     "dataset.sizes": [[128, 64], [64, 32], [32, 16]],
     "evaluate.sim2real.folds": "take",
+    "benchmarks.training_budget.points": {"f3": {"frame_every": 3}},
     "dataset.crop_x_mm": [-4.0, 36.0],
     "dataset.crop_y_mm": [1.0, 81.0],
     "dataset.threshold": "otsu",

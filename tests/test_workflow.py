@@ -104,9 +104,12 @@ def test_smoke_dataset_and_training(smoke_run):
 def test_smoke_spread(smoke_run):
     """The spread study on the smoke config's two seeds: every model retrained per seed,
     every headline figure per variant; the default seed's variant is the run itself
-    (training is deterministic), so its figures are the run's own."""
+    (training is deterministic), so its figures are the run's own. The training-budget
+    study beside it: its default point is the spread's seed 0, its point f2 trains on
+    every other frame."""
     r = snakemake("--cores", "2", "--configfile", str(ROOT / "config" / "smoke.yaml"),
-                  "--directory", str(smoke_run), "results/evaluate/spread/summary.json", cwd=smoke_run)
+                  "--directory", str(smoke_run), "results/evaluate/spread/summary.json",
+                  "results/benchmarks/training_budget.md", cwd=smoke_run)
     assert r.returncode == 0, r.stderr[-3000:]
     spread = smoke_run / "results" / "evaluate" / "spread"
     s = json.loads((spread / "summary.json").read_text())
@@ -125,6 +128,19 @@ def test_smoke_spread(smoke_run):
     assert h["train_config"]["seed"] == 1 and len(h["val_force_rmse_running_bn_N"]) == 2
     assert r"| sim2real \| 0 context \| NRMSE % |" in (spread / "spread.md").read_text()
     assert (spread / "spread.png").stat().st_size > 1000
+    b = json.loads((smoke_run / "results" / "benchmarks" / "training_budget.json").read_text())
+    assert b["points"] == {"default": {}, "f2": {"epochs": 1, "frame_every": 2}}
+    shape = b["figures"]["shape | all | camera | force NRMSE %"]
+    assert shape["default"]["mean"] == pytest.approx(f["shape | all | camera | force NRMSE %"]["s0_auto"])
+    assert shape["f2"]["n"] == 1 and shape["f2"]["mean"] != shape["default"]["mean"]
+    full = json.loads((spread / "s0_auto" / "train" / "plain" / "history.json").read_text())
+    half = json.loads((spread / "s0_auto_f2" / "train" / "plain" / "history.json").read_text())
+    assert (half["frame_every"], len(half["epoch"])) == (2, 1)
+    assert full["n_train"] / 2 <= half["n_train"] <= full["n_train"] / 2 + 10  # ceil per scene
+    cpu = b["figures"]["train | all models | CPU min"]
+    assert 0 < cpu["f2"]["mean"] and 0 < cpu["default"]["mean"]
+    assert "worst" in "".join(b["figures"])  # the worst pitch and occlusion level
+    assert (smoke_run / "results" / "benchmarks" / "training_budget.png").stat().st_size > 1000
 
 
 def test_smoke_renders_are_pixel_aligned(smoke_run):

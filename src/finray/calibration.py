@@ -253,13 +253,25 @@ def shard_times(shards) -> np.ndarray:
     return np.concatenate(t)
 
 
+#: the cross-fitting choices of :func:`fold_units`
+FOLDS = ("object", "take", "half", "both")
+
+
 def fold_units(table, folds: str) -> list[np.ndarray]:
-    """The cross-fitting labellings of context frames (a table with ``take`` and
-    ``t_s``): ``take`` (each take predicted by heads fitted without it: a new scene),
-    ``half`` (each take's second half by heads fitted on the first halves, and back: a
-    new moment of a seen scene) or ``both``. A single take has halves only."""
-    if folds not in ("take", "half", "both"):
-        raise ValueError(f"the folds must be take, half or both, not {folds!r}")
+    """The cross-fitting labellings of context frames (a table with ``take``, ``t_s``
+    and, for ``object``, ``object``): ``take`` (each take predicted by heads fitted
+    without it: a new scene), ``half`` (each take's second half by heads fitted on the
+    first halves, and back: a new moment of a seen scene), ``both``, or ``object`` (each
+    object predicted by heads fitted without any of its takes: a new object, as the test
+    objects are; with a single object, as ``both``). A single take has halves only."""
+    if folds not in FOLDS:
+        raise ValueError(f"the folds must be one of {', '.join(FOLDS)}, not {folds!r}")
+    if folds == "object":
+        if "object" not in table:
+            raise ValueError("object folds need the frames' objects (an 'object' column)")
+        if table["object"].nunique() >= 2:
+            return [table["object"].to_numpy()]
+        folds = "both"
     late = table.groupby("take")["t_s"].transform(lambda s: s > s.median()).to_numpy()
     sets = []
     if folds in ("take", "both") and table["take"].nunique() >= 2:
@@ -322,7 +334,7 @@ def fit_rig(model, features, force_N, unit_sets, fit, priors: Priors | None = No
     return heads, cal
 
 
-def calibrate_takes(takes, model_path, out_json, ingest_params, fit, folds: str = "both",
+def calibrate_takes(takes, model_path, out_json, ingest_params, fit, folds: str = "object",
                     priors: Priors | None = None,
                     sampler: Sampler | None = None, level: float = 0.9, log=print) -> dict:
     """``finray calibrate``: ingest the take folders (:func:`finray.recording.ingest`,

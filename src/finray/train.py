@@ -581,13 +581,17 @@ def validation_scenes(scene_ids, fraction: float, seed: int) -> set[str]:
 def train_from_shards(shards, out_dir: str | Path, net_cfg: NetConfig, cfg: TrainConfig,
                       augment: AugmentConfig | None, val_fraction: float = 0.1,
                       occlusion_levels: dict | None = None, preprocess: dict | None = None,
-                      forces: tuple[str, ...] = ("fx",), log=print) -> dict:
+                      forces: tuple[str, ...] = ("fx",), frame_every: int = 1, log=print) -> dict:
     """Train on the shards (force components ``forces``, ``fx`` first; ``net_cfg.n_forces``
     is set to match), keep the epoch ``cfg.keep`` chooses and write
     ``model.pt``, ``model.ts`` (TorchScript), ``model.onnx`` and ``model.force.onnx``
-    (ONNX), ``history.json`` and ``curves.png``. ``cuda`` without a GPU stops before
-    the data load."""
+    (ONNX), ``history.json`` and ``curves.png``. ``frame_every``: train and validate on
+    every ``frame_every``-th frame of each scene (the rendered frames are interpolated
+    between solver frames, so neighbours are near copies; the training-budget study).
+    ``cuda`` without a GPU stops before the data load."""
     resolve_device(cfg.device, "train.device")
+    if int(frame_every) < 1:
+        raise ValueError(f"train.frame_every must be >= 1, got {frame_every}")
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     forces = tuple(forces)
@@ -595,7 +599,8 @@ def train_from_shards(shards, out_dir: str | Path, net_cfg: NetConfig, cfg: Trai
         raise ValueError(f"train.forces must start with fx (the headline force), got {list(forces)}")
     net_cfg = replace(net_cfg, n_forces=len(forces))
     camera = augment is not None and augment.camera_p > 0
-    data = load_split(shards, (net_cfg.height, net_cfg.width), forces=forces, camera=camera)
+    data = load_split(shards, (net_cfg.height, net_cfg.width), every=frame_every, forces=forces,
+                      camera=camera)
     val_ids = validation_scenes(data["scene_id"], val_fraction, cfg.seed)
     is_val = np.isin(data["scene_id"], list(val_ids))
     tr = {k: v[~is_val] for k, v in data.items()}
@@ -607,14 +612,15 @@ def train_from_shards(shards, out_dir: str | Path, net_cfg: NetConfig, cfg: Trai
     if camera and val is not None:  # validate on both views of the validation frames
         val = (np.concatenate([va["images"], va["camera_images"]]), np.concatenate([va["stress"]] * 2),
                np.concatenate([va["force_N"]] * 2))
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     model, hist = train(tr["images"], tr["stress"], tr["force_N"], val, net_cfg, cfg, aug, log=log,
                         camera_images=tr.get("camera_images"))
-    seconds = time.perf_counter() - t0
+    seconds, cpu_seconds = time.perf_counter() - t0, time.process_time() - c0
     extra = {"train_config": asdict(cfg), "augment": asdict(augment) if augment else None,
              "cpu": cpu_name(), "device": hist.device, "torch_threads": torch.get_num_threads(),
              "validation_scenes": sorted(val_ids), "n_train": int(len(tr["images"])),
              "n_val": int(len(va["images"])), "train_seconds": seconds,
+             "train_cpu_seconds": cpu_seconds, "frame_every": int(frame_every),
              "forces": [FORCE_COMPONENTS[c] for c in forces]}
     save_checkpoint(model, hist, out_dir / "model.pt", extra)
     export_torchscript(model, out_dir / "model.ts", preprocess, extra["forces"])

@@ -270,7 +270,8 @@ def eval_models(*names, train_dir=TRAIN):
 
 
 # The spread study (spread.smk): a variant s<seed>_<type> retrains every model with that
-# seed and numeric type (train.bf16: auto, fp32 = false, bf16 = true)
+# seed and numeric type (train.bf16: auto, fp32 = false, bf16 = true); s<seed>_<type>_<point>
+# also with a point of the training-budget study (benchmarks.training_budget.points)
 SPREAD = f"{RESULTS}/evaluate/spread"
 SPREAD_TYPES = {"auto": "auto", "fp32": False, "bf16": True}
 
@@ -282,9 +283,10 @@ def train_dir(wildcards):
     return f"{SPREAD}/{variant}/train" if variant else TRAIN
 
 
-def spread_variant(seed, bf16):
-    """The variant name of a seed and a train.bf16 value."""
-    return f"s{seed}_" + {str(v).lower(): k for k, v in SPREAD_TYPES.items()}[str(bf16).lower()]
+def spread_variant(seed, bf16, point=None):
+    """The variant name of a seed, a train.bf16 value and a budget point (None: the run's)."""
+    kind = {str(v).lower(): k for k, v in SPREAD_TYPES.items()}[str(bf16).lower()]
+    return f"s{seed}_{kind}" + (f"_{point}" if point and point != "default" else "")
 
 
 def spread_variants():
@@ -293,10 +295,22 @@ def spread_variants():
     return [f"s{s}_{t}" for t in sp["types"] for s in sp["seeds"]]
 
 
+def budget_points():
+    """The training-budget study's points: "default" (the train section), then the config's."""
+    return ["default"] + list(config["benchmarks"]["training_budget"]["points"])
+
+
+def budget_variants():
+    """point -> its variants (one per seed of benchmarks.training_budget, the run's bf16)."""
+    seeds = config["benchmarks"]["training_budget"]["seeds"]
+    return {p: [spread_variant(s, config["train"]["bf16"], p) for s in seeds] for p in budget_points()}
+
+
 def spread_train_params(wildcards):
-    """The run's train section with the variant's seed and bf16."""
-    seed, kind = wildcards.variant[1:].split("_")
-    return canonical({**section("train", drop=("models",)), "seed": int(seed),
+    """The run's train section with the variant's seed, bf16 and budget point."""
+    seed, kind, *point = wildcards.variant[1:].split("_")
+    over = config["benchmarks"]["training_budget"]["points"][point[0]] if point else {}
+    return canonical({**section("train", drop=("models",)), **over, "seed": int(seed),
                       "bf16": SPREAD_TYPES[kind]})
 
 

@@ -9,7 +9,7 @@
 # results/evaluate/spread/<variant>/, with the same rules' scripts as the run's own.
 
 wildcard_constraints:
-    variant=r"s\d+_(auto|fp32|bf16)",
+    variant=r"s\d+_(auto|fp32|bf16)(_[A-Za-z0-9]+)?",
 
 
 rule spread_train:
@@ -54,7 +54,7 @@ use rule evaluate_experiment as spread_experiment with:
     log:
         f"{RESULTS}/logs/spread/{{variant}}/{{experiment}}.log",
     benchmark:
-        f"{RESULTS}/benchmarks/studies/spread/{{variant}}_{{experiment}}.tsv"
+        f"{RESULTS}/benchmarks/studies/spread/{{variant}}_experiment_{{experiment}}.tsv"
 
 
 use rule sim2real as spread_sim2real with:
@@ -101,3 +101,36 @@ rule spread_summary:
         "../../envs/finray.yaml"
     script:
         "../scripts/spread_summary.py"
+
+
+rule training_budget:
+    # the training-budget study (benchmarks.training_budget): not in the default run
+    input:
+        experiments=expand(f"{SPREAD}/{{variant}}/{{experiment}}/metrics.json",
+                           variant=sum(budget_variants().values(), []), experiment=EXPERIMENTS),
+        sim2real=expand(f"{SPREAD}/{{variant}}/sim2real/summary.json",
+                        variant=sum(budget_variants().values(), [])),
+        histories=expand(f"{SPREAD}/{{variant}}/train/{{model}}/history.json",
+                         variant=sum(budget_variants().values(), []), model=model_names()),
+        # the training jobs' CPU time (Snakemake's benchmark files, products of spread_train)
+        cpu=expand(f"{RESULTS}/benchmarks/studies/spread/{{variant}}_train_{{model}}.tsv",
+                   variant=sum(budget_variants().values(), []), model=model_names()),
+    output:
+        json=f"{RESULTS}/benchmarks/training_budget.json",
+        table=f"{RESULTS}/benchmarks/training_budget.md",
+        csv=f"{RESULTS}/benchmarks/training_budget.csv",
+        figure=report(f"{RESULTS}/benchmarks/training_budget.png",
+                      caption="../report/training_budget.rst", category="Training"),
+    params:
+        variants=budget_variants(),
+        points=canonical({"default": {}} | config["benchmarks"]["training_budget"]["points"]),
+    log:
+        f"{RESULTS}/logs/spread/training_budget.log",
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=5,
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/training_budget.py"

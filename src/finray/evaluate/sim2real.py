@@ -42,7 +42,7 @@ def paper_mse_N2() -> dict[int, float]:
 @dataclass(frozen=True)
 class Sim2RealConfig:
     heads: HeadFit = field(default_factory=HeadFit)
-    folds: str = "both"
+    folds: str = "object"
     level: float = 0.9
     max_context: int = 2
     sim_every: int = 4
@@ -54,7 +54,7 @@ class Sim2RealConfig:
     def from_params(cls, p: dict) -> "Sim2RealConfig":
         pr = p.get("priors", {})
         return cls(heads=HeadFit(**p.get("heads", {})),
-                   folds=str(p.get("folds", "both")),
+                   folds=str(p.get("folds", "object")),
                    level=float(p.get("level", 0.9)), max_context=int(p.get("max_context", 2)),
                    sim_every=int(p.get("sim_every", 4)), sim_folds=int(p.get("sim_folds", 5)),
                    priors=Priors(**{k: tuple(v) if isinstance(v, list) else v for k, v in pr.items()}),
