@@ -6,7 +6,8 @@ from shapely.geometry import Polygon
 from finray.fea.assembly import ElasticAssembler, ElementBlock
 from finray.geometry.primitives import edge_load, rectangle_mesh
 from finray.fea.material import NeoHookean
-from finray.fea.solver import Model, NewtonOptions, newton
+from finray.fea.newton import NewtonOptions, newton
+from finray.fea.problem import Model
 from finray.geometry.mesh import triangulate_polygon
 
 MAT = NeoHookean.from_E_nu(12.0, 0.45)

@@ -7,7 +7,9 @@ from finray.geometry.primitives import (arc_polyline, circle_polyline, graded_co
                                    segment_polyline)
 from finray.fea.contact import ContactModel, ContactParams, split_p2_edges
 from finray.fea.material import NeoHookean
-from finray.fea.solver import Model, NewtonOptions, StepOptions, march
+from finray.fea.newton import NewtonOptions
+from finray.fea.problem import Model
+from finray.fea.stepping import StepOptions, march
 
 MAT = NeoHookean.from_E_nu(12.0, 0.45)
 
@@ -140,7 +142,7 @@ def test_block_dragged_under_normal_load_slips_at_mu_N():
 def test_linear_solver_backends_agree():
     """CHOLMOD (scikit-sparse's or cvxopt's, reused analysis), cholespy and SuperLU give
     the same contact solution."""
-    from finray.fea import solver as S
+    from finray.fea import linear as S
 
     backends = S.available_backends()
     mesh = rectangle_mesh(np.linspace(-3, 3, 13), np.linspace(-2, 0, 5), order=2)

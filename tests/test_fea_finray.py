@@ -10,10 +10,10 @@ from shapely.geometry import Point
 
 import finray
 from finray.config import default_config_path, load_config
-from finray.fea.output import material_law
+from finray.fea.scene import material_law
 from finray.fea.simulate import (DeformableObject, SimulationError, SimulationOptions,
                                  front_contact_circle, simulate)
-from finray.fea.solver import NewtonOptions
+from finray.fea.newton import NewtonOptions
 from finray.geometry.finger import FingerParams, mesh_finger
 from finray.geometry.mesh import triangulate_polygon
 
@@ -116,7 +116,7 @@ def scene_inputs():
 def test_scene_summary_carries_the_convergence_checks(scene_inputs, tmp_path):
     import json
 
-    from finray.fea.output import run_scene
+    from finray.fea.scene import run_scene
 
     cfg, finger, obj = scene_inputs
     report = tmp_path / "failed" / "c20.json"
@@ -139,7 +139,7 @@ def test_scene_summary_carries_the_convergence_checks(scene_inputs, tmp_path):
 def test_equilibrium_check_fails_the_scene_and_leaves_a_report(scene_inputs, tmp_path):
     import json
 
-    from finray.fea.output import run_scene
+    from finray.fea.scene import run_scene
     from finray.benchmarks.fea import with_overrides
 
     cfg, finger, obj = scene_inputs
@@ -158,7 +158,7 @@ def test_equilibrium_check_fails_the_scene_and_leaves_a_report(scene_inputs, tmp
 SCENE = """
 import sys, numpy as np
 from finray.config import default_config_path, load_config
-from finray.fea.output import material_law
+from finray.fea.scene import material_law
 from finray.fea.simulate import SimulationOptions, front_contact_circle, simulate
 from finray.geometry.finger import FingerParams, mesh_finger
 law = material_law(load_config(default_config_path()), "ninjaflex")

@@ -81,7 +81,7 @@ def test_psd_projection(mat):
 def test_config_materials_have_sources_and_give_the_laws():
     """The default config's ``materials:`` is the one source of the constants."""
     from finray.config import default_config_path, load_config
-    from finray.fea.output import material_law
+    from finray.fea.scene import material_law
 
     cfg = load_config(default_config_path())
     mats = cfg["materials"]

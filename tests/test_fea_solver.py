@@ -6,7 +6,8 @@ import pytest
 from finray.fea.assembly import ElementBlock
 from finray.geometry.primitives import edge_load, rectangle_mesh
 from finray.fea.material import NeoHookean
-from finray.fea.solver import Model, NewtonOptions, newton
+from finray.fea.newton import NewtonOptions, newton
+from finray.fea.problem import Model
 
 MAT = NeoHookean.from_E_nu(12.0, 0.45)
 
@@ -128,7 +129,7 @@ def test_cvxopt_backend_solves_spd_with_a_growing_pattern():
     """Solutions to 1e-10 with the analysis reused, extended by new (contact) entries
     and by an entry outside both the analysed pattern and ``extra``."""
     import scipy.sparse as sp
-    from finray.fea import solver as S
+    from finray.fea import linear as S
 
     assert S.LinearSolver("auto").backend == ("cholmod" if S.HAVE_CHOLMOD else "cvxopt")
     A = _spd()
@@ -150,7 +151,7 @@ def test_cvxopt_backend_raises_not_positive_definite():
     recover on the next SPD matrix (the Newton solver projects the Hessian on a raise
     and checks a direction for descent)."""
     import scipy.sparse as sp
-    from finray.fea import solver as S
+    from finray.fea import linear as S
 
     A = _spd()
     n = A.shape[0]
@@ -173,7 +174,7 @@ def test_cvxopt_backend_raises_not_positive_definite():
 
 
 def test_unknown_linear_solver_is_one_line():
-    from finray.fea import solver as S
+    from finray.fea import linear as S
 
     with pytest.raises(ValueError, match="unknown linear solver 'mkl'"):
         S.LinearSolver("mkl")
@@ -184,7 +185,7 @@ def test_resolve_reuses_the_last_factorisation():
     a chord step is that solve for a new right-hand side."""
     import scipy.sparse as sp
 
-    from finray.fea import solver as S
+    from finray.fea import linear as S
 
     backends = S.available_backends()
     n = 40
@@ -205,7 +206,7 @@ def test_cvxopt_pattern_is_the_union_of_base_and_contact_entries():
     the upper triangle of their union, sorted; a new contact entry re-analyses once."""
     import scipy.sparse as sp
 
-    from finray.fea import solver as S
+    from finray.fea import linear as S
 
     n = 30
     base = sp.diags([-np.ones(n - 1), 3.0 * np.ones(n), -np.ones(n - 1)], [-1, 0, 1], format="csr")

@@ -175,8 +175,8 @@ def _run_simulate(args) -> int:
     import logging
 
     from .config import object_is_meshed, validate_config
-    from .fea.output import run_scene
-    from .fea.solver import SimulationError
+    from .fea.scene import run_scene
+    from .fea.errors import SimulationError
     from .geometry.build import finger_from_config
     from .geometry.finger import mesh_finger
     from .geometry.objects import object_geometry

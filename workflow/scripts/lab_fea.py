@@ -1,6 +1,6 @@
 from pathlib import Path
 
-from finray.fea.output import run_scene
+from finray.fea.scene import run_scene
 from finray.fea.simulate import SimulationError
 from finray.geometry.mesh import TriMesh
 from finray.logs import log_to

@@ -22,8 +22,9 @@ import numpy as np
 import pandas as pd
 
 from ..config import validate_config
-from ..fea.output import material_law, scene_object, simulation_options
-from ..fea.simulate import SimulationError, simulate
+from ..fea.scene import material_law, scene_object, simulation_options
+from ..fea.errors import SimulationError
+from ..fea.simulate import simulate
 from ..geometry.finger import FingerParams, mesh_finger
 from ..geometry.mesh import TriMesh
 from ..geometry.objects import object_geometry

@@ -17,7 +17,7 @@ Continuum Mechanics for FEA*, eq. 6.27)::
 which reduces to linear elasticity with Lame constants ``mu, lam`` at small strain.
 
 The constants (Young's modulus, Poisson's ratio, rigid or not) and their sources are
-the config's ``materials:`` section (``config/config.yaml``); :func:`finray.fea.output.material_law`
+the config's ``materials:`` section (``config/config.yaml``); :func:`finray.fea.scene.material_law`
 builds the law of a configured material.
 """
 from __future__ import annotations

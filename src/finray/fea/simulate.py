@@ -32,10 +32,13 @@ from ..logs import Progress
 from .assembly import ElementBlock
 from .contact import ContactModel, ContactParams, split_p2_edges
 from .material import NeoHookean
-from .solver import Model, NewtonOptions, SimulationError, StepOptions, march
+from .errors import SimulationError
+from .newton import NewtonOptions
+from .problem import Model
+from .stepping import StepOptions, march
 
 __all__ = ["RigidObject", "DeformableObject", "SimulationOptions", "SimulationResult",
-           "simulate", "SimulationError", "boundary_loops"]
+           "simulate", "boundary_loops"]
 
 log = logging.getLogger(__name__)
 #: mm: the record's first, cheap gap probe (one seventh of the 1 mm probe's cost on a
@@ -96,7 +99,7 @@ class SimulationOptions:
     self_neighbour_mm : finger self pairs closer than this along the boundary are
         neighbours, not contacts.
     linear_solver : "auto", "cholmod", "cvxopt", "cholespy" or "splu"
-        (:class:`~finray.fea.solver.LinearSolver`).
+        (:class:`~finray.fea.linear.LinearSolver`).
     psd : "auto" (exact Hessian, projected when not positive definite), True, False.
     stress : compute nodal von Mises stresses.
     log_every_s : a progress line (frame k/n, travel mm, load steps, elapsed s) in the

@@ -28,9 +28,10 @@ import numpy as np
 from ..geometry.mesh import BOUNDARY_TAGS, TriMesh
 from .contact import ContactParams, split_p2_edges
 from .material import NeoHookean
-from .simulate import (DeformableObject, RigidObject, SimulationError, SimulationOptions,
-                       SimulationResult, simulate)
-from .solver import NewtonOptions
+from .errors import SimulationError
+from .simulate import (DeformableObject, RigidObject, SimulationOptions, SimulationResult,
+                       simulate)
+from .newton import NewtonOptions
 
 
 def material_law(cfg: dict, name: str) -> NeoHookean:
@@ -150,7 +151,7 @@ def summary(result: SimulationResult, wall_time_s: float, scene: dict) -> dict:
 
     Checks: ``residual_final_rel`` (the last load step) and ``residual_max_rel`` (all
     load steps) are Newton's free-DOF residual relative to the support forces
-    (:meth:`~finray.fea.solver.Model.residual_norm`), each at most ``residual_tol``;
+    (:meth:`~finray.fea.problem.Model.residual_norm`), each at most ``residual_tol``;
     ``equilibrium_max_rel_error`` is the largest per-frame ``|force on object - clamp
     reaction| / |force|`` of the solved frames (1 on), at most ``equilibrium_tol``; ``line_search_failures`` and
     ``gradient_fallbacks`` count the solver's stalled line searches (including those

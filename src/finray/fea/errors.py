@@ -1,0 +1,20 @@
+"""The FEA stage's errors: a failed simulation and a non-positive pivot."""
+from __future__ import annotations
+
+import numpy as np
+
+
+class NotPositiveDefinite(np.linalg.LinAlgError):
+    """The Cholesky factorisation met a non-positive pivot."""
+
+
+class SimulationError(RuntimeError):
+    """The solve failed; ``step`` is the load-step index, ``load`` the load factor
+    (fraction of the push) it aimed at, ``cause`` a short reason."""
+
+    def __init__(self, message: str, step: int | None = None, load: float | None = None,
+                 cause: str = ""):
+        super().__init__(message)
+        self.step = step
+        self.load = load
+        self.cause = cause

@@ -1,0 +1,125 @@
+"""Load stepping (:func:`march`): the push from 0 to each frame's load factor.
+
+Adaptive steps (halved on failure, doubled after easy steps, bounded by the frame
+spacing), a linear predictor from the previous increment, and friction normal
+forces/tangents lagged at the step start and re-lagged ``friction_lag_iterations``
+times within the step's Newton solve, at each convergence (or first once its step
+falls below ``friction_relag_dx``, off by default).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import SimulationError
+from .newton import NewtonOptions, newton
+from .problem import Model
+
+@dataclass
+class StepOptions:
+    initial_step: float = 0.05  # fraction of the load path
+    max_step: float = 0.05
+    min_step: float = 1e-4
+    grow: float = 2.0
+    easy_iterations: int = 6  # grow the step when Newton took at most this many
+    max_retries: int = 12  # step cuts in a row before giving up
+    friction_lag_iterations: int = 0  # friction re-lags within each step's solve
+    # mm: the first re-lag once Newton's step is this small (0: at convergence). 1e-3 saves
+    # ~13 % of the factorisations but moved a steel scene's force by 6 % at a slip event
+    friction_relag_dx: float = 0.0
+    predictor: bool = True
+    max_driver_lag: float | None = 1e-3  # mm; a larger lag means the object is blocked
+
+
+def march(model: Model, q: np.ndarray, targets, frames: np.ndarray,
+          step_opts: StepOptions | None = None, newton_opts: NewtonOptions | None = None,
+          on_frame=None, friction: bool = True):
+    """Advance the load factor s from its current 0 to each value in ``frames``.
+
+    ``targets(s)`` gives the driver target (2,) at load factor s (also sets
+    ``model.load = s`` for external forces). ``on_frame(k, s, q, info)`` is called
+    at every frame with the Newton iterations and wall time since the previous one
+    and ``residual_rel``, the residual of the solve that reached the frame
+    (:meth:`Model.residual_norm`).
+    Raises :class:`SimulationError` naming the step and the cause on failure.
+    Returns the final q.
+    """
+    so = step_opts or StepOptions()
+    no = newton_opts or NewtonOptions()
+    s = 0.0
+    ds = so.initial_step
+    step = 0
+    q_prev, s_prev = None, None
+    iters_frame = 0
+    residual = np.nan
+    t_frame = time.perf_counter()
+    for k, s_f in enumerate(frames):
+        while s < s_f - 1e-12:
+            s_new = min(s + ds, s_f)
+            if s_f - s_new < 0.25 * ds:  # avoid a sliver step before the frame
+                s_new = s_f
+            retries = 0
+            while True:
+                step += 1
+                model.load = s_new
+                model.t_target = np.asarray(targets(s_new), float)
+                U_start = model.U(q)
+                model.U_step_start = U_start
+                if model.contact is not None:
+                    model.contact.update_friction(U_start if friction else None)
+                q_init = q
+                if so.predictor and q_prev is not None and s > s_prev:
+                    q_init = _predict(model, q, q_prev, (s_new - s) / (s - s_prev))
+                relag = None
+                if friction and model.contact is not None and model.contact.params.mu > 0:
+                    relag = lambda q_: model.contact.update_friction(model.U(q_))  # noqa: E731
+                res = newton(model, q_init, no, relag, so.friction_lag_iterations,
+                             so.friction_relag_dx)
+                iters = res.iterations
+                iters_frame += iters
+                if res.converged and model.has_driver and so.max_driver_lag is not None:
+                    lag = float(np.abs(model.t(res.q) - model.t_target).max())
+                    if lag > so.max_driver_lag:
+                        raise SimulationError(
+                            f"load step {step} (load factor {s:.5f} -> {s_new:.5f}): the "
+                            f"driven object lags its prescribed position by {lag:.3g} mm; it "
+                            f"is blocked (e.g. pressed against the clamped base)",
+                            step=step, load=s_new, cause="object blocked")
+                if res.converged:
+                    break
+                retries += 1
+                if retries > so.max_retries or (s_new - s) / 2 < so.min_step:
+                    raise SimulationError(
+                        f"load step {step} (load factor {s:.5f} -> {s_new:.5f}) failed: "
+                        f"{res.cause}", step=step, load=s_new, cause=res.cause)
+                ds = (s_new - s) / 2
+                s_new = s + ds
+            q_prev, s_prev = q, s
+            q, s = res.q, s_new
+            residual = res.residual
+            if iters <= so.easy_iterations:
+                ds = min(so.max_step, ds * so.grow)
+        if on_frame is not None:
+            on_frame(k, s, q, {"newton_iterations": iters_frame,
+                               "wall_time_s": time.perf_counter() - t_frame, "steps": step,
+                               "residual_rel": residual})
+        iters_frame = 0
+        t_frame = time.perf_counter()
+    return q
+
+
+def _predict(model: Model, q, q_prev, ratio):
+    """Linear extrapolation of the previous increment, cut to a valid, collision-free
+    fraction (falls back to q)."""
+    d = (q - q_prev) * ratio
+    alpha = 1.0
+    if model.contact is not None:
+        alpha = min(1.0, model.contact.max_step(model.U(q), model.U(q + d)))
+    for _ in range(4):
+        q_try = q + alpha * d
+        if np.isfinite(model.energy(q_try)):
+            return q_try
+        alpha *= 0.5
+    return q
