@@ -127,6 +127,31 @@ def test_60_fps_take_and_4_2_0_chroma(tmp_path, capsys):
     assert min(iou(segment_finger(f, colour), m) for f, m in zip(frames[::10], truth["masks"][::10])) > 0.8
 
 
+def test_a_frame_that_does_not_decode_is_kept_as_unreadable(tmp_path, capsys):
+    """One packet of the video zeroed: its frame is a row with status unreadable at its
+    time, and ingest.json says why (finray.media's policy), not dropped."""
+    write_take(tmp_path / "take", **SMALL)
+    video = tmp_path / "take" / "take.mp4"
+    with av.open(str(video)) as c:
+        s = c.streams.video[0]
+        packets = [(round(p.pts * p.time_base * s.average_rate), p.pos, p.size)
+                   for p in c.demux(s) if p.size and not p.is_keyframe]
+    rank, pos, size = max(packets)  # the last frame: no other frame depends on it
+    data = bytearray(video.read_bytes())
+    data[pos:pos + size] = bytes(size)
+    video.write_bytes(bytes(data))
+    rc, cap = ingest_cli(tmp_path / "take", tmp_path / "out", capsys)
+    assert rc == 0, cap.err
+    table = pd.read_csv(tmp_path / "out" / "frames.csv")
+    assert len(table) == 75 and sorted(table["frame"]) == list(range(75))
+    bad = table[table["status"] == "unreadable"]
+    assert len(bad) == 1 and bad["t_s"].iloc[0] == pytest.approx(rank / 30, abs=1e-3)
+    summary = json.loads((tmp_path / "out" / "ingest.json").read_text())
+    assert summary["frames"]["unreadable"] == 1
+    assert [x.split(":")[0] for x in summary["lost"]] == [f"frame {bad['frame'].iloc[0]}"]
+    assert "the frame does not decode" in summary["lost"][0]
+
+
 def test_mjpeg_avi_take(tmp_path, capsys):
     truth = write_take(tmp_path / "take", kind="avi", offset_s=0.5, **SMALL)
     rc, cap = ingest_cli(tmp_path / "take", tmp_path / "out", capsys)

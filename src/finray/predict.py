@@ -29,11 +29,10 @@ import numpy as np
 import torch
 
 from .dataset.imageops import EmptyMaskError, base_anchored_box, segment, silhouette_input
+from .media import IMAGE_SUFFIXES, VIDEO_SUFFIXES, MediaError, one_line, read_image, video_frames
 from .precision import DeviceError, resolve_device
 
 BACKENDS = ("auto", "onnx", "torchscript")
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
-VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm")
 
 
 class InputError(ValueError):
@@ -47,11 +46,6 @@ class DeviceInputError(InputError, DeviceError):
 class FrameError(InputError):
     """One frame that cannot be predicted: unreadable, not an image, or no finger in it."""
 
-
-def _one_line(exc: BaseException) -> str:
-    """``Type: first line`` of an exception from a reader (some span many lines)."""
-    text = str(exc).strip().splitlines()
-    return f"{type(exc).__name__}: {text[0] if text else ''}".rstrip(": ")
 
 #: The paper's inference time (GPU), for comparison with :func:`latency`.
 PAPER_LATENCY_MS = 8.0
@@ -86,7 +80,7 @@ class Predictor:
         try:
             self.meta = json.loads(meta_path.read_text())
         except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise InputError(f"{meta_path} is not the model's JSON settings ({_one_line(exc)})"
+            raise InputError(f"{meta_path} is not the model's JSON settings ({one_line(exc)})"
                              ) from None
         self.size = (self.meta["height"], self.meta["width"])
         #: Names of the force outputs, in order (``fx_N`` first; exports before the force
@@ -141,14 +135,14 @@ class Predictor:
                 self._full = ort.InferenceSession(str(onnx_full), opts, providers=providers)
                 self._force = ort.InferenceSession(str(onnx_force), opts, providers=providers)
             except Exception as exc:  # onnxruntime's own error types
-                raise InputError(f"cannot load the ONNX model {onnx_full} ({_one_line(exc)})"
+                raise InputError(f"cannot load the ONNX model {onnx_full} ({one_line(exc)})"
                                  ) from None
         else:
             torch.set_num_threads(threads)
             try:
                 self.model = torch.jit.load(str(model_path), map_location=self.device).eval()
             except (RuntimeError, ValueError) as exc:
-                raise InputError(f"{model_path} is not a TorchScript model ({_one_line(exc)})"
+                raise InputError(f"{model_path} is not a TorchScript model ({one_line(exc)})"
                                  ) from None
             self._has_force = hasattr(self.model, "force")  # exports before the force path
 
@@ -336,79 +330,30 @@ def read_frames(path: str | Path):
 
 def _read_image(path: Path) -> np.ndarray | FrameError:
     """The image (H, W[, C]) of a file, or the :class:`FrameError` saying why not."""
-    from PIL import Image
-
-    try:
-        with Image.open(path) as im:
-            if im.mode not in ("L", "LA", "RGB", "RGBA", "I", "I;16", "F"):
-                im = im.convert("RGB")  # palette, bilevel, CMYK, ...
-            img = np.asarray(im)
-    except Exception as exc:  # any decoder's error on a bad file is this frame's, not the run's
-        return FrameError(f"not a readable image ({_one_line(exc)})")
-    if img.ndim == 3 and img.shape[-1] in (1, 2):  # grey (+ alpha)
-        img = img[..., 0]
-    elif img.ndim == 3 and img.shape[-1] == 4:  # RGBA
-        img = img[..., :3]
-    if img.ndim not in (2, 3) or img.size == 0 or (img.ndim == 3 and img.shape[-1] != 3):
-        return FrameError(f"not a single grey or colour image (array of shape {img.shape})")
-    return img
+    img, why = read_image(path)
+    return img if why is None else FrameError(why)
 
 
 def _video_frames(path: Path):
-    """``(name, rgb (H, W, 3) uint8 | FrameError)`` of each frame of a video; names
-    ``<stem>_<k:05d>``, k the frame's rank in the stream (from its time stamp, so that
-    a lost frame leaves its rank out). A packet that does not decode comes as a
-    FrameError; a stream that cannot be read on ends the video with one; frames the
-    container counts that never came out of the decoder (a lost reference frame) come
-    as FrameErrors at the end."""
-    import av
-
+    """``(name, rgb (H, W, 3) uint8 | FrameError)`` of each frame of a video
+    (:func:`finray.media.video_frames`: a lost frame comes as a FrameError in its
+    place); names ``<stem>_<k:05d>``, k the frame's rank in the stream (from its time
+    stamp, so that a lost frame leaves its rank out; by order where a frame has none),
+    ``<stem> (rest)`` for a stream that cannot be read on."""
     try:
-        container = av.open(str(path))
-    except (av.FFmpegError, OSError) as exc:
-        raise InputError(f"{path} is not a readable video ({_one_line(exc)})") from None
-    if not container.streams.video:
-        container.close()
-        raise InputError(f"{path} has no video stream")
-    stream = container.streams.video[0]
-    rate = stream.average_rate or stream.guessed_rate
-    start = stream.start_time or 0
+        frames = video_frames(path)
+    except MediaError as exc:
+        raise InputError(str(exc)) from None
     count = iter(range(1 << 62))  # ranks by order where a time stamp is missing
-    seen: set[str] = set()
 
-    def name(pts, time_base) -> str:
-        if pts is None or not rate or not time_base:
-            n = f"{path.stem}_{next(count):05d}"
-        else:
-            n = f"{path.stem}_{round((pts - start) * time_base * rate):05d}"
-        seen.add(n)
-        return n
-
-    def frames():
-        with container:
-            packets = container.demux(stream)
-            while True:
-                try:
-                    packet = next(packets)
-                except StopIteration:
-                    break
-                except av.FFmpegError as exc:
-                    yield (f"{path.stem} (rest)",
-                           FrameError(f"the video cannot be read on ({_one_line(exc)})"))
-                    return
-                try:
-                    decoded = packet.decode()
-                except av.FFmpegError as exc:
-                    yield (name(packet.pts, packet.time_base),
-                           FrameError(f"the frame does not decode ({_one_line(exc)})"))
-                    continue
-                for fr in decoded:
-                    yield name(fr.pts, fr.time_base), fr.to_ndarray(format="rgb24")
-        lost = [n for n in (f"{path.stem}_{k:05d}" for k in range(stream.frames)) if n not in seen]
-        for n in lost:
-            yield n, FrameError("the frame was not decoded (a frame it depends on was lost)")
-
-    return frames()
+    def named():
+        for f in frames:
+            if f.rest:
+                yield f"{path.stem} (rest)", FrameError(f.error)
+                continue
+            name = f"{path.stem}_{f.rank if f.rank is not None else next(count):05d}"
+            yield name, (f.image if f.error is None else FrameError(f.error))
+    return named()
 
 
 def _colour_segmenter(spec: dict):

@@ -243,9 +243,14 @@ def ingest(take: str | Path, out_dir: str | Path, params: IngestParams | None = 
     counts = {s: int((table["status"] == s).sum()) for s in STATUSES}
     summary = {"take": str(take), "video": str(src.path), "kind": src.kind,
                "frame_rate_hz": src.rate_hz, "frames": counts, "colour": colour.to_dict(),
-               "sync": sync, "scale": scale, "wall_s": time.perf_counter() - t_wall,
+               "sync": sync, "scale": scale, "lost": src.lost,
+               "wall_s": time.perf_counter() - t_wall,
                "cpu_s": time.process_time() - t_cpu}
     (out_dir / "ingest.json").write_text(json.dumps(summary, indent=1))
+    for why in src.lost[:5]:
+        log(f"lost: {why}")
+    if len(src.lost) > 5:
+        log(f"lost: {len(src.lost) - 5} more (ingest.json)")
     log(f"{counts['ok']} frames -> {out_dir / 'shard.npz'} ({counts['no_finger']} without the "
         f"finger, {counts['bad_base']} with a mis-segmented base, {counts['unreadable']} unreadable, "
         f"{counts['no_force']} outside the force log); "

@@ -20,13 +20,13 @@ Every check fails with :class:`TakeError`, whose text is one line naming the fil
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm")
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
+from ..media import VIDEO_SUFFIXES, MediaError, one_line, read_image, video_frames, video_info
+
 FORCE_COLUMNS = ("fx_N", "fy_N", "fz_N")
 #: Fewest sensor samples and frames a take may have (a clock offset needs a shape).
 MIN_SAMPLES = 10
@@ -34,11 +34,6 @@ MIN_SAMPLES = 10
 
 class TakeError(ValueError):
     """A take that cannot be ingested; ``str`` is one line."""
-
-
-def _one_line(exc: BaseException) -> str:
-    text = str(exc).strip().splitlines()
-    return f"{type(exc).__name__}: {text[0] if text else ''}".rstrip(": ")
 
 
 _NUMBER = {"type": "number"}
@@ -85,7 +80,7 @@ def read_take_json(path: Path) -> dict:
     try:
         meta = json.loads(path.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise TakeError(f"{path} is not JSON ({_one_line(exc)})") from None
+        raise TakeError(f"{path} is not JSON ({one_line(exc)})") from None
     err = jsonschema.exceptions.best_match(jsonschema.Draft202012Validator(TAKE_SCHEMA)
                                            .iter_errors(meta))
     if err is not None:
@@ -119,7 +114,7 @@ def _read_csv(path: Path, required: tuple[str, ...]):
     try:
         df = pd.read_csv(path, skipinitialspace=True)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
-        raise TakeError(f"{path} is not a readable CSV ({_one_line(exc)})") from None
+        raise TakeError(f"{path} is not a readable CSV ({one_line(exc)})") from None
     df.columns = [str(c).strip() for c in df.columns]
     for col in required:
         if col not in df.columns:
@@ -150,8 +145,10 @@ class FrameSource:
     """The frames of a take: ``kind`` ("video" or "frames"), ``path``, ``n_frames`` (as
     the container or frames.csv says; a video may deliver fewer) and ``rate_hz``
     (nominal). Iterate for ``(index, t_s, rgb (H, W, 3) uint8 | None)``; ``None``: a
-    frame that cannot be read (kept, so that nothing is lost). ``rotate_deg``: each
-    frame turned counter-clockwise by this much (take.json's ``rotate_deg``)."""
+    frame that cannot be read (kept in its place, so that nothing is lost:
+    :mod:`finray.media`'s policy); a video that cannot be read on after its first frames
+    ends there, its reason in ``lost``. ``rotate_deg``: each frame turned
+    counter-clockwise by this much (take.json's ``rotate_deg``)."""
 
     kind: str
     path: Path
@@ -160,6 +157,7 @@ class FrameSource:
     _times: np.ndarray | None = None
     _files: list | None = None
     rotate_deg: int = 0
+    lost: list = field(default_factory=list)  # why frames were lost (one line each)
 
     def __iter__(self):
         frames = self._video() if self.kind == "video" else self._folder()
@@ -170,51 +168,32 @@ class FrameSource:
                 for k, t, rgb in frames)
 
     def _folder(self):
-        from PIL import Image
-
         for k, (t, f) in enumerate(zip(self._times, self._files)):
-            try:
-                with Image.open(f) as im:
-                    rgb = np.asarray(im.convert("RGB"))
-            except Exception:  # any decoder's error on a bad file is this frame's
-                rgb = None
+            rgb, why = read_image(f, colour=True)
+            if why is not None:
+                self.lost.append(f"{f.name}: {why}")
             yield k, float(t), rgb
 
     def _video(self):
-        import av
-
         try:
-            container = av.open(str(self.path))
-        except (av.FFmpegError, OSError) as exc:
-            raise TakeError(f"{self.path} is not a readable video ({_one_line(exc)})") from None
-        with container:
-            stream = container.streams.video[0]
-            stream.thread_type = "AUTO"
-            start = stream.start_time or 0
-            k = 0
-            try:
-                for packet in container.demux(stream):
-                    try:
-                        frames = packet.decode()
-                    except av.FFmpegError:
-                        continue  # a corrupt packet: its frame is lost, the rest goes on
-                    for fr in frames:
-                        t = ((fr.pts - start) * fr.time_base if fr.pts is not None
-                             else k / self.rate_hz)
-                        yield k, float(t), fr.to_ndarray(format="rgb24")
-                        k += 1
-            except av.FFmpegError as exc:
-                if k == 0:
-                    raise TakeError(f"{self.path} is not a readable video "
-                                    f"({_one_line(exc)})") from None
-                # a stream that cannot be read on: the frames so far are kept
+            frames = video_frames(self.path, threads=True)
+        except MediaError as exc:
+            raise TakeError(str(exc)) from None
+        n_read = 0
+        for f in frames:
+            if f.rest and n_read == 0:
+                raise TakeError(f"{self.path} is not a readable video ({f.error})")
+            if f.error is not None:
+                self.lost.append(f"frame {f.index}: {f.error}")
+                if f.rest:  # the frames so far are kept
+                    return
+            n_read += f.image is not None
+            yield f.index, float(f.t_s if f.t_s is not None else f.index / self.rate_hz), f.image
 
 
 def open_frames(take: Path, meta: dict) -> FrameSource:
     """The take's video (``meta["video"]`` or the one video file in ``take``) or its
     ``frames/`` folder with ``frames.csv``."""
-    import av
-
     if meta.get("video"):
         videos = [take / meta["video"]]
         if not videos[0].is_file():
@@ -225,21 +204,14 @@ def open_frames(take: Path, meta: dict) -> FrameSource:
         raise TakeError(f"{take}: {len(videos)} videos ({', '.join(p.name for p in videos)}); "
                         "name the take's in take.json under 'video'")
     if videos:
-        path = videos[0]
         try:
-            with av.open(str(path)) as c:
-                if not c.streams.video:
-                    raise TakeError(f"{path} has no video stream")
-                s = c.streams.video[0]
-                rate = float(s.average_rate or s.guessed_rate or 0)
-                n = int(s.frames or 0)
-                if not n and s.duration and rate:
-                    n = int(round(float(s.duration * s.time_base) * rate))
-        except (av.FFmpegError, OSError) as exc:
-            raise TakeError(f"{path} is not a readable video ({_one_line(exc)})") from None
-        if not rate:
-            raise TakeError(f"{path}: the video stream has no frame rate")
-        return FrameSource("video", path, n, rate, rotate_deg=int(meta.get("rotate_deg", 0)))
+            info = video_info(videos[0])
+        except MediaError as exc:
+            raise TakeError(str(exc)) from None
+        if not info.rate_hz:
+            raise TakeError(f"{videos[0]}: the video stream has no frame rate")
+        return FrameSource("video", videos[0], info.n_frames, info.rate_hz,
+                           rotate_deg=int(meta.get("rotate_deg", 0)))
     folder = take / "frames"
     if not folder.is_dir():
         raise TakeError(f"{take}: no video ({', '.join(VIDEO_SUFFIXES)}) and no frames/ folder")

@@ -1,0 +1,165 @@
+"""Camera frames in: image files and videos (PyAV), with one lost-frame policy.
+
+Read by ``finray predict`` (:mod:`finray.predict`) and by ingest (:mod:`finray.recording`).
+The policy: a frame that cannot be read is never dropped silently. It comes out of the
+readers as a :class:`Frame` with ``image`` None and ``error`` saying why (a file that
+does not decode, a video packet that does not decode, a stream that cannot be read on,
+a frame the container counts that never came out of the decoder), in its place in the
+sequence, so that the caller reports it and goes on. A source that cannot be read at
+all raises :class:`MediaError`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
+VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm")
+
+
+class MediaError(ValueError):
+    """A source (file or video) that cannot be read at all; ``str`` is one line."""
+
+
+def one_line(exc: BaseException) -> str:
+    """``Type: first line`` of an exception from a reader (some span many lines)."""
+    text = str(exc).strip().splitlines()
+    return f"{type(exc).__name__}: {text[0] if text else ''}".rstrip(": ")
+
+
+@dataclass
+class Frame:
+    """One frame of a source. ``index``: its place in the sequence the reader gives (0,
+    1, ...; a lost frame gets one too); ``t_s``: its time (s) from the video's time
+    stamps, or None; ``rank``: its rank in the stream from the time stamp and the frame
+    rate, or None; ``image`` (H, W[, 3]) uint8, or None with ``error``; ``rest``: the
+    error ends the video (the stream cannot be read on)."""
+
+    index: int
+    t_s: float | None
+    rank: int | None
+    image: np.ndarray | None
+    error: str | None = None
+    rest: bool = False
+
+
+def read_image(path: str | Path, colour: bool = False) -> tuple[np.ndarray | None, str | None]:
+    """``(image, None)`` of an image file, grey (H, W) or colour (H, W, 3) as stored
+    (``colour``: always RGB), or ``(None, why)`` when it cannot be read as one."""
+    from PIL import Image
+
+    try:
+        with Image.open(path) as im:
+            if colour:
+                im = im.convert("RGB")
+            elif im.mode not in ("L", "LA", "RGB", "RGBA", "I", "I;16", "F"):
+                im = im.convert("RGB")  # palette, bilevel, CMYK, ...
+            img = np.asarray(im)
+    except Exception as exc:  # any decoder's error on a bad file is this frame's, not the run's
+        return None, f"not a readable image ({one_line(exc)})"
+    if img.ndim == 3 and img.shape[-1] in (1, 2):  # grey (+ alpha)
+        img = img[..., 0]
+    elif img.ndim == 3 and img.shape[-1] == 4:  # RGBA
+        img = img[..., :3]
+    if img.ndim not in (2, 3) or img.size == 0 or (img.ndim == 3 and img.shape[-1] != 3):
+        return None, f"not a single grey or colour image (array of shape {img.shape})"
+    return img, None
+
+
+@dataclass
+class VideoInfo:
+    """A video's first stream: ``rate_hz`` (nominal; 0 if the stream has none) and
+    ``n_frames`` (as the container counts them, or from the duration; 0 if unknown)."""
+
+    rate_hz: float
+    n_frames: int
+
+
+def video_info(path: str | Path) -> VideoInfo:
+    """The frame rate and count of a video; :class:`MediaError` if it cannot be opened
+    or has no video stream."""
+    import av
+
+    try:
+        with av.open(str(path)) as c:
+            if not c.streams.video:
+                raise MediaError(f"{path} has no video stream")
+            s = c.streams.video[0]
+            rate = float(s.average_rate or s.guessed_rate or 0)
+            n = int(s.frames or 0)
+            if not n and s.duration and rate:
+                n = int(round(float(s.duration * s.time_base) * rate))
+    except (av.FFmpegError, OSError) as exc:
+        raise MediaError(f"{path} is not a readable video ({one_line(exc)})") from None
+    return VideoInfo(rate, n)
+
+
+def video_frames(path: str | Path, threads: bool = False):
+    """Every :class:`Frame` of a video's first stream, lazily, RGB (H, W, 3) uint8.
+    Opening it raises :class:`MediaError` here (not readable, no video stream). The
+    frames come in the decoder's order; the frames the container counts that never came
+    out of it (a packet that does not decode, or a frame that depends on a lost one)
+    come after them as error frames, each with its rank and time; without time stamps
+    or a frame rate, a packet that does not decode gives an error frame where it fails.
+    A stream that cannot be read on ends the sequence with an error frame (``rest``).
+    ``threads``: let FFmpeg decode with several threads."""
+    import av
+
+    path = Path(path)
+    try:
+        container = av.open(str(path))
+    except (av.FFmpegError, OSError) as exc:
+        raise MediaError(f"{path} is not a readable video ({one_line(exc)})") from None
+    if not container.streams.video:
+        container.close()
+        raise MediaError(f"{path} has no video stream")
+    stream = container.streams.video[0]
+    if threads:
+        stream.thread_type = "AUTO"
+    rate = float(stream.average_rate or stream.guessed_rate or 0)
+    start = stream.start_time or 0
+
+    def stamp(pts, time_base):
+        if pts is None or not time_base:
+            return None, None
+        t = float((pts - start) * time_base)
+        return t, (round(t * rate) if rate else None)
+
+    def frames():
+        k, ranks, why = 0, set(), []
+        with container:
+            packets = container.demux(stream)
+            while True:
+                try:
+                    packet = next(packets)
+                except StopIteration:
+                    break
+                except av.FFmpegError as exc:
+                    yield Frame(k, None, None, None,
+                                f"the video cannot be read on ({one_line(exc)})", rest=True)
+                    return
+                try:
+                    decoded = packet.decode()
+                except av.FFmpegError as exc:
+                    # which frame it was shows at the end, as the rank that never came
+                    # (a threaded decoder reports it on a later packet); without ranks, here
+                    why.append(f"the frame does not decode ({one_line(exc)})")
+                    if not rate:
+                        yield Frame(k, None, None, None, why[-1])
+                        k += 1
+                    continue
+                for fr in decoded:
+                    t, r = stamp(fr.pts, fr.time_base)
+                    ranks.add(r)
+                    yield Frame(k, t, r, fr.to_ndarray(format="rgb24"))
+                    k += 1
+        if rate and None not in ranks:
+            for r in range(int(stream.frames or 0)):
+                if r not in ranks:
+                    yield Frame(k, r / rate, r, None, why.pop(0) if why else
+                                "the frame was not decoded (a frame it depends on was lost)")
+                    k += 1
+
+    return frames()
