@@ -1,10 +1,11 @@
 """The spread study's table: each figure's default, mean and range over the variants."""
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from finray.evaluate.spread import spread_table, write_spread
+from finray.evaluate.spread import run_figures, spread_table, write_spread
 
 
 FIGURES = {"s0_auto": {"shape | none | camera | force NRMSE %": 1.5, "sim2real | 2 context | coverage %": 90.0},
@@ -33,3 +34,12 @@ def test_write_spread_round_trips_through_json(tmp_path):
     # the names' bars escaped: one cell each
     assert r"| shape \| none \| camera \| force NRMSE % | 1.5 | 2 | 1.5 | 2.5 | 1 |" in out["table"].read_text()
     assert out["figure"].stat().st_size > 0
+
+
+def test_run_figures_names_a_finished_runs_summary_as_the_variants():
+    run = json.loads((Path(__file__).parent / "data" / "summary_full.json").read_text())
+    f = run_figures(run)
+    assert f["shape | all | camera | force NRMSE %"] == run["experiments"]["shape"]["all"]["camera"]["all"]["nrmse_pct"]
+    assert f["viewpoint | 30 | camera | force NRMSE %"] == run["experiments"]["viewpoint"]["30"]["camera"]["all"]["nrmse_pct"]
+    assert f["sim2real | 2 context | coverage %"] == run["sim2real"]["by_context"]["2"]["coverage_pct"]
+    assert not any(k.startswith("train |") for k in f)  # no histories in a summary

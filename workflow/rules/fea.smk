@@ -22,6 +22,7 @@ rule fea_scene:
     benchmark:
         f"{RESULTS}/benchmarks/fea/{{object}}_{{material}}_h{{height}}.tsv"
     threads: 1
+    priority: 20
     resources:
         mem_mb=600,
         runtime=1,

@@ -16,6 +16,7 @@ rule geometry_finger:
     benchmark:
         f"{RESULTS}/benchmarks/geometry/finger.tsv"
     threads: 1
+    priority: 20
     resources:
         mem_mb=200,
         runtime=1,
@@ -43,6 +44,7 @@ rule geometry_object:
     benchmark:
         f"{RESULTS}/benchmarks/geometry/{{object}}_h{{height}}.tsv"
     threads: 1
+    priority: 20
     resources:
         mem_mb=100,
         runtime=1,

@@ -23,6 +23,7 @@ rule render_scene:
     benchmark:
         f"{RESULTS}/benchmarks/render/{{object}}_{{material}}_h{{height}}_p{{pitch}}.tsv"
     threads: 1
+    priority: 20
     resources:
         mem_mb=800,
         runtime=1,

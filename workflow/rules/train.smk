@@ -29,6 +29,9 @@ rule train_model:
     benchmark:
         f"{RESULTS}/benchmarks/train/{{model}}.tsv"
     threads: 1
+    # the longest jobs start first: training, and what it waits for (geometry, FEA and
+    # render at priority 20), before the studies, the lab and the evaluations
+    priority: 30
     resources:
         mem_mb=2600,
         runtime=40,

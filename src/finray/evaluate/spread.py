@@ -5,7 +5,8 @@ retrains every model per seed and numeric type (a *variant*, ``s<seed>_<type>``)
 every experiment and sim-to-real on each; this module reads their outputs back:
 
 - :func:`headline_figures` -- one variant's figures, by name (force NRMSE in %,
-  log-stress MSE, sim-to-real MSE in N^2 and coverage in %, the kept epoch)
+  log-stress MSE, sim-to-real MSE in N^2 and coverage in %, the kept epoch);
+  :func:`run_figures` the same from a finished run's ``summary.json``
 - :func:`spread_table` -- per figure the default variant's value, mean, min, max, range
 - :func:`write_spread` -- ``summary.json``, ``spread.csv``, ``spread.md`` and the figure
 """
@@ -32,9 +33,19 @@ def headline_figures(exp_dirs: dict[str, str | Path], sim2real: dict,
     ``summary.json``; ``histories``: model -> its ``history.json``. Names read
     ``<experiment> | <condition> | <predictor> | <measure>`` (all test frames pooled),
     ``sim2real | <k> context | <measure>`` and ``train | <model> | <measure>``."""
+    return _figures({e: experiment_summary(d) for e, d in exp_dirs.items()}, sim2real, histories)
+
+
+def run_figures(summary: dict) -> dict[str, float]:
+    """The same figures (the experiments' and sim-to-real's) from a run's
+    ``results/summary.json``: a finished run beside the study's variants."""
+    return _figures(summary.get("experiments", {}), summary.get("sim2real") or {}, {})
+
+
+def _figures(experiments: dict[str, dict], sim2real: dict, histories: dict[str, dict]) -> dict[str, float]:
     out: dict[str, float] = {}
-    for exp, d in sorted(exp_dirs.items()):
-        for cond, preds in experiment_summary(d).items():
+    for exp, summ in sorted(experiments.items()):
+        for cond, preds in summ.items():
             for pred, node in preds.items():
                 for key, label in _PATHS:
                     m = (node.get(key) or {}).get("all") if key else node.get("all")
@@ -44,7 +55,7 @@ def headline_figures(exp_dirs: dict[str, str | Path], sim2real: dict,
                     out[f"{name} | force NRMSE %"] = m["nrmse_pct"]
                     if m.get("stress_mse_log") is not None:
                         out[f"{name} | log-stress MSE"] = m["stress_mse_log"]
-    for k, m in sorted(sim2real["by_context"].items(), key=lambda kv: int(kv[0])):
+    for k, m in sorted(sim2real.get("by_context", {}).items(), key=lambda kv: int(kv[0])):
         for c, measure in (("nrmse_pct", "NRMSE %"), ("mse_N2", "MSE N2"),
                            ("coverage_pct", "coverage %")):
             out[f"sim2real | {k} context | {measure}"] = m[c]
