@@ -4,7 +4,7 @@ import pandas as pd
 import pytest
 
 from finray.evaluate.baseline import RidgeBaseline, fit_ridge, front_edge_profile
-from finray.evaluate.experiments import usable_range
+from finray.evaluate.tables import usable_range
 from finray.evaluate.predictions import occlude
 
 

@@ -121,3 +121,18 @@ def test_ingest_never_sees_the_emulator():
 ])
 def test_the_check_finds_upward_imports(module, source, n_bad):
     assert len(upward_imports(source, module)) == n_bad
+
+
+def test_planning_the_dag_imports_no_torch():
+    """What the workflow imports to plan the DAG (the rule files' top-level finray
+    imports) loads no torch: a dry run stays quick and needs no network stack."""
+    import re
+    import subprocess
+    import sys
+
+    rules = sorted((SRC.parents[1] / "workflow" / "rules").glob("*.smk"))
+    modules = sorted({m for r in rules for m in re.findall(r"^from (finray[\w.]*) import", r.read_text(), re.M)})
+    assert "finray.train.config" in modules
+    code = "import sys\n" + "".join(f"import {m}\n" for m in modules) + "print('torch' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False", modules

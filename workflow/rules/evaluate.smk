@@ -1,7 +1,7 @@
 # Evaluation: the paper's simulation experiments on the held-out splits, each with the
 # network(s) and the ridge baseline (results/evaluate/<experiment>/).
 
-from finray.train import pitch_geometry
+from finray.train.config import pitch_geometry
 
 EVALUATE = f"{RESULTS}/evaluate"
 EXPERIMENTS = ["shape", "material", "occlusion", "pitch", "viewpoint"]

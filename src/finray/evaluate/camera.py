@@ -22,15 +22,6 @@ from ..dataset.shards import HALF
 from ..predict import FrameError, Predictor
 from ..render import load_render_index, read_render_frame
 
-#: ``(path, frames)`` of the metrics rows: the shard inputs on every test frame (the
-#: headline numbers), the shard inputs on the rendered frames only, the camera
-#: path on those frames, and the camera path on all of an experiment's frames where it
-#: has no shard path (viewpoint: the headline). The key names the variant in ``metrics.json`` and the summary.
-PATH_KEYS = {("shard", "all"): None, ("shard", "rendered"): "shard_rendered",
-             ("camera", "rendered"): "camera",
-             ("camera", "all"): None}  # the viewpoint experiment: camera frames only
-
-
 def camera_test_set(index_paths, predictor: Predictor) -> tuple[dict, pd.DataFrame]:
     """Network inputs of every rendered frame with files, through ``predictor``'s
     preprocessing, and their FEA targets, as :func:`~finray.evaluate.predictions.load_test_set`

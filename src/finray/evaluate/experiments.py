@@ -31,11 +31,12 @@ import numpy as np
 import pandas as pd
 
 from .baseline import RidgeBaseline
-from .camera import PATH_KEYS, camera_test_set, rendered_subset, shared_preprocessing
+from .camera import camera_test_set, rendered_subset, shared_preprocessing
 from .metrics import force_metrics, force_vector_metrics, stress_metrics
 from ..dataset import scene_id
 from ..predict import FrameError, Predictor
 from .predictions import load_test_set, occlude, predict_images
+from .tables import PATH_KEYS
 
 def _predict_all(images_u8, models: dict[str, Predictor], baseline: RidgeBaseline | None):
     """``({predictor: forces (N, k) N, fx first}, {network: stress maps})``."""
@@ -86,15 +87,6 @@ def _variant(row: dict) -> str:
     shard path on all frames, ``<predictor>/<path key>`` otherwise (see PATH_KEYS)."""
     key = PATH_KEYS[(row.get("path", "shard"), row.get("frames", "all"))]
     return row["predictor"] if key is None else f"{row['predictor']}/{key}"
-
-
-def headline_rows(metrics: pd.DataFrame) -> pd.DataFrame:
-    """The rows on all test frames: the shard path's, or the camera path's where it is the
-    experiment's only one (viewpoint); every row of a table from before the camera
-    path, which has no ``path`` column."""
-    if "path" not in metrics:
-        return metrics
-    return metrics[metrics["frames"] == "all"]
 
 
 def _camera_rows(render_indices, nets, base, tab, fr, stress, maps, group_col, cname,
@@ -285,20 +277,6 @@ def load_examples(path) -> dict[str, dict[str, np.ndarray]]:
             c, k = key.split("/", 1)
             out.setdefault(c, {})[k] = f[key]
     return out
-
-
-def usable_range(metrics: pd.DataFrame, predictor: str, threshold_pct: float) -> float | None:
-    """Largest pitch (deg) up to which every pitch's force NRMSE is <= the threshold
-    (None when even pitch 0 is above it). Conditions are named by their pitch."""
-    m = headline_rows(metrics)
-    m = m[(m["group"] == "all") & (m["predictor"] == predictor)].copy()
-    m["pitch"] = m["condition"].astype(float)
-    usable = None
-    for _, r in m.sort_values("pitch").iterrows():
-        if r["nrmse_pct"] > threshold_pct:
-            break
-        usable = float(r["pitch"])
-    return usable
 
 
 def pitch_augmentation_iou(shard_paths, size, geometry: dict) -> dict[str, float]:

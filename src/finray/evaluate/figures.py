@@ -6,7 +6,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .experiments import headline_rows, load_examples
+from .experiments import load_examples
+from .tables import headline_rows
 
 COLOURS = {"fea": "black", "plain": "tab:blue", "occlusion": "tab:orange", "pitch": "tab:green",
            "camera": "tab:purple", "baseline": "tab:gray"}

@@ -8,8 +8,7 @@ from pathlib import Path
 import pandas as pd
 
 from ..paper_reference import paper_reference
-from .camera import PATH_KEYS
-from .experiments import headline_rows, usable_range
+from .tables import PATH_KEYS, headline_rows, usable_range
 
 KEEP = ("n", "mse_N2", "rmse_N", "nrmse_pct", "r2", "max_true_N", "stress_mse_log", "ssim",
         *(f"{c}_{k}" for c in ("fy", "mag") for k in ("mse_N2", "rmse_N", "nrmse_pct", "r2",
@@ -25,7 +24,7 @@ def experiment_summary(exp_dir) -> dict:
     shard path on all test frames; where the camera path ran (shape, material), each
     predictor also has ``"camera"`` (the rendered frames through the Predictor) and
     ``"shard_rendered"`` (the shard inputs of the same frames), each ``{"all", "groups"}``
-    (see :data:`finray.evaluate.camera.PATH_KEYS`)."""
+    (see :data:`finray.evaluate.tables.PATH_KEYS`)."""
     m = pd.read_csv(Path(exp_dir) / "metrics.csv")
     out: dict = {}
     for r in m.to_dict("records"):

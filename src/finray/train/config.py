@@ -1,0 +1,95 @@
+"""Training settings and record: :class:`TrainConfig` (the loop), :class:`AugmentConfig`
+(the on-the-fly augmentation), :class:`History` (what a run measured) and the pitch
+augmentation's input geometry. Plain dataclasses: no torch (the workflow imports them
+to plan the DAG)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+
+@dataclass
+class TrainConfig:
+    epochs: int = 10
+    batch_size: int = 16
+    lr: float = 1e-4
+    alpha_stress: float = 1.0
+    alpha_force: float = 10.0
+    seed: int = 0
+    threads: int = 1
+    bf16: bool | str = "auto"  # "auto": bfloat16 autocast where the device runs it natively
+    device: str = "auto"  # "auto" (the GPU when torch sees one), "cpu" or "cuda"
+    channels_last: bool = True
+    progress: bool = True  # a tqdm bar (interactive use); the log gets lines either way
+    log_every_s: float = 60.0  # a progress line in the log at most this often (s)
+    schedule: str = "cosine"  # "cosine" (warm-up, then cosine to 0) or "constant" (the paper's)
+    warmup_frac: float = 0.05  # of all steps, linear warm-up of the cosine schedule
+    bn_frames: int = 2048  # augmented training frames per batch-norm re-estimate (0: keep training's)
+    keep: str = "val_force_rmse"  # the kept epoch: lowest "val_force_rmse" (fx), "val_loss", or "last"
+    # also validate with training's running batch-norm averages before each re-estimate
+    # (History.val_force_rmse_running_bn_N; a diagnostic: one more validation pass)
+    compare_running_bn: bool = False
+
+
+@dataclass
+class History:
+    epoch: list = field(default_factory=list)
+    train_loss: list = field(default_factory=list)
+    train_stress_mse: list = field(default_factory=list)
+    train_force_mse: list = field(default_factory=list)
+    val_loss: list = field(default_factory=list)
+    val_force_rmse_N: list = field(default_factory=list)  # of the first force component (fx)
+    val_force_rmse_components_N: list = field(default_factory=list)  # per epoch, every component
+    wall_time_s: list = field(default_factory=list)
+    epoch_time_s: list = field(default_factory=list)  # training loop + validation (s)
+    precision: str = ""  # "bfloat16" or "float32", as resolved from TrainConfig.bf16
+    precision_reason: str = ""
+    device: str = ""  # where it trained: "cpu (<CPU>)" or "cuda:0 (<GPU>)"
+    step_ms: float = float("nan")  # median training step, wall (batch, augmentation included)
+    step_cpu_ms: float = float("nan")  # the same in the thread's CPU time (less load-dependent)
+    best_epoch: int = 0  # the epoch whose weights are kept (TrainConfig.keep; train loss without validation)
+    lr: list = field(default_factory=list)  # the learning rate at the end of each epoch
+    val_force_rmse_running_bn_N: list = field(default_factory=list)  # TrainConfig.compare_running_bn
+    force_mean_N: list = field(default_factory=list)  # the force normalisation (training frames)
+    force_std_N: list = field(default_factory=list)
+
+
+@dataclass
+class AugmentConfig:
+    """On-the-fly training augmentation (kornia + the dataset's disc occlusion)."""
+
+    affine_p: float = 0.5
+    degrees: float = 2.0  # rotation jitter (deg)
+    translate: float = 0.02  # fraction of the image size
+    scale: float = 0.03  # relative
+    perspective_p: float = 0.0
+    perspective: float = 0.1  # kornia distortion scale
+    salt_pepper_p: float = 0.5
+    salt_pepper_amount: tuple[float, float] = (0.0, 0.05)  # fraction of pixels
+    occlusion_p: float = 0.0  # probability of a random occluding disc
+    occlusion_levels: tuple[str, ...] = ("low", "medium", "high")
+    pitch_p: float = 0.0  # probability of a camera pitch (finray.dataset.viewpoint)
+    pitch_max_deg: float = 30.0  # pitch drawn uniformly in [0, pitch_max_deg]
+    # probability that a sample is its frame's randomised camera view (the shards'
+    # camera_input_HxW, finray.dataset.camera_views) instead of the front view; the
+    # stress target stays the front view's map either way
+    camera_p: float = 0.0
+    # geometry of the input for the pitch: set by the training script from the config
+    mm_per_px: float = 1.25  # image-plane mm per input pixel
+    pitch_centre_row: float = 31.5  # input row of the camera's rotation axis
+    extrusion_mm: float = 20.0
+
+
+def pitch_geometry(dataset: dict, render: dict, height_px: int, extrusion_mm: float) -> dict:
+    """Input geometry the pitch augmentation needs, from the config sections
+    ``dataset`` (crop) and ``render`` (camera window, whose centre is the pitch axis)."""
+    y0, y1 = dataset["crop_y_mm"]
+    mm_per_px = (y1 - y0) / height_px
+    yc = 0.5 * sum(render["window_y_mm"])
+    return {"mm_per_px": mm_per_px, "pitch_centre_row": (y1 - yc) / mm_per_px - 0.5,
+            "extrusion_mm": float(extrusion_mm)}
+
+
+SCHEDULES = ("cosine", "constant")
+
+
+KEEP = ("val_force_rmse", "val_loss", "last")

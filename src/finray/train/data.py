@@ -1,0 +1,43 @@
+"""The training data: the dataset stage's shards as network tensors, and the held-out
+validation scenes."""
+from __future__ import annotations
+
+import numpy as np
+
+
+#: Force components a model can predict -> the shards' per-frame arrays (N): along the
+#: push (the FEA's x, the headline force) and across it (y, friction).
+FORCE_COMPONENTS = {"fx": "fx_N", "fy": "fy_N"}
+
+
+def load_split(shards, size: tuple[int, int], every: int = 1,
+               forces: tuple[str, ...] = ("fx",), camera: bool = False) -> dict[str, np.ndarray]:
+    """The frames of shards at one input size as network tensors (arrays): ``images``
+    (N, 1, H, W) in [0, 1], ``stress`` (N, 1, H, W), ``mask`` (N, H, W) bool, ``fx_N``
+    (N, 1), ``force_N`` (N, len(forces)): the components ``forces`` (``fx``, ``fy``) in N,
+    and per-frame ``scene_id``, ``displacement_mm``; with ``camera`` also
+    ``camera_images`` (N, 1, H, W) in [0, 1]: each frame seen by its randomised camera.
+    ``every``: keep every ``every``-th frame of each shard (see
+    :func:`finray.dataset.load_frames`)."""
+    from ..dataset import load_frames
+
+    a, table = load_frames(shards, size, every, require_stress=True, camera=camera)
+    bad = [c for c in forces if c not in FORCE_COMPONENTS]
+    if bad:
+        raise ValueError(f"train.forces: unknown component(s) {bad}; known: {list(FORCE_COMPONENTS)}")
+    out = {} if not camera else {
+        "camera_images": a["camera_images"][:, None].astype(np.float32) / np.float32(255.0)}
+    return out | {"images": a["images"][:, None].astype(np.float32) / np.float32(255.0),
+            "stress": a["stress"][:, None].astype(np.float32), "mask": a["mask"],
+            "fx_N": a["fx_N"][:, None].astype(np.float32),
+            "force_N": np.column_stack([a[FORCE_COMPONENTS[c]] for c in forces]).astype(np.float32),
+            "scene_id": np.array(table["scene_id"].tolist()),
+            "displacement_mm": table["displacement_mm"].to_numpy()}
+
+
+def validation_scenes(scene_ids, fraction: float, seed: int) -> set[str]:
+    """Whole scenes held out for validation (frames of one scene are too alike to split)."""
+    ids = sorted(set(scene_ids))
+    rng = np.random.default_rng(seed)
+    n_val = max(1, int(round(fraction * len(ids)))) if len(ids) > 1 else 0
+    return set(rng.permutation(ids)[:n_val].tolist())

@@ -1,0 +1,93 @@
+"""A trained model on disk: the checkpoint (``model.pt``), TorchScript (``model.ts`` with
+its JSON settings) and ONNX (``model.onnx``, force-only ``model.force.onnx``), each
+written from the CPU so that it loads anywhere."""
+from __future__ import annotations
+
+import copy
+import json
+from dataclasses import asdict
+from pathlib import Path
+
+import torch
+from torch import nn
+
+from ..model import FinRayNet, NetConfig
+from .config import History
+from .data import FORCE_COMPONENTS
+
+
+def save_checkpoint(model: FinRayNet, hist: History, path: str | Path, extra: dict | None = None) -> None:
+    state = {k: v.detach().cpu() for k, v in model.state_dict().items()}  # loads anywhere
+    torch.save({"net_config": model.config_dict(), "state_dict": state,
+                "history": asdict(hist), "extra": extra or {}}, path)
+
+
+def load_checkpoint(path: str | Path) -> tuple[FinRayNet, dict]:
+    ck = torch.load(path, map_location="cpu", weights_only=False)
+    cfg = dict(ck["net_config"])
+    cfg["hidden"] = tuple(cfg["hidden"])
+    model = FinRayNet(NetConfig(**cfg))
+    model.load_state_dict(ck["state_dict"])
+    model.eval()
+    return model, ck
+
+
+def export_torchscript(model: FinRayNet, path: str | Path, preprocess: dict | None = None,
+                       forces: list[str] | None = None) -> None:
+    """Trace the model (eval mode, float32) to TorchScript: ``forward`` gives (stress,
+    force N), ``force`` the force (N) alone (no stress decoder); frozen.
+
+    ``path + '.json'`` keeps the network's settings, the names of the force outputs
+    (``forces``, e.g. ``["fx_N", "fy_N"]``; default ``fx_N`` and on) and the preprocessing
+    (crop window, base width, segmentation) that :class:`finray.predict.Predictor` needs."""
+    model = copy.deepcopy(model).cpu().float().eval().to(memory_format=torch.contiguous_format)
+    c = model.cfg
+    example = torch.rand(1, c.in_channels, c.height, c.width)
+    with torch.no_grad():
+        ts = torch.jit.trace_module(model, {"forward": example, "force": example})
+        ts = torch.jit.freeze(ts, preserved_attrs=["force"])
+    ts.save(str(path))
+    names = list(forces or list(FORCE_COMPONENTS.values())[:c.n_forces])
+    if len(names) != c.n_forces:
+        raise ValueError(f"{len(names)} force names for a model with {c.n_forces} force outputs")
+    Path(str(path) + ".json").write_text(json.dumps({**model.config_dict(), "forces": names,
+                                                      "preprocess": preprocess or {}}, indent=1))
+
+
+class _ForceOnly(nn.Module):
+    def __init__(self, model: FinRayNet):
+        super().__init__()
+        self.model = model
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.model.force(x)
+
+
+def export_onnx(model: FinRayNet, path: str | Path) -> None:
+    """Write the model as ONNX (opset 17, float32, any batch size) for ONNX Runtime,
+    faster than TorchScript at batch 1 on one CPU thread (``inference_latency.json``
+    times both): ``path`` (input
+    ``image``, outputs ``stress_log`` and ``force_N``) and ``path`` with suffix
+    ``.force.onnx`` (the encoder and force head only, output ``force_N``)."""
+    import warnings
+
+    model = copy.deepcopy(model).cpu().float().eval().to(memory_format=torch.contiguous_format)
+    c = model.cfg
+    example = torch.rand(1, c.in_channels, c.height, c.width)
+    path = Path(path)
+    with warnings.catch_warnings(), torch.no_grad():
+        warnings.simplefilter("ignore")  # the TorchScript-based exporter is deprecated
+        torch.onnx.export(model, (example,), str(path), input_names=["image"],
+                          output_names=["stress_log", "force_N"], opset_version=17,
+                          dynamic_axes={"image": {0: "batch"}, "stress_log": {0: "batch"},
+                                        "force_N": {0: "batch"}}, dynamo=False)
+        torch.onnx.export(_ForceOnly(model), (example,), str(force_onnx_path(path)),
+                          input_names=["image"], output_names=["force_N"], opset_version=17,
+                          dynamic_axes={"image": {0: "batch"}, "force_N": {0: "batch"}},
+                          dynamo=False)
+
+
+def force_onnx_path(path: str | Path) -> Path:
+    """``model.onnx`` -> ``model.force.onnx``."""
+    path = Path(path)
+    return path.with_name(path.stem + ".force.onnx")

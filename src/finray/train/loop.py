@@ -1,0 +1,315 @@
+"""The training loop of :class:`~finray.model.FinRayNet`, on the CPU or a CUDA GPU.
+
+Loss (the paper's eq. 1): ``alpha_stress * MSE(stress) + alpha_force * MSE(force)``,
+each force component (``fx`` along the push, ``fy`` across it, as the paper's two-output
+head) normalised by the training set's mean and standard deviation (stored in the
+model, so that its outputs are in N), the MSE taken over the components. Adam, seeded
+and deterministic: two runs with the same data and seed give identical losses.
+
+Where training differs from the paper (whose rate is a constant 1e-4 and whose kept
+weights are not said), and why: at a constant rate a model's validation error wandered
+from epoch to epoch, and the kept weights were one draw of that wander.
+
+- ``schedule="cosine"`` (default): the rate rises linearly to ``lr`` over the first
+  ``warmup_frac`` of the steps, then falls to 0 on a cosine; ``"constant"`` is the
+  paper's. The same steps either way.
+- Batch-norm statistics (the force head's) are re-estimated at the end of every epoch
+  over ``bn_frames`` augmented training frames, with a cumulative average
+  (:func:`recalibrate_batchnorm`): the running averages of training (momentum 0.1,
+  batches of 16) hold the last few batches only, which, with a mix of front views,
+  perspective views and occlusions, are a noisy draw.
+- The kept epoch is the one with the lowest validation force RMSE of ``fx`` (``keep``;
+  ``"val_loss"``: the loss, ``"last"``: the last epoch).
+
+Speed on the CPU: ``channels_last`` memory, one intra-op thread per job when other jobs
+share the machine, and ``bfloat16`` autocast only where the CPU runs it natively
+(``bf16="auto"``, :mod:`finray.precision`); the choice and the measured step time go to
+the log and to ``history.json``.
+
+On a GPU (``device="cuda"``, or ``"auto"`` where torch sees one) the model and each
+batch go to the GPU; the frames stay in host memory and the augmentation runs on the
+CPU from the same generator, so that a run draws the same batches and augmentations on
+either device (results differ in rounding only). bfloat16 autocast follows the GPU's
+native support. Batch size, learning rate and epochs are the config's on every device.
+The trained model comes back on the CPU, and checkpoints and exports are written from
+it, so that they load on any machine.
+"""
+from __future__ import annotations
+
+import contextlib
+import copy
+import math
+import os
+import time
+from dataclasses import replace
+from typing import Callable
+
+import numpy as np
+import torch
+from torch import nn
+
+from ..model import FinRayNet, NetConfig
+from ..precision import device_name, resolve_bf16, resolve_device
+from .config import KEEP, SCHEDULES, History, TrainConfig
+
+
+def seed_everything(seed: int) -> torch.Generator:
+    torch.manual_seed(seed)
+    np.random.seed(seed % 2**32)
+    torch.use_deterministic_algorithms(True)
+    g = torch.Generator()
+    g.manual_seed(seed)
+    return g
+
+
+def lr_factor(step: int, total: int, schedule: str = "cosine", warmup_frac: float = 0.05) -> float:
+    """The learning rate of step ``step`` (0-based, of ``total``) as a fraction of the
+    peak: 1 throughout (``constant``), or a linear warm-up over ``warmup_frac`` of the
+    steps to 1, then a cosine to 0 at the last step (``cosine``)."""
+    if schedule == "constant":
+        return 1.0
+    if schedule != "cosine":
+        raise ValueError(f"train.schedule: {schedule!r} is not one of {list(SCHEDULES)}")
+    warm = int(round(warmup_frac * total))
+    if step < warm:
+        return (step + 1) / (warm + 1)
+    rest = max(1, total - warm)
+    return 0.5 * (1.0 + math.cos(math.pi * min(step - warm, rest) / rest))
+
+
+@torch.no_grad()
+def recalibrate_batchnorm(model: FinRayNet, batches, device: torch.device, channels_last: bool,
+                          bf16: bool) -> int:
+    """Re-estimate every batch-norm layer's running mean and variance as the plain
+    average over ``batches`` (an iterable of input tensors, drawn as in training) --
+    ``torch.optim.swa_utils.update_bn``'s method, on the encoder and force head only
+    (the stress decoder has no batch-norm). Returns the number of frames seen."""
+    bns = [m for m in model.modules() if isinstance(m, nn.modules.batchnorm._BatchNorm)]
+    if not bns:
+        return 0
+    momenta = {m: m.momentum for m in bns}
+    was_training = model.training
+    for m in bns:
+        m.reset_running_stats()
+        m.momentum = None  # cumulative average
+    model.train()
+    n = 0
+    try:
+        for x in batches:
+            with _autocast(bf16, device):
+                model.force_head(model.encode(_prep(x.to(device), channels_last))[0])
+            n += len(x)
+    finally:
+        for m in bns:
+            m.momentum = momenta[m]
+        model.train(was_training)
+    return n
+
+
+def _use_bf16(cfg: TrainConfig, device: torch.device) -> bool:
+    return resolve_bf16(cfg.bf16, device=device)[0] if isinstance(cfg.bf16, str) else bool(cfg.bf16)
+
+
+def _step_times(hist: History, step_s: list[tuple[float, float]]) -> None:
+    """Median wall and CPU time of a step (ms), leaving out the first fifth (warm-up)."""
+    t = np.asarray(step_s[len(step_s) // 5:])
+    hist.step_ms, hist.step_cpu_ms = (1e3 * float(v) for v in np.median(t, axis=0))
+
+
+def _autocast(enabled: bool, device: torch.device):
+    if enabled:
+        return torch.autocast(device.type, dtype=torch.bfloat16)
+    return contextlib.nullcontext()
+
+
+def _prep(x: torch.Tensor, channels_last: bool) -> torch.Tensor:
+    return x.contiguous(memory_format=torch.channels_last) if channels_last else x
+
+
+def evaluate(model: FinRayNet, images: torch.Tensor, stress: torch.Tensor, force_N: torch.Tensor,
+             cfg: TrainConfig, batch_size: int = 256) -> dict:
+    """Losses and force errors (N) of ``model`` on a set, in eval mode, on the model's
+    device (the set's batches go there; the predicted forces come back to the CPU)."""
+    model.eval()
+    device = next(model.parameters()).device
+    n = len(images)
+    s_se, f_se, f_pred = 0.0, 0.0, []
+    with torch.no_grad(), _autocast(_use_bf16(cfg, device), device):
+        for i in range(0, n, batch_size):
+            x = _prep(images[i:i + batch_size].to(device), cfg.channels_last)
+            s, f = model.forward_normalised(x)
+            s_se += float(((s.float() - stress[i:i + batch_size].to(device)) ** 2).mean()) * len(x)
+            fn = model.normalise_force(force_N[i:i + batch_size].to(device))
+            f_se += float(((f.float() - fn) ** 2).mean()) * len(x)
+            f_pred.append((f.float() * model.force_scale_N + model.force_mean_N).cpu())
+    f_pred = torch.cat(f_pred)
+    s_mse, f_mse = s_se / n, f_se / n
+    return {
+        "loss": cfg.alpha_stress * s_mse + cfg.alpha_force * f_mse,
+        "stress_mse": s_mse, "force_mse_normalised": f_mse,
+        # the first component (fx, the headline force); every component's beside it
+        "force_rmse_N": float(((f_pred[:, 0] - force_N[:, 0]) ** 2).mean().sqrt()),
+        "force_rmse_components_N": ((f_pred - force_N) ** 2).mean(0).sqrt().tolist(),
+        "force_pred_N": f_pred,
+    }
+
+
+def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
+          val: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
+          net_cfg: NetConfig, cfg: TrainConfig,
+          augment: Callable[[torch.Tensor, torch.Tensor, torch.Generator], tuple] | None = None,
+          log: Callable[[str], None] = print,
+          camera_images: np.ndarray | None = None) -> tuple[FinRayNet, History]:
+    """Train a network; returns the kept model (``cfg.keep``) and the history.
+
+    ``images`` (N, C, H, W) float in [0, 1]; ``stress`` (N, 1, H, W) log-stress maps;
+    ``force_N`` (N, n_forces). ``augment(x, s, generator) -> (x, s)`` is applied to each
+    training batch (on the fly, seeded by the training generator); with
+    ``camera_images`` (N, C, H, W: each frame seen by its randomised camera) it is called
+    ``augment(x, s, generator, x_camera)`` and picks between the two views.
+    Runs on ``cfg.device`` (:func:`~finray.precision.resolve_device`: ``cuda`` without a
+    GPU stops here, before any work); the model is returned on the CPU.
+    """
+    if cfg.keep not in KEEP:
+        raise ValueError(f"train.keep: {cfg.keep!r} is not one of {list(KEEP)}")
+    lr_factor(0, 1, cfg.schedule, cfg.warmup_frac)  # an unknown schedule stops here
+    device = resolve_device(cfg.device, "train.device")
+    if device.type == "cuda":  # deterministic cuBLAS needs a fixed workspace (torch's reproducibility notes)
+        os.environ.setdefault("CUBLAS_WORKSPACE_CONFIG", ":4096:8")
+    torch.set_num_threads(cfg.threads)
+    gen = seed_everything(cfg.seed)
+    bf16, why = resolve_bf16(cfg.bf16, device=device)
+    cfg = replace(cfg, bf16=bf16)
+    log(f"precision: {why}")
+    log(f"device: {device_name(device)}")
+    x_all = torch.as_tensor(images, dtype=torch.float32)
+    s_all = torch.as_tensor(stress, dtype=torch.float32)
+    f_all = torch.as_tensor(force_N, dtype=torch.float32).reshape(len(x_all), -1)
+    c_all = (torch.as_tensor(camera_images, dtype=torch.float32)
+             if camera_images is not None else None)
+    if c_all is not None and c_all.shape != x_all.shape:
+        raise ValueError(f"camera images {tuple(c_all.shape)} do not match the images {tuple(x_all.shape)}")
+    if not (torch.isfinite(x_all).all() and torch.isfinite(s_all).all() and torch.isfinite(f_all).all()):
+        raise ValueError("training data contain NaN or infinite values")
+    model = FinRayNet(net_cfg)
+    mean = f_all.mean(0)
+    scale = f_all.std(0).clamp_min(1e-6)
+    model.set_force_normalisation(mean, scale)
+    model = model.to(device)  # initialised on the CPU: the same weights on any device
+    if cfg.channels_last:
+        model = model.to(memory_format=torch.channels_last)
+    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
+    mse = nn.MSELoss()
+    if val is not None:
+        vx, vs, vf = (torch.as_tensor(a, dtype=torch.float32) for a in val)
+        vf = vf.reshape(len(vx), -1)
+    hist = History(precision="bfloat16" if bf16 else "float32", precision_reason=why,
+                   device=device_name(device), force_mean_N=mean.tolist(),
+                   force_std_N=scale.tolist())
+    best, best_loss = None, math.inf
+    n = len(x_all)
+    n_batches = max(1, n // cfg.batch_size)  # drop the last partial batch (batch-norm)
+    total = cfg.epochs * n_batches
+    sched = torch.optim.lr_scheduler.LambdaLR(
+        opt, lambda k: lr_factor(k, total, cfg.schedule, cfg.warmup_frac))
+    log(f"{cfg.epochs} epochs of {n_batches} batches of {cfg.batch_size} "
+        f"({n} frames), {cfg.threads} thread(s); learning rate {cfg.lr:g}, {cfg.schedule}"
+        + (f" after a {cfg.warmup_frac:.0%} warm-up" if cfg.schedule == "cosine" else "")
+        + (f"; batch-norm re-estimated on {min(cfg.bn_frames, n)} frames per epoch"
+           if cfg.bn_frames > 0 else "") + f"; kept: {cfg.keep.replace('_', ' ')}")
+
+    def bn_batches(epoch: int, size: int = 256):
+        """``bn_frames`` training frames, augmented as in training, from their own
+        generator (the training draws stay those of a run without re-estimates)."""
+        g = torch.Generator().manual_seed(cfg.seed * 100003 + epoch)
+        pick = torch.randperm(n, generator=g)[:min(cfg.bn_frames, n)]
+        for i in range(0, len(pick), size):
+            idx = pick[i:i + size]
+            x, s = x_all[idx], s_all[idx]
+            if augment is not None:
+                x, s = augment(x, s, g) if c_all is None else augment(x, s, g, c_all[idx])
+            yield x
+    step_s: list[tuple[float, float]] = []  # first epoch's (wall, CPU) step times (s)
+    t0 = time.perf_counter()
+    try:
+        from tqdm import tqdm
+    except ImportError:  # pragma: no cover
+        tqdm = None
+    for epoch in range(1, cfg.epochs + 1):
+        model.train()
+        perm = torch.randperm(n, generator=gen)
+        tot = {"loss": 0.0, "s": 0.0, "f": 0.0}
+        it = range(n_batches)
+        bar = tqdm(it, desc=f"epoch {epoch}/{cfg.epochs}", leave=False,
+                   disable=not cfg.progress) if tqdm else it
+        te = t_log = time.perf_counter()
+        for b in bar:
+            tb, cb = time.perf_counter(), time.thread_time()
+            idx = perm[b * cfg.batch_size:(b + 1) * cfg.batch_size]
+            x, s, f = x_all[idx], s_all[idx], f_all[idx]
+            if augment is not None:
+                x, s = augment(x, s, gen) if c_all is None else augment(x, s, gen, c_all[idx])
+            x = _prep(x.to(device), cfg.channels_last)
+            s, f = s.to(device), f.to(device)
+            with _autocast(bf16, device):
+                s_pred, f_pred = model.forward_normalised(x)
+            ls = mse(s_pred.float(), s)
+            lf = mse(f_pred.float(), model.normalise_force(f))
+            loss = cfg.alpha_stress * ls + cfg.alpha_force * lf
+            if not torch.isfinite(loss):
+                raise FloatingPointError(f"loss became {float(loss)} at epoch {epoch}, batch {b}")
+            opt.zero_grad(set_to_none=True)
+            loss.backward()
+            opt.step()
+            sched.step()
+            tot["loss"] += float(loss.detach())
+            tot["s"] += float(ls.detach())
+            tot["f"] += float(lf.detach())
+            now = time.perf_counter()
+            if epoch == 1:
+                step_s.append((now - tb, time.thread_time() - cb))
+                if len(step_s) == min(n_batches, 25):  # past the first steps' warm-up
+                    _step_times(hist, step_s)
+                    log(f"step time {hist.step_ms:.1f} ms ({hist.step_cpu_ms:.1f} ms CPU; "
+                        f"{hist.precision}, batch {cfg.batch_size}): about "
+                        f"{hist.step_ms * n_batches / 1e3:.0f} s per epoch")
+            if now - t_log >= cfg.log_every_s:
+                t_log = now
+                log(f"epoch {epoch}/{cfg.epochs}: batch {b + 1}/{n_batches}, train loss "
+                    f"{tot['loss'] / (b + 1):.5f}, {now - te:.0f} s")
+            if tqdm and cfg.progress:
+                bar.set_postfix(loss=f"{tot['loss'] / (b + 1):.4f}")
+        if epoch == 1 and step_s:  # the whole first epoch (the log line had 25 steps)
+            _step_times(hist, step_s)
+        hist.epoch.append(epoch)
+        hist.train_loss.append(tot["loss"] / n_batches)
+        hist.train_stress_mse.append(tot["s"] / n_batches)
+        hist.train_force_mse.append(tot["f"] / n_batches)
+        hist.lr.append(float(opt.param_groups[0]["lr"]))
+        if cfg.compare_running_bn and val is not None:
+            hist.val_force_rmse_running_bn_N.append(evaluate(model, vx, vs, vf, cfg)["force_rmse_N"])
+        if cfg.bn_frames > 0:
+            recalibrate_batchnorm(model, bn_batches(epoch), device, cfg.channels_last, bf16)
+        hist.wall_time_s.append(time.perf_counter() - t0)
+        msg = f"epoch {epoch}/{cfg.epochs}: train loss {hist.train_loss[-1]:.5f}"
+        if val is not None:
+            ev = evaluate(model, vx, vs, vf, cfg)
+            hist.val_loss.append(ev["loss"])
+            hist.val_force_rmse_N.append(ev["force_rmse_N"])
+            hist.val_force_rmse_components_N.append(ev["force_rmse_components_N"])
+            msg += f", val loss {ev['loss']:.5f}, val force RMSE {ev['force_rmse_N']:.4f} N"
+            if hist.val_force_rmse_running_bn_N:
+                msg += f" ({hist.val_force_rmse_running_bn_N[-1]:.4f} N with training's batch-norm averages)"
+            score = {"val_force_rmse": ev["force_rmse_N"], "val_loss": ev["loss"]}.get(cfg.keep, -epoch)
+        else:
+            score = hist.train_loss[-1] if cfg.keep != "last" else -epoch
+        hist.epoch_time_s.append(time.perf_counter() - te)
+        msg += f", {hist.epoch_time_s[-1]:.0f} s"
+        if score < best_loss:
+            best_loss, best = score, copy.deepcopy(model.state_dict())
+            hist.best_epoch = epoch
+            msg += " (best)"
+        log(msg)
+    model.load_state_dict(best)
+    model = model.cpu().eval()  # checkpoints and exports load anywhere
+    return model, hist

@@ -1,0 +1,98 @@
+"""The train stage's entry point: shards in, a trained and exported model out
+(:func:`train_from_shards`), with its history and training curves."""
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import asdict, replace
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from ..model import NetConfig
+from ..precision import cpu_name, resolve_device
+from .augment import TrainAugment
+from .config import AugmentConfig, History, TrainConfig
+from .data import FORCE_COMPONENTS, load_split, validation_scenes
+from .export import export_onnx, export_torchscript, save_checkpoint
+from .loop import train
+
+
+def train_from_shards(shards, out_dir: str | Path, net_cfg: NetConfig, cfg: TrainConfig,
+                      augment: AugmentConfig | None, val_fraction: float = 0.1,
+                      occlusion_levels: dict | None = None, preprocess: dict | None = None,
+                      forces: tuple[str, ...] = ("fx",), frame_every: int = 1, log=print) -> dict:
+    """Train on the shards (force components ``forces``, ``fx`` first; ``net_cfg.n_forces``
+    is set to match), keep the epoch ``cfg.keep`` chooses and write
+    ``model.pt``, ``model.ts`` (TorchScript), ``model.onnx`` and ``model.force.onnx``
+    (ONNX), ``history.json`` and ``curves.png``. ``frame_every``: train and validate on
+    every ``frame_every``-th frame of each scene (the rendered frames are interpolated
+    between solver frames, so neighbours are near copies; the training-budget study).
+    ``cuda`` without a GPU stops before the data load."""
+    resolve_device(cfg.device, "train.device")
+    if int(frame_every) < 1:
+        raise ValueError(f"train.frame_every must be >= 1, got {frame_every}")
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    forces = tuple(forces)
+    if not forces or forces[0] != "fx":
+        raise ValueError(f"train.forces must start with fx (the headline force), got {list(forces)}")
+    net_cfg = replace(net_cfg, n_forces=len(forces))
+    camera = augment is not None and augment.camera_p > 0
+    data = load_split(shards, (net_cfg.height, net_cfg.width), every=frame_every, forces=forces,
+                      camera=camera)
+    val_ids = validation_scenes(data["scene_id"], val_fraction, cfg.seed)
+    is_val = np.isin(data["scene_id"], list(val_ids))
+    tr = {k: v[~is_val] for k, v in data.items()}
+    va = {k: v[is_val] for k, v in data.items()}
+    log(f"training frames {len(tr['images'])} from {len(set(tr['scene_id']))} scenes, "
+        f"validation frames {len(va['images'])} from {len(val_ids)} scenes")
+    aug = TrainAugment(augment, occlusion_levels) if augment is not None else None
+    val = (va["images"], va["stress"], va["force_N"]) if len(va["images"]) else None
+    if camera and val is not None:  # validate on both views of the validation frames
+        val = (np.concatenate([va["images"], va["camera_images"]]), np.concatenate([va["stress"]] * 2),
+               np.concatenate([va["force_N"]] * 2))
+    t0, c0 = time.perf_counter(), time.process_time()
+    model, hist = train(tr["images"], tr["stress"], tr["force_N"], val, net_cfg, cfg, aug, log=log,
+                        camera_images=tr.get("camera_images"))
+    seconds, cpu_seconds = time.perf_counter() - t0, time.process_time() - c0
+    extra = {"train_config": asdict(cfg), "augment": asdict(augment) if augment else None,
+             "cpu": cpu_name(), "device": hist.device, "torch_threads": torch.get_num_threads(),
+             "validation_scenes": sorted(val_ids), "n_train": int(len(tr["images"])),
+             "n_val": int(len(va["images"])), "train_seconds": seconds,
+             "train_cpu_seconds": cpu_seconds, "frame_every": int(frame_every),
+             "forces": [FORCE_COMPONENTS[c] for c in forces]}
+    save_checkpoint(model, hist, out_dir / "model.pt", extra)
+    export_torchscript(model, out_dir / "model.ts", preprocess, extra["forces"])
+    export_onnx(model, out_dir / "model.onnx")
+    (out_dir / "history.json").write_text(json.dumps({**asdict(hist), **extra}, indent=1))
+    training_curves(hist, out_dir / "curves.png")
+    return extra
+
+
+def training_curves(hist: History, path: str | Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(1, 2, figsize=(8, 3.2))
+    ax[0].semilogy(hist.epoch, hist.train_loss, "o-", label="train")
+    if hist.val_loss:
+        ax[0].semilogy(hist.epoch, hist.val_loss, "s-", label="validation")
+    ax[0].set_xlabel("epoch")
+    ax[0].set_ylabel("loss (stress MSE + 10 force MSE)")
+    ax[0].legend()
+    if hist.val_force_rmse_N:
+        ax[1].plot(hist.epoch, hist.val_force_rmse_N, "s-", label="batch-norm re-estimated"
+                   if hist.val_force_rmse_running_bn_N else None)
+    if hist.val_force_rmse_running_bn_N:
+        ax[1].plot(hist.epoch, hist.val_force_rmse_running_bn_N, "x--", color="0.5",
+                   label="training's running batch-norm averages")
+        ax[1].legend(fontsize=7)
+    ax[1].set_xlabel("epoch")
+    ax[1].set_ylabel("validation force RMSE (N)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
