@@ -91,3 +91,76 @@ def test_config_that_is_not_a_mapping_is_an_error(tmp_path, text, why):
     bad.write_text(text)
     r = run("geometry", "--config", str(bad), "--out", str(tmp_path / "out"))
     assert why in one_line_error(r, "finray geometry: config error: ")
+
+
+@pytest.mark.parametrize("option, value", [("--size-mm", "0"), ("--minor-mm", "0"), ("--mesh-size-mm", "0"),
+                                           ("--size-mm", "-5"), ("--wall-mm", "nan")])
+def test_sizes_of_zero_or_below_are_refused(tmp_path, option, value):
+    """A size of 0 once silently took the default (a truthiness test)."""
+    args = {"--size-mm": "16", "--minor-mm": "9", "--mesh-size-mm": "1.0", "--wall-mm": "2"} | {option: value}
+    r = run("simulate", "--object", "ellipse", *sum(([k, v] for k, v in args.items()), []),
+            "--height-mm", "30", "--out", str(tmp_path / "out"))
+    assert f"{option} must be > 0, got " in one_line_error(r, "finray simulate: ")
+    assert not (tmp_path / "out").exists()
+
+
+def test_simulate_refuses_two_heights(tmp_path):
+    r = run("simulate", "--object", "circle", "--size-mm", "20", "--height-mm", "20", "--height-mm", "30",
+            "--out", str(tmp_path / "out"))
+    msg = one_line_error(r, "finray simulate: ")
+    assert "--height-mm takes one height, got 2 (20, 30)" in msg
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("command", ["geometry", "simulate"])
+def test_an_out_that_is_a_file_or_cannot_be_created_is_refused(tmp_path, command):
+    (tmp_path / "taken").write_text("a file")
+    base = [command, "--object", "circle", "--size-mm", "20", "--height-mm", "30", "--mesh-size-mm", "3"]
+    r = run(*base, "--out", str(tmp_path / "taken"))
+    assert f"--out {tmp_path / 'taken'} is a file, not a folder" in one_line_error(r, f"finray {command}: ")
+    assert (tmp_path / "taken").read_text() == "a file"
+    r = run(*base, "--out", str(tmp_path / "taken" / "sub"))
+    assert f"--out {tmp_path / 'taken' / 'sub'} cannot be created (" in one_line_error(r, f"finray {command}: ")
+
+
+def test_predict_refuses_zero_threads_and_an_out_that_is_a_file(tmp_path):
+    (tmp_path / "taken").write_text("a file")
+    r = run("predict", "--model", str(tmp_path / "m.ts"), str(tmp_path), "--threads", "0", "--out", str(tmp_path / "o"))
+    assert "--threads must be > 0, got 0" in one_line_error(r, "finray predict: ")
+    r = run("predict", "--model", str(tmp_path / "m.ts"), str(tmp_path), "--out", str(tmp_path / "taken"))
+    assert "is a file, not a folder" in one_line_error(r, "finray predict: ")
+
+
+@pytest.mark.parametrize("kind, why", [("folder", "is a folder, not a config file"),
+                                       ("latin1", "is not UTF-8 text (byte "),
+                                       ("empty", "is empty: give the config's keys")])
+def test_config_that_is_a_folder_not_utf8_or_empty_is_an_error(tmp_path, kind, why):
+    bad = tmp_path / "bad.yaml"
+    if kind == "folder":
+        bad.mkdir()
+    else:
+        bad.write_bytes("finger: {material: \xe9}\n".encode("latin-1") if kind == "latin1" else b"")
+    r = run("geometry", "--config", str(bad), "--out", str(tmp_path / "out"))
+    assert why in one_line_error(r, "finray geometry: config error: ")
+    assert not (tmp_path / "out").exists()
+
+
+def test_ctrl_c_during_simulate_is_one_line(tmp_path):
+    """SIGINT part way through a simulation: one line and exit code 130, no traceback."""
+    import signal
+    import time
+
+    p = subprocess.Popen([sys.executable, "-m", "finray.cli", "simulate", "--object", "circle", "--size-mm", "20",
+                          "--height-mm", "30", "--no-vtu", "--out", str(tmp_path / "out")],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    err = ""
+    while "frame" not in err:  # the solver's first progress line: it is simulating
+        line = p.stderr.readline()
+        assert line, "simulate ended before its first frame"
+        err += line
+    time.sleep(0.5)
+    p.send_signal(signal.SIGINT)
+    out, rest = p.communicate(timeout=60)
+    assert p.returncode == 130
+    lines = [ln for ln in rest.strip().splitlines() if ln]
+    assert lines == ["finray simulate: interrupted"], rest

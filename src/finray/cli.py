@@ -11,6 +11,29 @@ from . import __version__
 class UsageError(Exception):
     """Options that do not go together; ``main`` prints ``finray <command>: <message>``."""
 
+
+def _positive(args, *names: str) -> None:
+    """Refuse options (argparse dests) given as 0 or below, or not finite: a size, a
+    count or a thread number of 0 makes no sense (and once silently took the default)."""
+    import math
+
+    for n in names:
+        v = getattr(args, n, None)
+        if v is not None and not (math.isfinite(v) and v > 0):
+            raise UsageError(f"--{n.replace('_', '-')} must be > 0, got {v:g}")
+
+
+def _out_dir(path: Path) -> Path:
+    """``--out`` as a folder, created here: a file of that name, or a folder that cannot
+    be created, is a one-line error before any work."""
+    if path.exists() and not path.is_dir():
+        raise UsageError(f"--out {path} is a file, not a folder")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UsageError(f"--out {path} cannot be created ({exc.strerror or exc})") from None
+    return path
+
 GEOMETRY_HELP = """\
 Build the finger mesh and place objects at contact heights.
 
@@ -72,6 +95,9 @@ def _raw_config(path: Path | None) -> dict:
 
 
 def _object_spec(args) -> tuple[str, dict] | None:
+    _positive(args, "size_mm", "minor_mm", "wall_mm", "mesh_size_mm")
+    if args.fillet_mm is not None and not args.fillet_mm >= 0:
+        raise UsageError(f"--fillet-mm must be >= 0, got {args.fillet_mm:g}")
     if args.object_file is not None:
         spec = {"type": "polygon_file", "path": str(args.object_file)}
         name = args.object_file.stem
@@ -88,7 +114,7 @@ def _object_spec(args) -> tuple[str, dict] | None:
             spec["side_mm"] = args.size_mm
         if kind == "ellipse":
             spec["width_mm"] = args.size_mm
-            spec["height_mm"] = args.minor_mm or args.size_mm / 2
+            spec["height_mm"] = args.minor_mm if args.minor_mm is not None else args.size_mm / 2
         name = f"{kind}_{args.size_mm:g}mm"
     else:
         return None
@@ -110,14 +136,14 @@ def _run_geometry(args) -> int:
     one = _object_spec(args)
     if one is not None:
         raw["objects"] = {one[0]: one[1]}
-    if args.height_mm:
+    if args.height_mm is not None:
         raw["heights_mm"] = args.height_mm
-    if args.mesh_size_mm:
+    if args.mesh_size_mm is not None:
         raw.setdefault("mesh", {})["size_mm"] = args.mesh_size_mm
     if not raw.get("objects"):
         raise UsageError("no config found; give --config or --object")
     cfg = validate_config(raw, base_dir=Path.cwd())
-    out = args.out
+    out = _out_dir(args.out)
     summary = build_finger(cfg, out)
     q = summary["quality"]
     print(f"finger: {q['n_triangles']} P{q['order']} triangles, {q['n_nodes']} nodes, "
@@ -161,8 +187,9 @@ def _simulate_parser(sub) -> None:
                         "(default: config/config.yaml of the source tree)")
     p.add_argument("--out", type=Path, required=True, help="output directory")
     _add_object_options(p, "object kind (or --object-file)")
-    p.add_argument("--height-mm", type=float, required=True,
-                   help="contact height of the object's reference point (mm)")
+    p.add_argument("--height-mm", type=float, required=True, action="append",
+                   help="contact height of the object's reference point (mm; one: "
+                        "finray geometry places an object at several)")
     p.add_argument("--material", default="steel",
                    help="object material, a key of the config's materials (default steel: rigid)")
     p.add_argument("--mesh-size-mm", type=float, help="element edge length of the finger (mm)")
@@ -185,13 +212,19 @@ def _run_simulate(args) -> int:
     one = _object_spec(args)
     if one is None:
         raise UsageError("give --object or --object-file")
+    if len(args.height_mm) > 1:
+        raise UsageError(f"--height-mm takes one height, got {len(args.height_mm)} "
+                         f"({', '.join(f'{h:g}' for h in args.height_mm)}): simulate each "
+                         "on its own (finray geometry places an object at several)")
+    args.height_mm = args.height_mm[0]
     name, spec = one
     spec["materials"] = [args.material]
     raw["objects"] = {name: spec}
     raw["heights_mm"] = [args.height_mm]
-    if args.mesh_size_mm:
+    if args.mesh_size_mm is not None:
         raw.setdefault("mesh", {})["size_mm"] = args.mesh_size_mm
     cfg = validate_config(raw, base_dir=Path.cwd())
+    _out_dir(args.out)
     m = cfg["mesh"]
     finger = mesh_finger(finger_from_config(cfg), m["size_mm"], m["min_angle_deg"], m["order"],
                          m["arc_chord_mm"])
@@ -269,6 +302,8 @@ def _calibrated_line(row: dict) -> str:
 def _run_predict(args) -> int:
     from .predict import predict_files
 
+    _positive(args, "threads")
+    _out_dir(args.out)
     cal = None
     if args.calibration is not None:
         from .calibration import read_calibration
@@ -438,6 +473,9 @@ def main(argv: list[str] | None = None) -> int:
     except bad_input as exc:
         print(f"finray {args.command}: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f"finray {args.command}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

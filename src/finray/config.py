@@ -233,16 +233,22 @@ def _check_stage_sections(cfg: dict) -> None:
 
 def read_config_file(path: str | Path) -> dict:
     """The YAML mapping of a config file, not validated; :class:`ConfigError` when the
-    file is missing, is not YAML or is not a mapping."""
+    file is missing, a folder, not UTF-8, not YAML, empty or not a mapping."""
     path = Path(path)
+    if path.is_dir():
+        raise ConfigError("<config>", f"'{path}' is a folder, not a config file")
     if not path.is_file():
         raise ConfigError("<config>", f"config file '{path}' does not exist")
     try:
-        raw = yaml.safe_load(path.read_text())
+        raw = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError as exc:
+        raise ConfigError("<config>", f"'{path}' is not UTF-8 text (byte {exc.start}: "
+                                      f"{exc.object[exc.start:exc.start + 1]!r})") from None
     except yaml.YAMLError as exc:
         raise ConfigError("<config>", f"'{path}' is not valid YAML ({exc})".replace("\n", " "))
     if raw is None:
-        return {}
+        raise ConfigError("<config>", f"'{path}' is empty: give the config's keys, or leave "
+                                      "--config out for the defaults")
     if not isinstance(raw, dict):
         raise ConfigError("<config>", f"'{path}' is not a mapping of config keys")
     return raw
