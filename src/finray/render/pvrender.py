@@ -44,7 +44,52 @@ def vtk_cells(tri: np.ndarray) -> np.ndarray:
     return np.column_stack([np.full(len(tri), tri.shape[1]), tri]).ravel()
 
 
-class PyVistaRenderer:
+
+def _finger_plotter(surface, p: RenderParams, size: tuple[int, int]):
+    """An off-screen plotter of ``size`` (W, H) px with the extruded finger ``surface``
+    in its colour, a headlight, no multisampling and back faces culled (the renderers'
+    one set-up); returns the plotter and the finger's PolyData (points updated per frame)."""
+    import pyvista as pv
+
+    pl = pv.Plotter(off_screen=True, window_size=size, lighting="none")
+    pl.render_window.SetMultiSamples(0)
+    pl.set_background(p.background_rgb)
+    pl.add_light(pv.Light(light_type="headlight", intensity=1.0))
+    poly = pv.PolyData(surface.points.copy(), vtk_cells(surface.faces))
+    actor = pl.add_mesh(poly, color=p.finger_rgb, ambient=p.ambient, diffuse=p.diffuse,
+                        specular=0.0, smooth_shading=False, show_edges=False)
+    actor.GetProperty().BackfaceCullingOn()
+    return pl, poly
+
+class _Plotted:
+    """A renderer that owns ``self.plotter`` (window ``self.size``, W x H px): renders
+    and reads back a frame (:meth:`_grab`), closed by :meth:`close` or ``with``."""
+
+    _pixels = None
+
+    def _grab(self) -> np.ndarray:
+        """Render and read back the frame (H, W, 3) uint8, row 0 at the top."""
+        from vtkmodules.util.numpy_support import vtk_to_numpy
+        from vtkmodules.vtkCommonCore import vtkUnsignedCharArray
+
+        self.plotter.render()
+        w, h = self.size
+        if self._pixels is None:
+            self._pixels = vtkUnsignedCharArray()
+        self.plotter.render_window.GetPixelData(0, 0, w - 1, h - 1, 0, self._pixels, 0)
+        return vtk_to_numpy(self._pixels).reshape(h, w, 3)[::-1]
+
+    def close(self) -> None:
+        self.plotter.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+class PyVistaRenderer(_Plotted):
     """Off-screen renderer of one finger mesh (and optionally its object) for a job.
 
     ``render(points2d)`` returns the RGB image (H, W, 3) uint8 in the job's pixel
@@ -62,14 +107,8 @@ class PyVistaRenderer:
         self.extrusion_mm = extrusion_mm
         self.ss = int(p.supersample)
         self.size = (p.width * self.ss, p.height * self.ss)  # (W, H) in pixels
-        self.plotter = pl = pv.Plotter(off_screen=True, window_size=self.size, lighting="none")
-        pl.render_window.SetMultiSamples(0)
-        pl.set_background(p.background_rgb)
-        pl.add_light(pv.Light(light_type="headlight", intensity=1.0))
-        self.poly = pv.PolyData(self.surface.points.copy(), vtk_cells(self.surface.faces))
-        actor = pl.add_mesh(self.poly, color=p.finger_rgb, ambient=p.ambient, diffuse=p.diffuse,
-                            specular=0.0, smooth_shading=False, show_edges=False)
-        actor.GetProperty().BackfaceCullingOn()
+        self.plotter, self.poly = _finger_plotter(self.surface, p, self.size)
+        pl = self.plotter
         self.object_poly = None
         if object_edges is not None and len(object_edges) and n_object_points:
             # the object's outline on the camera-side face of the finger, and its
@@ -111,9 +150,6 @@ class PyVistaRenderer:
 
     def render_fine(self, points2d: np.ndarray, object_points2d: np.ndarray | None = None) -> np.ndarray:
         """The supersampled RGB frame (H*ss, W*ss, 3) uint8, row 0 at the top."""
-        from vtkmodules.util.numpy_support import vtk_to_numpy
-        from vtkmodules.vtkCommonCore import vtkUnsignedCharArray
-
         self.poly.points = self.surface.deformed(np.asarray(points2d, dtype=np.float64))
         if self.object_poly is not None and object_points2d is not None:
             k = len(object_points2d)
@@ -122,29 +158,15 @@ class PyVistaRenderer:
             pts[k:, :2] = object_points2d
             self.object_poly.points = pts
             self.object_lines.points = pts[:k].copy()
-        self.plotter.render()
-        w, h = self.size
-        if self._pixels is None:
-            self._pixels = vtkUnsignedCharArray()
-        self.plotter.render_window.GetPixelData(0, 0, w - 1, h - 1, 0, self._pixels, 0)
-        return vtk_to_numpy(self._pixels).reshape(h, w, 3)[::-1]
+        return self._grab()
 
     def render(self, points2d: np.ndarray, object_points2d: np.ndarray | None = None) -> np.ndarray:
         """RGB image (H, W, 3) uint8: the fine frame area-averaged down."""
         fine = self.render_fine(points2d, object_points2d)
         return to_uint8(block_mean_u8(fine, self.ss) / 255.0)
 
-    def close(self) -> None:
-        self.plotter.close()
 
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
-
-
-class PyVistaPerspective:
+class PyVistaPerspective(_Plotted):
     """Off-screen perspective renderer of one finger mesh, extruded, for a job: the
     finger alone in ``finger_rgb`` on ``background_rgb``, lit by a headlight with the
     ``ambient`` and ``diffuse`` terms of :class:`RenderParams` (as :class:`PyVistaRenderer`).
@@ -165,14 +187,8 @@ class PyVistaPerspective:
         self.n_nodes = len(mesh.points)
         self.ss = int(supersample or p.supersample)
         self.size = (64, 64)  # (W, H) in pixels; set per camera
-        self.plotter = pl = pv.Plotter(off_screen=True, window_size=self.size, lighting="none")
-        pl.render_window.SetMultiSamples(0)
-        pl.set_background(p.background_rgb)
-        pl.add_light(pv.Light(light_type="headlight", intensity=1.0))
-        self.poly = pv.PolyData(self.surface.points.copy(), vtk_cells(self.surface.faces))
-        actor = pl.add_mesh(self.poly, color=p.finger_rgb, ambient=p.ambient, diffuse=p.diffuse,
-                            specular=0.0, smooth_shading=False, show_edges=False)
-        actor.GetProperty().BackfaceCullingOn()
+        self.plotter, self.poly = _finger_plotter(self.surface, p, self.size)
+        pl = self.plotter
         # the first show() sets up the render window (and may reset the camera);
         # frames after it set the camera and only call render()
         pl.show(auto_close=False)
@@ -180,9 +196,6 @@ class PyVistaPerspective:
 
     def render_fine(self, points2d: np.ndarray, camera: PinholeCamera) -> np.ndarray:
         """The supersampled RGB frame (H*ss, W*ss, 3) uint8 of ``camera``, row 0 at the top."""
-        from vtkmodules.util.numpy_support import vtk_to_numpy
-        from vtkmodules.vtkCommonCore import vtkUnsignedCharArray
-
         points2d = np.asarray(points2d, dtype=np.float64)
         if points2d.shape != (self.n_nodes, 2):
             raise ValueError(f"expected {self.n_nodes} nodes (N, 2), got shape {points2d.shape}")
@@ -200,25 +213,11 @@ class PyVistaPerspective:
         self.poly.points = pts
         # near and far planes around the finger (depth resolution is relative to them)
         set_vtk_camera(self.plotter.camera, fine, clipping=(0.5 * z.min(), 2.0 * z.max()))
-        self.plotter.render()
-        w, h = self.size
-        if self._pixels is None:
-            self._pixels = vtkUnsignedCharArray()
-        self.plotter.render_window.GetPixelData(0, 0, w - 1, h - 1, 0, self._pixels, 0)
-        return vtk_to_numpy(self._pixels).reshape(h, w, 3)[::-1]
+        return self._grab()
 
     def render(self, points2d: np.ndarray, camera: PinholeCamera) -> np.ndarray:
         """RGB image (camera.height, camera.width, 3) uint8 of deformed 2D nodes (N, 2) mm."""
         return to_uint8(block_mean_u8(self.render_fine(points2d, camera), self.ss) / 255.0)
-
-    def close(self) -> None:
-        self.plotter.close()
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
 
 
 def block_mean_u8(img: np.ndarray, k: int) -> np.ndarray:
