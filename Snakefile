@@ -11,6 +11,15 @@ report: "workflow/report/workflow.rst"
 
 
 include: "workflow/rules/common.smk"
+# each stage's helpers (functions only), before any rule reads them
+include: "workflow/rules/helpers/geometry.smk"
+include: "workflow/rules/helpers/fea.smk"
+include: "workflow/rules/helpers/render.smk"
+include: "workflow/rules/helpers/train.smk"
+include: "workflow/rules/helpers/evaluate.smk"
+include: "workflow/rules/helpers/spread.smk"
+include: "workflow/rules/helpers/lab.smk"
+include: "workflow/rules/helpers/targets.smk"
 include: "workflow/rules/geometry.smk"
 include: "workflow/rules/fea.smk"
 include: "workflow/rules/fea_benchmarks.smk"

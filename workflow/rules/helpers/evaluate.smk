@@ -1,0 +1,101 @@
+# Helpers of the evaluation rules (evaluate.smk): each experiment's test shards, models and
+# conditions; sim-to-real's model; the diversity comparison.
+
+
+def pitch_series_shards():
+    obj, mat, h = pitch_scene()
+    return [f"{DATASET}/shards/{obj}/{mat}/h{h}/p{pitch_label(p)}.npz" for p in series_pitches()]
+
+
+def occlusion_level_order():
+    """Occlusion levels from the smallest discs to the largest (the config's keys in
+    whatever order they are written)."""
+    levels = config["dataset"]["occlusion_levels"]
+    return sorted(levels, key=lambda k: (list(levels[k]), k))
+
+
+def experiment_setup(wildcards):
+    """Test shards, models and conditions of an experiment (see finray.evaluate)."""
+    e, d = wildcards.experiment, train_dir(wildcards)
+    if e in ("shape", "material"):  # also scored through the camera path on the renders
+        return {"shards": shard_files(splits=[e], pitch=0.0),
+                "models": eval_models("plain", "camera", train_dir=d),
+                "group_col": "object" if e == "shape" else "material", "conditions": None,
+                "renders": render_index_files(pitch=0.0, splits=[e])}
+    if e == "occlusion":
+        return {"shards": shard_files(splits=["shape"], pitch=0.0),
+                "models": eval_models("plain", "occlusion", train_dir=d), "group_col": "object",
+                "conditions": [[lvl, {"occlusion": lvl}] for lvl in occlusion_level_order()],
+                "renders": []}
+    if e == "viewpoint":  # perspective renders of the held-out shapes (evaluate.viewpoint)
+        return {"shards": shard_files(splits=["shape"], pitch=0.0),
+                "models": eval_models("plain", "pitch", "camera", train_dir=d),
+                "group_col": "distance_mm",
+                "conditions": [[f"{p:g}", {"pitch_deg": p}] for p in series_pitches()],
+                "renders": viewpoint_indices()}
+    return {"shards": pitch_series_shards(), "models": eval_models("plain", "pitch", train_dir=d),
+            "group_col": None,
+            "conditions": [[f"{p:g}", {"pitch_deg": p}] for p in series_pitches()], "renders": []}
+
+
+def viewpoint_indices():
+    """index.json of the viewpoint experiment's renders: every held-out shape scene."""
+    return sorted(f"{RENDER}/viewpoint/{s.object}/{s.material}/h{s.height_mm:g}/index.json"
+                  for s in scenes(config) if s.split == "shape")
+
+
+def experiment_params(wildcards):
+    """Models (name, in the order compared), grouping and conditions (ordered [name,
+    settings] pairs) of an experiment; the shards and model files are its inputs."""
+    setup = experiment_setup(wildcards)
+    return canonical({"models": list(setup["models"]), "group_col": setup["group_col"],
+                      "conditions": setup["conditions"]})
+
+
+def experiment_inputs(wildcards):
+    """Test shards, model files (model.ts; its model.ts.json comes with it) and, for the
+    camera path, the test views' render indices."""
+    setup = experiment_setup(wildcards)
+    return {"shards": setup["shards"], "models": list(setup["models"].values()),
+            "renders": setup["renders"]}
+
+
+def sim2real_model(train_dir=TRAIN):
+    """The network sim-to-real starts from: the camera model where configured, else plain."""
+    return f"{train_dir}/{'camera' if 'camera' in config['train']['models'] else 'plain'}/model.pt"
+
+
+# The diversity comparison (evaluate.smk's evaluate_diversity, DIVERSITY_DIR there)
+def diversity_files():
+    """The comparison's summary where the config plans it (generated training objects and
+    generated.compare_model), else nothing."""
+    return [f"{DIVERSITY_DIR}/summary.json"] if DIVERSITY else []
+
+
+def _diversity_or_stop():
+    if not DIVERSITY:
+        raise ValueError(f"{DIVERSITY_DIR} needs generated training objects (generated.count > 0, "
+                         "split train) and generated.compare_model: see config/diverse.yaml")
+    return DIVERSITY
+
+
+def diversity_inputs(wildcards):
+    """Test shards of the shape and material experiments; both models and their histories."""
+    paper, model = _diversity_or_stop()
+    tests = {f"{t}_shards": experiment_setup(SimpleNamespace(experiment=t))["shards"]
+             for t in DIVERSITY_TESTS}
+    return {**tests, "models": [model_file(paper), model_file(model)],
+            "histories": [f"{TRAIN}/{m}/history.json" for m in (paper, model)]}
+
+
+def diversity_params(wildcards):
+    """Grouping of each test set (as its experiment's), the models' names and the number
+    of training objects of each (the paper's, and those plus the generated ones)."""
+    paper, model = _diversity_or_stop()
+    train = [n for n, o in config["objects"].items() if o["split"] == "train"]
+    n_gen = sum(n in GENERATED_TRAIN for n in train)
+    return canonical({
+        "tests": {t: experiment_setup(SimpleNamespace(experiment=t))["group_col"] for t in DIVERSITY_TESTS},
+        "setup": {"model": model, "models": {"paper_objects": paper, "with_generated": model},
+                  "n_generated": n_gen,
+                  "train_objects": {"paper_objects": len(train) - n_gen, "with_generated": len(train)}}})

@@ -1,0 +1,24 @@
+# Helpers of the emulated lab rig's rules (lab.smk): its takes, as-built finger and objects.
+
+
+def lab_takes():
+    """Every take's name: <object>_h<height>."""
+    return [f"{o}_h{h:g}" for o in sorted(config["lab"]["objects"]) for h in config["lab"]["heights_mm"]]
+
+
+def lab_finger():
+    return canonical(as_built_finger(config["finger"], config["lab"]["as_built"]))
+
+
+def lab_object_spec(wildcards):
+    return canonical(config["lab"]["objects"][wildcards.object])
+
+
+def lab_polygon_input(wildcards):
+    spec = config["lab"]["objects"][wildcards.object]
+    return [spec["path"]] if spec["type"] == "polygon_file" else []
+
+
+def lab_take_seed(wildcards):
+    """The take's seed: lab.seed and its name (adding a take leaves the others alone)."""
+    return config["lab"]["seed"] + zlib.crc32(f"{wildcards.object}_h{wildcards.height}".encode()) % 100000

@@ -1,0 +1,36 @@
+# Helpers of the train rules (train.smk): each model's training shards and augmentation; the
+# models an experiment compares.
+
+
+# The diversity comparison (generated.compare_model): (paper-objects model, model), or None
+# where no generated object trains. The paper-objects model is the job a config without
+# the generated objects runs for that model: the same params, the paper objects' shards.
+DIVERSITY = diversity_models(config)
+
+
+GENERATED_TRAIN = frozenset(generated_training_objects(config))
+
+
+def trained_model(name):
+    """The train.models entry a trained model follows (the paper-objects model: its model's)."""
+    return DIVERSITY[1] if DIVERSITY and name == DIVERSITY[0] else name
+
+
+def train_shards(wildcards):
+    """A model's training shards (front views of the train split); the paper-objects model
+    of the diversity comparison gets those of the non-generated objects only."""
+    exclude = GENERATED_TRAIN if DIVERSITY and wildcards.model == DIVERSITY[0] else ()
+    return shard_files(splits=["train"], pitch=0.0, exclude_objects=exclude)
+
+
+def model_augment(wildcards):
+    return canonical(config["train"]["models"][trained_model(wildcards.model)])
+
+
+def model_file(name, train_dir=TRAIN):
+    return f"{train_dir}/{name}/model.ts"
+
+
+def eval_models(*names, train_dir=TRAIN):
+    """The models an experiment compares (name -> TorchScript), those of the config only."""
+    return {n: model_file(n, train_dir) for n in names if n in config["train"]["models"]}
