@@ -48,11 +48,15 @@ def test_dag_span_from_the_file_times(bench):
     assert d["pipeline_wall_s"] == pytest.approx(130.0)  # stages only: 0 s to 130 s
     assert d["jobs"] == 6 and d["job_s"] == pytest.approx(225.0)
     assert d["covers"] == DAG_SPAN_COVERS
+    # two cores: one idle 0-5 s, both 5-10 s, one 60-110 s (plain alone) and 130-150 s
+    assert d["cores"] == 2 and d["idle_core_s"] == pytest.approx(5 + 10 + 50 + 20)
+    assert d["job_cpu_s"] == pytest.approx(4.0 + 9.5 + 19.0 + 98.0 + 49.0 + 39.0)
 
 
 def test_dag_span_without_benchmark_files(tmp_path):
     d = dag_span(tmp_path)
     assert d["jobs"] == 0 and np.isnan(d["wall_s"]) and np.isnan(d["pipeline_wall_s"])
+    assert np.isnan(d["idle_core_s"])
 
 
 def test_speed_table_lists_studies_and_the_dag(bench):

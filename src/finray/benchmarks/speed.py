@@ -112,7 +112,27 @@ def dag_span(benchmark_dir) -> dict:
         return float(j["end"].max() - j["start"].min()) if len(j) else float("nan")
 
     return {"wall_s": span(every), "pipeline_wall_s": span(pipe), "jobs": int(len(every)),
-            "job_s": float(every["s"].sum()), "covers": DAG_SPAN_COVERS}
+            "job_s": float(every["s"].sum()), "job_cpu_s": float(every["cpu_time"].sum()),
+            "idle_core_s": idle_core_s(every, DAG_CORES), "cores": DAG_CORES,
+            "covers": DAG_SPAN_COVERS}
+
+
+#: The cores of the README's main command (``snakemake --cores 2``): the idle core-time
+#: is counted against them.
+DAG_CORES = 2
+
+
+def idle_core_s(jobs: pd.DataFrame, cores: int = DAG_CORES) -> float:
+    """Core-seconds left idle over the DAG's span: the integral of ``max(0, cores -
+    jobs running)`` from the first job's start to the last one's end (a core waiting
+    on a job that had not started, or on a long job at the end)."""
+    if not len(jobs):
+        return float("nan")
+    t = np.concatenate([jobs["start"].to_numpy(), jobs["end"].to_numpy()])
+    step = np.concatenate([np.ones(len(jobs)), -np.ones(len(jobs))])
+    order = np.lexsort((step, t))  # at a tie, an end before a start
+    t, running = t[order], np.cumsum(step[order])
+    return float(np.sum(np.maximum(0.0, cores - running[:-1]) * np.diff(t)))
 
 
 def speed_summary(fea_scenes_csv, latency_json, benchmark_dir) -> dict:
@@ -149,4 +169,8 @@ def speed_table(speed: dict) -> str:
         rows.append(f"| whole DAG, wall | {dag['wall_s'] / 60:.1f} min | {dag['jobs']} benchmarked "
                     f"jobs, {dag['job_s'] / 60:.1f} min of job time; pipeline stages alone "
                     f"{dag['pipeline_wall_s'] / 60:.1f} min |")
+        if "idle_core_s" in dag:
+            rows.append(f"| idle core-time | {dag['idle_core_s'] / 60:.1f} min | of {dag['cores']} "
+                        f"cores over the DAG's wall time ({100 * dag['idle_core_s'] / (dag['cores'] * dag['wall_s']):.0f} %); "
+                        f"{dag['job_cpu_s'] / 60:.1f} min of job CPU time |")
     return "\n".join(rows)
