@@ -200,3 +200,46 @@ def test_chord_steps_keep_the_forces_with_fewer_factorisations(finger):
     # both to the Newton tolerance (residual 1e-3 of the force scale)
     np.testing.assert_allclose(chord.force_N, full.force_N, rtol=0, atol=1e-3 * np.abs(full.force_N).max())
     check_frames(chord)
+
+
+def test_a_failed_scene_keeps_the_frames_that_converged(scene_inputs, tmp_path, monkeypatch):
+    """The solver stops at its third frame: the two that converged (and the rest frame)
+    are written beside the one-line reason, marked as such, in the scene's folder and
+    beside the failure report (which outlives a failed workflow job)."""
+    import importlib
+    import json
+
+    from finray.fea.scene import run_scene
+
+    sim = importlib.import_module("finray.fea.simulate")  # (finray.fea.simulate is also the function)
+
+    real = sim.march
+
+    def march_then_fail(model, q, targets, frames, *a, on_frame=None, **k):
+        def stop_at_third(i, s, q_, info):
+            if i == 2:
+                raise SimulationError("made to fail", step=7, load=float(s), cause="test")
+            on_frame(i, s, q_, info)
+        return real(model, q, targets, frames, *a, on_frame=stop_at_third, **k)
+
+    monkeypatch.setattr(sim, "march", march_then_fail)
+    from finray.benchmarks.fea import with_overrides
+
+    cfg, finger, obj = scene_inputs
+    cfg = with_overrides(cfg, {"fea.push_mm": 1.5})  # three frames: two converge
+    report = tmp_path / "failed" / "c20.json"
+    with pytest.raises(SimulationError) as e:
+        run_scene(cfg, finger, obj, "steel", tmp_path / "scene", {"scene": "c20"}, vtu=False,
+                  failure_report=report)
+    partial = tmp_path / "failed" / "c20.partial_forces.csv"
+    msg = str(e.value)
+    assert "\n" not in msg and msg.startswith("scene c20: made to fail at object displacement ")
+    assert msg.endswith(f"; the 2 frames that converged are in {partial}")
+    r = json.loads(report.read_text())
+    assert r == json.loads((tmp_path / "scene" / "summary.json").read_text())
+    assert r["converged"] is False and r["frames_converged"] == 2 and r["partial_forces"] == str(partial)
+    for f in (partial, tmp_path / "scene" / "partial_forces.csv"):
+        t = np.loadtxt(f, delimiter=",", skiprows=1)
+        assert t.shape == (3, 3) and t[0].tolist() == [0.0, 0.0, 0.0]  # the rest frame, then two
+        assert np.all(np.diff(t[:, 0]) > 0)
+    assert not (tmp_path / "scene" / "forces.csv").exists()  # no result passes for a whole one

@@ -10,11 +10,14 @@ class NotPositiveDefinite(np.linalg.LinAlgError):
 
 class SimulationError(RuntimeError):
     """The solve failed; ``step`` is the load-step index, ``load`` the load factor
-    (fraction of the push) it aimed at, ``cause`` a short reason."""
+    (fraction of the push) it aimed at, ``cause`` a short reason; ``partial``: the
+    frames that converged before it (``displacement_mm`` (F,), ``force_N`` (F, 2): the
+    force on the object), where the solver got that far, else None."""
 
     def __init__(self, message: str, step: int | None = None, load: float | None = None,
-                 cause: str = ""):
+                 cause: str = "", partial: dict | None = None):
         super().__init__(message)
         self.step = step
         self.load = load
         self.cause = cause
+        self.partial = partial

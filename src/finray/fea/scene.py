@@ -190,8 +190,10 @@ def run_scene(cfg: dict, finger: TriMesh, obj_mesh: TriMesh, material: str, outd
 
     A failed solve writes ``summary.json`` with ``converged: false`` and the cause
     into ``outdir`` and, when given, the same report to ``failure_report`` (a path
-    that is no output of the workflow rule, so that it survives the failed job),
-    then raises :class:`SimulationError` with a one-line message naming the scene.
+    that is no output of the workflow rule, so that it survives the failed job), and
+    the frames that converged before it to ``partial_forces.csv`` (in ``outdir`` and
+    beside the report, ``<report>.partial_forces.csv``), then raises
+    :class:`SimulationError` with a one-line message naming the scene.
     A successful run removes a stale ``failure_report``.
     """
     outdir = Path(outdir)
@@ -205,13 +207,29 @@ def run_scene(cfg: dict, finger: TriMesh, obj_mesh: TriMesh, material: str, outd
         msg = f"scene {name}: {exc}"
         report = {**scene, "converged": False, "wall_time_s": round(time.perf_counter() - t0, 3),
                   "error": msg, "cause": exc.cause, "failed_step": exc.step,
-                  "load_factor": exc.load}
+                  "load_factor": exc.load, "frames_converged": 0}
+        homes = [outdir] + ([Path(failure_report).parent] if failure_report is not None else [])
+        for home in homes:
+            home.mkdir(parents=True, exist_ok=True)
+        part = exc.partial
+        if part is not None and len(part["displacement_mm"]) > 1:
+            # the frames that converged (and the rest frame) kept beside the reason: the
+            # force on the finger (N), as forces.csv; beside the failure report too,
+            # which outlives a failed workflow job
+            n = report["frames_converged"] = int(len(part["displacement_mm"]) - 1)
+            rows = np.column_stack([part["displacement_mm"], -part["force_N"]])
+            paths = [outdir / "partial_forces.csv"] + (
+                [Path(failure_report).with_suffix(".partial_forces.csv")] if failure_report else [])
+            for path in paths:
+                np.savetxt(path, rows, delimiter=",", header="displacement_mm,fx_N,fy_N",
+                           comments="", fmt="%.8g")
+            report["partial_forces"] = str(paths[-1])
+            msg = report["error"] = f"{msg}; the {n} frames that converged are in {paths[-1]}"
         text = json.dumps(report, indent=2)
         (outdir / "summary.json").write_text(text)
         if failure_report is not None:
-            Path(failure_report).parent.mkdir(parents=True, exist_ok=True)
             Path(failure_report).write_text(text)
-        return SimulationError(msg, step=exc.step, load=exc.load, cause=exc.cause)
+        return SimulationError(msg, step=exc.step, load=exc.load, cause=exc.cause, partial=part)
 
     try:
         res = simulate(finger, obj, material_law(cfg, cfg["finger"]["material"]),

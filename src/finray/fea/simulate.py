@@ -343,6 +343,9 @@ def simulate(finger_mesh: TriMesh, obj: RigidObject | DeformableObject, material
     except SimulationError as e:
         e.args = (f"{e.args[0]} at object displacement {e.load * push:.4f} mm "
                   f"(push {push} mm)",)
+        n_ok = len(rec["force"])  # frames recorded whole (a frame that failed its check is not)
+        e.partial = {"displacement_mm": np.array(rec["displacement_mm"][:n_ok]),
+                     "force_N": np.array(rec["force"]).reshape(n_ok, 2) * extrusion}
         raise
 
     F = np.array(rec["force"])
