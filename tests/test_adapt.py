@@ -150,3 +150,21 @@ def test_fit_heads_fits_the_last_layers_only(net):
         bn = [m for m in head if isinstance(m, torch.nn.BatchNorm1d)]
         assert all(torch.equal(a.running_mean, b.running_mean) for a, b in
                    zip(bn, [m for m in net.force_head if isinstance(m, torch.nn.BatchNorm1d)]))
+
+
+def test_calibrate_checks_every_take_before_ingesting_any(net, tmp_path, capsys):
+    """A good take, then one without forces.csv: refused in one line before the good one
+    is ingested (ingesting takes ~25 s each: a bad last take used to cost them all)."""
+    from finray.train import History, export_torchscript, save_checkpoint
+    from recording_synth import write_take
+
+    save_checkpoint(net, History(), tmp_path / "model.pt")
+    export_torchscript(net, tmp_path / "model.ts", PREPROCESS)
+    write_take(tmp_path / "good", size=(320, 240), duration_s=1.0, starts=(0.2,), ramp=0.3, hold=0.1)
+    write_take(tmp_path / "bad", size=(320, 240), duration_s=1.0, starts=(0.2,), ramp=0.3, hold=0.1)
+    (tmp_path / "bad" / "forces.csv").unlink()
+    rc = main(["calibrate", str(tmp_path / "good"), str(tmp_path / "bad"), "--model",
+               str(tmp_path / "model.pt"), "--out", str(tmp_path / "c.json")])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and len(err.splitlines()) == 1 and "forces.csv" in err, err
+    assert not (tmp_path / "c.ingest").exists() and not (tmp_path / "c.json").exists()

@@ -224,6 +224,50 @@ def test_cli_predict_bad_input_is_one_line(exported, render_png, tmp_path, capsy
     assert main(["predict", "--model", str(bad_ts), str(render_png), "--out", out,
                  "--backend", "torchscript"]) == 2
     assert "bad.ts is not a TorchScript model" in one_line_error(capsys, "finray predict: ")
+    assert not (tmp_path / "out").exists()  # every refusal above left nothing behind
+
+
+def test_cli_predict_refuses_an_out_with_another_runs_results(exported, render_png, tmp_path, capsys):
+    """A second run into a used --out would mix its table with the first run's stress
+    maps: refused without --overwrite, which removes them first."""
+    _, d = exported
+    model, out = str(d / "model.ts"), tmp_path / "out"
+    assert main(["predict", "--model", model, str(render_png), "--out", str(out),
+                 "--backend", "torchscript"]) == 0
+    first = sorted(f.name for f in out.iterdir())
+    assert "forces.csv" in first and any(n.endswith("_stress.exr") for n in first)
+    capsys.readouterr()
+    assert main(["predict", "--model", model, str(render_png), "--out", str(out), "--force-only"]) == 2
+    msg = one_line_error(capsys, "finray predict: ")
+    assert f"{out} holds another run's results (" in msg and "give --overwrite" in msg
+    assert sorted(f.name for f in out.iterdir()) == first  # untouched
+    assert main(["predict", "--model", model, str(render_png), "--out", str(out), "--force-only",
+                 "--overwrite", "--backend", "torchscript"]) == 0
+    assert sorted(f.name for f in out.iterdir()) == ["forces.csv"]  # the old maps went with it
+
+
+def test_an_interrupted_run_keeps_the_frames_done(exported, render_png, tmp_path):
+    """Ctrl-C after two of three frames: forces.csv in place with those two, no .part."""
+    from finray.predict import predict_files
+
+    _, d = exported
+    src = tmp_path / "frames"
+    src.mkdir()
+    for k in range(3):
+        (src / f"f{k}.png").write_bytes(render_png.read_bytes())
+    done = []
+
+    def on_frame(row):
+        done.append(row)
+        if len(done) == 2:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        predict_files(d / "model.ts", src, tmp_path / "out", backend="torchscript",
+                      force_only=True, on_frame=on_frame)
+    rows = list(csv.DictReader(open(tmp_path / "out" / "forces.csv")))
+    assert [r["frame"] for r in rows] == ["f0.png", "f1.png"]
+    assert not (tmp_path / "out" / "forces.csv.part").exists()
 
 
 def test_cli_predict_skips_bad_frames_and_writes_the_others(exported, render_png, tmp_path,
@@ -258,7 +302,7 @@ def test_cli_predict_skips_bad_frames_and_writes_the_others(exported, render_png
     assert not (out / "b_corrupt_stress.exr").exists() and not (out / "c_blank_stress.exr").exists()
 
 
-def test_forces_csv_is_written_as_frames_complete(exported, render_png, tmp_path):
+def test_the_table_is_written_as_frames_complete_and_moved_into_place(exported, render_png, tmp_path):
     from finray.predict import predict_files
 
     _, d = exported
@@ -268,13 +312,16 @@ def test_forces_csv_is_written_as_frames_complete(exported, render_png, tmp_path
         (src / f"f{k}.png").write_bytes(render_png.read_bytes())
     on_disk = []
 
-    def on_frame(row):  # what a reader of forces.csv sees when frame k completes
-        on_disk.append((tmp_path / "out" / "forces.csv").read_text().splitlines())
+    def on_frame(row):  # what a reader of the running table sees when frame k completes
+        on_disk.append((tmp_path / "out" / "forces.csv.part").read_text().splitlines())
+        assert not (tmp_path / "out" / "forces.csv").exists()  # in place only when done
 
     out = predict_files(d / "model.ts", src, tmp_path / "out", backend="torchscript",
                         force_only=True, on_frame=on_frame)
     assert [len(lines) for lines in on_disk] == [2, 3, 4]  # header + one row per frame
     assert on_disk[0][1].startswith("f0.png,") and out["skipped"] == []
+    assert (tmp_path / "out" / "forces.csv").read_text().splitlines() == on_disk[-1]
+    assert not (tmp_path / "out" / "forces.csv.part").exists()
 
 
 def write_video(path, frames, fps=10):

@@ -347,6 +347,7 @@ def calibrate_takes(takes, model_path, out_json, ingest_params, fit, folds: str 
     from .adapt import HeadEnsemble, encoder_features, export_ensemble
     from .dataset import load_frames
     from .recording import ingest
+    from .recording.ingest import check_take
     from .train import load_checkpoint
 
     out_json = Path(out_json)
@@ -359,6 +360,8 @@ def calibrate_takes(takes, model_path, out_json, ingest_params, fit, folds: str 
     model, _ = load_checkpoint(pt)
     meta = json.loads(ts_meta.read_text())
     stem = out_json.with_suffix("")
+    for take in map(Path, takes):  # every take checked before any is ingested (~25 s each)
+        check_take(take)
     shards, names = [], []
     for take in map(Path, takes):
         log(f"ingest {take}")

@@ -284,6 +284,9 @@ def _predict_parser(sub) -> None:
                         "the CPU; default), cpu, or cuda (stops with one line without a GPU)")
     p.add_argument("--force-only", action="store_true",
                    help="forces (N) only, no stress maps (skips the stress decoder)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an earlier run's forces.csv and stress maps in --out (refused "
+                        "without it)")
     p.set_defaults(func=_run_predict)
 
 
@@ -300,10 +303,20 @@ def _calibrated_line(row: dict) -> str:
 
 
 def _run_predict(args) -> int:
+    _positive(args, "threads")
+    created = not args.out.exists()
+    _out_dir(args.out)
+    try:
+        return _predict(args)
+    except BaseException:
+        if created and args.out.is_dir() and not any(args.out.iterdir()):
+            args.out.rmdir()  # nothing left behind by a run that wrote nothing
+        raise
+
+
+def _predict(args) -> int:
     from .predict import predict_files
 
-    _positive(args, "threads")
-    _out_dir(args.out)
     cal = None
     if args.calibration is not None:
         from .calibration import read_calibration
@@ -323,7 +336,7 @@ def _run_predict(args) -> int:
                         on_frame=lambda r: print(line(r), flush=True),
                         on_skip=lambda name, msg: print(f"finray predict: skipped {msg}",
                                                         file=sys.stderr, flush=True),
-                        device=args.device)
+                        device=args.device, overwrite=args.overwrite)
     if out["skipped"]:
         n = len(out["rows"]) + len(out["skipped"])
         print(f"finray predict: {len(out['skipped'])} of {n} frames skipped; the other "

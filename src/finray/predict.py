@@ -376,12 +376,24 @@ def _colour_segmenter(spec: dict):
     return seg
 
 
+def run_files(out_dir) -> list[Path]:
+    """The files a run of :func:`predict_files` leaves in ``out_dir``: ``forces.csv`` and
+    the stress maps (``*_stress.exr``, ``*_stress.png``)."""
+    out_dir = Path(out_dir)
+    if not out_dir.is_dir():
+        return []
+    return sorted([f for f in [out_dir / "forces.csv"] if f.is_file()]
+                  + list(out_dir.glob("*_stress.exr")) + list(out_dir.glob("*_stress.png")))
+
+
 def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = "auto",
                   force_only: bool = False, on_frame=None, on_skip=None,
-                  device: str = "auto", calibration: dict | None = None) -> dict:
+                  device: str = "auto", calibration: dict | None = None,
+                  overwrite: bool = False) -> dict:
     """Predict every frame of ``source`` (image, folder of images or video) into
-    ``out_dir``: ``forces.csv`` (``frame,fx_N``; a row appended and flushed as each
-    frame completes; also ``fy_N`` for a model that predicts it) and, per frame unless
+    ``out_dir``: ``forces.csv`` (``frame,fx_N``; also ``fy_N`` for a model that predicts
+    it; while it runs ``forces.csv.part``, a row appended and flushed as each frame
+    completes) and, per frame unless
     ``force_only``, the stress map as EXR and as a coloured PNG.
 
     A frame that cannot be predicted (unreadable, not an image, no finger) is skipped:
@@ -392,8 +404,51 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
     and columns also have ``force_N``, ``lo_N``, ``hi_N`` (the calibrated force's median
     and predictive interval, N) and ``level``. Raises :class:`InputError` for a missing
     model or source, a ``device`` this machine does not have (:class:`Predictor`), a
-    single image that cannot be predicted, and when no frame at all could be.
+    single image that cannot be predicted, and when no frame at all could be, and for an
+    ``out_dir`` that holds another run's files (:func:`run_files`) unless ``overwrite``
+    (which removes them first). Nothing half-written is left: the table is written as
+    ``forces.csv.part`` and moved into place at the end (also when interrupted, with the
+    frames done so far); a run that predicts no frame leaves no table and no maps.
     """
+    out_dir = Path(out_dir)
+    old = run_files(out_dir)
+    if old and not overwrite:
+        raise InputError(f"{out_dir} holds another run's results ({len(old)} files: "
+                         f"{', '.join(f.name for f in old[:2])}{', ...' if len(old) > 2 else ''}); "
+                         "give --overwrite to replace them, or another --out")
+    frames = read_frames(source)  # checks the source before the model loads
+    one_image = Path(source).is_file() and Path(source).suffix.lower() not in VIDEO_SUFFIXES
+    p = Predictor(model_path, threads, backend, device)
+    for f in old:
+        f.unlink()
+    out_dir.mkdir(parents=True, exist_ok=True)
+    part = out_dir / "forces.csv.part"
+    written: list[Path] = []
+    try:
+        out = _predict_into(p, frames, out_dir, part, written, one_image, source, force_only,
+                            on_frame, on_skip, calibration)
+    except KeyboardInterrupt:
+        if part.is_file() and sum(1 for _ in open(part)) > 1:
+            part.replace(out_dir / "forces.csv")  # the frames done so far
+        else:
+            _remove(part, *written)
+        raise
+    except BaseException:
+        _remove(part, *written)
+        raise
+    part.replace(out_dir / "forces.csv")
+    return out
+
+
+def _remove(*paths: Path) -> None:
+    for f in paths:
+        f.unlink(missing_ok=True)
+
+
+def _predict_into(p, frames, out_dir: Path, part: Path, written: list, one_image: bool, source,
+                  force_only: bool, on_frame, on_skip, calibration) -> dict:
+    """:func:`predict_files`'s loop: rows into ``part``, stress maps into ``out_dir``
+    (their paths appended to ``written``)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -401,16 +456,11 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
 
     from .render.imageio import write_exr, write_png
 
-    frames = read_frames(source)  # checks the source before the model loads
-    one_image = Path(source).is_file() and Path(source).suffix.lower() not in VIDEO_SUFFIXES
-    p = Predictor(model_path, threads, backend, device)
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     segment_frame = p.segment
     if calibration is not None and calibration.get("segment"):
         segment_frame = _colour_segmenter(calibration["segment"])
     rows, skipped = [], []
-    with open(out_dir / "forces.csv", "w") as table:
+    with open(part, "w") as table:
         cal_cols = ["force_N", "lo_N", "hi_N"] if calibration is not None else []
         table.write(",".join(["frame", *p.force_names, *cal_cols]) + "\n")
         table.flush()
@@ -435,11 +485,11 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
                 continue
             if not force_only:
                 stem = Path(name).stem
-                write_exr(out_dir / f"{stem}_stress.exr", {"stress": stress.astype(np.float32)},
+                written += [out_dir / f"{stem}_stress.exr", out_dir / f"{stem}_stress.png"]
+                write_exr(written[-2], {"stress": stress.astype(np.float32)},
                           {"source": str(name), "force_N": force})
                 s = np.clip(stress / max(float(stress.max()), 1e-6), 0, 1)
-                write_png(out_dir / f"{stem}_stress.png",
-                          (cm.inferno(s)[..., :3] * 255).astype(np.uint8))
+                write_png(written[-1], (cm.inferno(s)[..., :3] * 255).astype(np.uint8))
             row = {"frame": name, **{n: float(v) for n, v in zip(p.force_names, fvec)}}
             if calibration is not None:
                 from .calibration import predictive, spread

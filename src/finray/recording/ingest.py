@@ -69,6 +69,18 @@ class IngestParams:
     write_masks: bool = False
 
 
+def check_take(take: str | Path):
+    """A take folder's contents, checked without decoding its frames: ``(meta, t_force,
+    force, frames)`` (take.json, the sensor's times and force along the push, the
+    :class:`~finray.recording.take.FrameSource`), or a one-line :class:`TakeError`."""
+    take = Path(take)
+    if not take.is_dir():
+        raise TakeError(f"{take} is not a take folder")
+    meta = read_take_json(take / "take.json")
+    t_force, force = read_forces(take / "forces.csv", meta["push_axis"])
+    return meta, t_force, force, open_frames(take, meta)
+
+
 def ingest(take: str | Path, out_dir: str | Path, params: IngestParams | None = None,
            log=print) -> dict:
     """Ingest the take folder ``take`` into ``out_dir`` (see the module's text); returns
@@ -76,11 +88,7 @@ def ingest(take: str | Path, out_dir: str | Path, params: IngestParams | None = 
     t_wall, t_cpu = time.perf_counter(), time.process_time()
     p = params or IngestParams()
     take = Path(take)
-    if not take.is_dir():
-        raise TakeError(f"{take} is not a take folder")
-    meta = read_take_json(take / "take.json")
-    t_force, force = read_forces(take / "forces.csv", meta["push_axis"])
-    src = open_frames(take, meta)
+    meta, t_force, force, src = check_take(take)
     log(f"{take.name}: {src.kind} {src.path.name}, {src.n_frames} frames at {src.rate_hz:.4g} FPS; "
         f"forces.csv: {len(t_force)} samples at {(len(t_force) - 1) / (t_force[-1] - t_force[0]):.4g} Hz")
 
