@@ -169,6 +169,7 @@ def training_summary(h: dict, manifest_csv=None) -> dict:
                              "last": "last epoch"}[keep]),
             "lr": tc.get("lr"), "schedule": tc.get("schedule", "constant"),
             "warmup_frac": tc.get("warmup_frac", 0.0), "bn_frames": tc.get("bn_frames", 0),
+            "frame_every": h.get("frame_every", 1),  # every k-th rendered frame of a scene
             "best_val_force_rmse_N": val_rmse,
             "force_mean_N": mean, "force_std_N": std,
             "precision": h.get("precision", ""), "step_ms": h.get("step_ms"),
