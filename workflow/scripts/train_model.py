@@ -23,4 +23,5 @@ with log_to(snakemake.log[0]):
                   "segment": {k: d[k] for k in ("threshold", "foreground", "min_object_frac",
                                                 "max_hole_frac", "keep_largest")}}
     train_from_shards(snakemake.input.shards, Path(snakemake.output.model).parent, net, cfg, aug,
-                      t["val_fraction"], occ, preprocess, forces=tuple(t["forces"]), frame_every=t["frame_every"])
+                      t["val_fraction"], occ, preprocess, forces=tuple(t["forces"]),
+                      frame_every=t["frame_every"])
