@@ -1,7 +1,7 @@
 from pathlib import Path
 
-from finray.fea.scene import run_scene
 from finray.fea.errors import SimulationError
+from finray.fea.scene import run_scene
 from finray.geometry.mesh import TriMesh
 from finray.logs import log_to
 
