@@ -152,7 +152,9 @@ def test_ctrl_c_during_simulate_is_one_line(tmp_path):
 
     p = subprocess.Popen([sys.executable, "-m", "finray.cli", "simulate", "--object", "circle", "--size-mm", "20",
                           "--height-mm", "30", "--no-vtu", "--out", str(tmp_path / "out")],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         # a worker of pytest-xdist ignores SIGINT, and a child inherits that
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     err = ""
     while "frame" not in err:  # the solver's first progress line: it is simulating
         line = p.stderr.readline()

@@ -107,6 +107,7 @@ READERS: list[tuple[str, set[str]]] = [
     ("train.base_channels", {"train_model", "train_pareto", "summary"}),
     ("train.models.*", {"train_model"}),
     ("train.epochs", {"train_model"}),
+    ("train.frame_every", {"train_model"}),  # (the network study reads its own benchmarks.train_every)
     ("train.lr", {"train_model"}),
     ("train.alpha_*", {"train_model", "summary"}),  # the manuscript states the loss
     ("train.batch_size", {"train_model", "train_pareto", "summary"}),

@@ -169,7 +169,7 @@ def speed_table(speed: dict) -> str:
         rows.append(f"| whole DAG, wall | {dag['wall_s'] / 60:.1f} min | {dag['jobs']} benchmarked "
                     f"jobs, {dag['job_s'] / 60:.1f} min of job time; pipeline stages alone "
                     f"{dag['pipeline_wall_s'] / 60:.1f} min |")
-        if "idle_core_s" in dag:
+        if np.isfinite(dag.get("idle_core_s") or np.nan):
             rows.append(f"| idle core-time | {dag['idle_core_s'] / 60:.1f} min | of {dag['cores']} "
                         f"cores over the DAG's wall time ({100 * dag['idle_core_s'] / (dag['cores'] * dag['wall_s']):.0f} %); "
                         f"{dag['job_cpu_s'] / 60:.1f} min of job CPU time |")
