@@ -34,6 +34,7 @@ def _out_dir(path: Path) -> Path:
         raise UsageError(f"--out {path} cannot be created ({exc.strerror or exc})") from None
     return path
 
+
 GEOMETRY_HELP = """\
 Build the finger mesh and place objects at contact heights.
 
@@ -202,8 +203,8 @@ def _run_simulate(args) -> int:
     import logging
 
     from .config import object_is_meshed, validate_config
-    from .fea.scene import run_scene
     from .fea.errors import SimulationError
+    from .fea.scene import run_scene
     from .geometry.build import finger_from_config
     from .geometry.finger import mesh_finger
     from .geometry.objects import object_geometry
