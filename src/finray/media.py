@@ -3,10 +3,10 @@
 Read by ``finray predict`` (:mod:`finray.predict`) and by ingest (:mod:`finray.recording`).
 The policy: a frame that cannot be read is never dropped silently. It comes out of the
 readers as a :class:`Frame` with ``image`` None and ``error`` saying why (a file that
-does not decode, a video packet that does not decode, a stream that cannot be read on,
-a frame the container counts that never came out of the decoder), in its place in the
-sequence, so that the caller reports it and goes on. A source that cannot be read at
-all raises :class:`MediaError`.
+does not decode, a stream that cannot be read on, a frame the container counts that
+never came out of the decoder, e.g. its packet did not decode: after the video's other
+frames, with its rank and time), so that the caller reports it and goes on. A source
+that cannot be read at all raises :class:`MediaError`.
 """
 from __future__ import annotations
 

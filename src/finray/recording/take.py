@@ -145,9 +145,9 @@ class FrameSource:
     """The frames of a take: ``kind`` ("video" or "frames"), ``path``, ``n_frames`` (as
     the container or frames.csv says; a video may deliver fewer) and ``rate_hz``
     (nominal). Iterate for ``(index, t_s, rgb (H, W, 3) uint8 | None)``; ``None``: a
-    frame that cannot be read (kept in its place, so that nothing is lost:
-    :mod:`finray.media`'s policy); a video that cannot be read on after its first frames
-    ends there, its reason in ``lost``. ``rotate_deg``: each frame turned
+    frame that cannot be read, kept with its time so that nothing is lost
+    (:mod:`finray.media`'s policy: a video's lost frames come after its others), its
+    reason in ``lost``; a video that cannot be read on after its first frames ends there. ``rotate_deg``: each frame turned
     counter-clockwise by this much (take.json's ``rotate_deg``)."""
 
     kind: str
