@@ -246,15 +246,20 @@ def test_cli_predict_refuses_an_out_with_another_runs_results(exported, render_p
     assert sorted(f.name for f in out.iterdir()) == ["forces.csv"]  # the old maps went with it
 
 
+def three_frames(folder, render_png):
+    """A folder of three copies of the rendered frame, f0.png .. f2.png."""
+    folder.mkdir()
+    for k in range(3):
+        (folder / f"f{k}.png").write_bytes(render_png.read_bytes())
+    return folder
+
+
 def test_an_interrupted_run_keeps_the_frames_done(exported, render_png, tmp_path):
     """Ctrl-C after two of three frames: forces.csv in place with those two, no .part."""
     from finray.predict import predict_files
 
     _, d = exported
-    src = tmp_path / "frames"
-    src.mkdir()
-    for k in range(3):
-        (src / f"f{k}.png").write_bytes(render_png.read_bytes())
+    src = three_frames(tmp_path / "frames", render_png)
     done = []
 
     def on_frame(row):
@@ -306,10 +311,7 @@ def test_the_table_is_written_as_frames_complete_and_moved_into_place(exported, 
     from finray.predict import predict_files
 
     _, d = exported
-    src = tmp_path / "frames"
-    src.mkdir()
-    for k in range(3):
-        (src / f"f{k}.png").write_bytes(render_png.read_bytes())
+    src = three_frames(tmp_path / "frames", render_png)
     on_disk = []
 
     def on_frame(row):  # what a reader of the running table sees when frame k completes

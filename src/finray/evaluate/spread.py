@@ -36,6 +36,18 @@ def headline_figures(exp_dirs: dict[str, str | Path], sim2real: dict,
     return _figures({e: experiment_summary(d) for e, d in exp_dirs.items()}, sim2real, histories)
 
 
+def variant_figures(variant: str, experiments, sim2real, histories) -> tuple[dict, dict]:
+    """One variant's headline figures (:func:`headline_figures`) and its histories, picked
+    by ``/<variant>/`` from a rule's input lists: experiments' ``metrics.json``, sim-to-
+    real ``summary.json`` files and ``history.json`` files."""
+    mine = [p for p in experiments if f"/{variant}/" in p]
+    exps = {Path(p).parent.name: Path(p).parent for p in mine}
+    s2r = json.loads(next(Path(p) for p in sim2real if f"/{variant}/" in p).read_text())
+    hist = {Path(p).parent.name: json.loads(Path(p).read_text())
+            for p in histories if f"/{variant}/" in p}
+    return headline_figures(exps, s2r, hist), hist
+
+
 def run_figures(summary: dict) -> dict[str, float]:
     """The same figures (the experiments' and sim-to-real's) from a run's
     ``results/summary.json``: a finished run beside the study's variants."""
