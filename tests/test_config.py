@@ -132,6 +132,12 @@ BAD = {
                                                         "amplitude": 0.9}), "objects.b.amplitude"),
     "unknown pitch object": (lambda c: c.setdefault("dataset", {}).update(pitch_object="nope"),
                              "dataset.pitch_object"),
+    "spread model not trained": (
+        lambda c: c.setdefault("evaluate", {}).update(spread={"models": ["camera", "nope"]}),
+        "evaluate.spread.models"),
+    "spread without sim-to-real's model": (
+        lambda c: c.setdefault("evaluate", {}).update(spread={"models": ["plain"]}),
+        "evaluate.spread.models"),
 }
 
 

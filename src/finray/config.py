@@ -118,6 +118,7 @@ def validate_config(config: dict, base_dir: str | Path = ".") -> dict:
             raise ConfigError(exc.key, str(exc).split(": ", 1)[1]) from None
     _check_lab(cfg, finger)
     _check_diversity(cfg)
+    _check_spread(cfg)
     return cfg
 
 
@@ -168,6 +169,20 @@ def _check_diversity(cfg: dict) -> None:
     if pair[0] in models:
         raise ConfigError("generated.compare_model", (
             f"train.models already has '{pair[0]}', the name of its paper-objects model"))
+
+
+def _check_spread(cfg: dict) -> None:
+    """The studies' models are models of train.models, and hold sim-to-real's model."""
+    models = cfg["train"]["models"]
+    chosen = cfg["evaluate"]["spread"]["models"]
+    unknown = [m for m in chosen if m not in models]
+    if unknown:
+        raise ConfigError("evaluate.spread.models", (
+            f"{', '.join(map(repr, unknown))} not in train.models ({', '.join(sorted(models))})"))
+    start = "camera" if "camera" in models else "plain"
+    if chosen and start not in chosen:
+        raise ConfigError("evaluate.spread.models", (
+            f"must hold '{start}', the model sim-to-real starts from"))
 
 
 def _check_lab(cfg: dict, finger: FingerParams) -> None:

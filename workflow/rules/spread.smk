@@ -1,4 +1,5 @@
-# The spread study (evaluate.spread): every model of train.models trained again for each
+# The spread study (evaluate.spread): every model of train.models (or those of
+# evaluate.spread.models) trained again for each
 # seed of evaluate.spread.seeds and each numeric type of evaluate.spread.types, every
 # experiment and sim-to-real run on each such variant, and each headline figure given as
 # the default seed's value, mean and range (results/evaluate/spread/). Not in the default
@@ -78,10 +79,10 @@ use rule sim2real as spread_sim2real with:
 rule spread_summary:
     input:
         experiments=expand(f"{SPREAD}/{{variant}}/{{experiment}}/metrics.json",
-                           variant=spread_variants(), experiment=EXPERIMENTS),
+                           variant=spread_variants(), experiment=variant_experiments()),
         sim2real=expand(f"{SPREAD}/{{variant}}/sim2real/summary.json", variant=spread_variants()),
         histories=expand(f"{SPREAD}/{{variant}}/train/{{model}}/history.json",
-                         variant=spread_variants(), model=model_names()),
+                         variant=spread_variants(), model=spread_models()),
     output:
         json=f"{SPREAD}/summary.json",
         table=f"{SPREAD}/spread.md",
@@ -107,14 +108,14 @@ rule training_budget:
     # the training-budget study (benchmarks.training_budget): not in the default run
     input:
         experiments=expand(f"{SPREAD}/{{variant}}/{{experiment}}/metrics.json",
-                           variant=sum(budget_variants().values(), []), experiment=EXPERIMENTS),
+                           variant=sum(budget_variants().values(), []), experiment=variant_experiments()),
         sim2real=expand(f"{SPREAD}/{{variant}}/sim2real/summary.json",
                         variant=sum(budget_variants().values(), [])),
         histories=expand(f"{SPREAD}/{{variant}}/train/{{model}}/history.json",
-                         variant=sum(budget_variants().values(), []), model=model_names()),
+                         variant=sum(budget_variants().values(), []), model=spread_models()),
         # the training jobs' CPU time (Snakemake's benchmark files, products of spread_train)
         cpu=expand(f"{RESULTS}/benchmarks/studies/spread/{{variant}}_train_{{model}}.tsv",
-                   variant=sum(budget_variants().values(), []), model=model_names()),
+                   variant=sum(budget_variants().values(), []), model=spread_models()),
     output:
         json=f"{RESULTS}/benchmarks/training_budget.json",
         table=f"{RESULTS}/benchmarks/training_budget.md",

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 class TrainConfig:
     epochs: int = 10
     batch_size: int = 16
-    lr: float = 1e-4
+    lr: float = 4e-4  # the peak of the cosine (the paper: a constant 1e-4)
     alpha_stress: float = 1.0
     alpha_force: float = 10.0
     seed: int = 0

@@ -179,6 +179,11 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
     torch.set_num_threads(cfg.threads)
     gen = seed_everything(cfg.seed)
     bf16, why = resolve_bf16(cfg.bf16, device=device)
+    if device.type == "cuda" and not bf16:
+        # cuDNN convolutions default to TF32 (10-bit mantissa) on Ampere and later: a
+        # float32 run is float32, as on the CPU
+        torch.backends.cudnn.allow_tf32 = False
+        torch.backends.cuda.matmul.allow_tf32 = False
     cfg = replace(cfg, bf16=bf16)
     log(f"precision: {why}")
     log(f"device: {device_name(device)}")

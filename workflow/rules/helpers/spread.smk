@@ -18,6 +18,17 @@ def spread_variant(seed, bf16, point=None):
     return f"s{seed}_{kind}" + (f"_{point}" if point and point != "default" else "")
 
 
+def spread_models():
+    """The models a variant retrains (evaluate.spread.models; empty: every model), sorted."""
+    return sorted(config["evaluate"]["spread"]["models"]) or model_names()
+
+
+def variant_experiments():
+    """The experiments a variant runs: those that compare at least one of its models."""
+    return [e for e in EXPERIMENTS
+            if experiment_setup(SimpleNamespace(experiment=e, variant="s0_auto"))["models"]]
+
+
 def spread_variants():
     """Every variant of evaluate.spread, seeds within each numeric type."""
     sp = config["evaluate"]["spread"]

@@ -32,5 +32,7 @@ def model_file(name, train_dir=TRAIN):
 
 
 def eval_models(*names, train_dir=TRAIN):
-    """The models an experiment compares (name -> TorchScript), those of the config only."""
-    return {n: model_file(n, train_dir) for n in names if n in config["train"]["models"]}
+    """The models an experiment compares (name -> TorchScript), those of the config only;
+    in a variant of the spread or training-budget study, those it retrains."""
+    keep = config["train"]["models"] if train_dir == TRAIN else spread_models()
+    return {n: model_file(n, train_dir) for n in names if n in keep}
