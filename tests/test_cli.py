@@ -166,3 +166,17 @@ def test_ctrl_c_during_simulate_is_one_line(tmp_path):
     assert p.returncode == 130
     lines = [ln for ln in rest.strip().splitlines() if ln]
     assert lines == ["finray simulate: interrupted"], rest
+
+
+def test_predict_help_examples_parse():
+    """Each example of ``finray predict --help`` is a command the parser takes."""
+    import shlex
+
+    from finray.cli import PREDICT_HELP
+
+    examples = [line.strip() for line in PREDICT_HELP.split("examples:")[1].splitlines()
+                if line.strip().startswith("finray predict")]
+    assert len(examples) >= 3
+    for line in examples:
+        args = build_parser().parse_args(shlex.split(line)[1:])
+        assert args.command == "predict" and args.out is not None

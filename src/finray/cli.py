@@ -261,6 +261,14 @@ cannot be predicted (corrupt, no finger) is reported on stderr and skipped, the
 others are written (exit code 1); bad input stops with one line (exit code 2).
 The network runs in ONNX Runtime when model.onnx and model.force.onnx lie beside
 model.ts (faster), else in TorchScript; on a CUDA GPU (--device) in TorchScript.
+
+examples:
+  # every image of a folder, with the camera model of a full run
+  finray predict --model results/train/camera/model.ts frames/ --out pred/
+  # a video, forces only (no stress maps), on two threads
+  finray predict --model results/train/camera/model.ts take.mp4 --out pred/ --force-only --threads 2
+  # calibrated forces with their 90 % interval, from `finray calibrate`'s output
+  finray predict --calibration rig/calibration.json take.mp4 --out pred/
 """
 
 
