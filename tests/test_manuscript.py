@@ -180,3 +180,16 @@ def test_sim2real_section_follows_its_numbers():
     assert "The error does not fall with each context object" in text
     assert "10.0 times larger than the paper's 0.037" in text.replace("\n", " ")
     assert f"{r['lab_coverage_pct_with_context']:.1f} % of the held-out frames" in render(FULL).replace("\n", " ")
+
+
+def test_the_spread_section_quotes_the_study_or_says_the_figures_are_one_draw():
+    text = render(FULL)
+    assert "one training's draw" in text and "evaluate.spread.manuscript: true" in text
+    s = copy.deepcopy(FULL)
+    s["spread"] = {"variants": ["s0_auto", "s1_fp32"], "default": "s0_auto", "runs": {},
+                   "machines": ["cpu (AMD EPYC), bfloat16", "cpu (AMD EPYC), float32"],
+                   "rows": [{"label": "camera: held-out shapes, force NRMSE %", "default": 1.25,
+                             "mean": 1.5, "min": 1.25, "max": 1.75, "range": 0.5, "n": 2}]}
+    text = render(s)
+    assert "| camera: held-out shapes, force NRMSE % | 1.25 | 1.50 | 1.25–1.75 |" in text
+    assert "2 variants (s0_auto, s1_fp32" in text and "one training's draw" not in text

@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from finray.evaluate.spread import run_figures, spread_table, write_spread
+from finray.evaluate.spread import manuscript_rows, run_figures, spread_table, write_spread
 
 
 FIGURES = {"s0_auto": {"shape | none | camera | force NRMSE %": 1.5, "sim2real | 2 context | coverage %": 90.0},
@@ -43,3 +43,28 @@ def test_run_figures_names_a_finished_runs_summary_as_the_variants():
     assert f["viewpoint | 30 | camera | force NRMSE %"] == run["experiments"]["viewpoint"]["30"]["camera"]["all"]["nrmse_pct"]
     assert f["sim2real | 2 context | coverage %"] == run["sim2real"]["by_context"]["2"]["coverage_pct"]
     assert not any(k.startswith("train |") for k in f)  # no histories in a summary
+
+
+def test_manuscript_rows_take_each_variants_worst_pitch_before_the_range(tmp_path):
+    """The viewpoint row: each variant's worst pitch first (s0: 4 at 30 deg, s1: 3 at
+    0 deg), then the mean and range over the variants; a figure no variant has is no row."""
+    figures = {"s0_auto": {"viewpoint | 0 | camera | force NRMSE %": 2.0,
+                           "viewpoint | 30 | camera | force NRMSE %": 4.0,
+                           "shape | all | camera | force NRMSE %": 1.0,
+                           "sim2real | 2 context | coverage %": 90.0},
+               "s1_fp32": {"viewpoint | 0 | camera | force NRMSE %": 3.0,
+                           "viewpoint | 30 | camera | force NRMSE %": 2.5,
+                           "shape | all | camera | force NRMSE %": 2.0,
+                           "sim2real | 2 context | coverage %": 86.0}}
+    out = {k: tmp_path / f"spread.{e}" for k, e in
+           (("json", "json"), ("csv", "csv"), ("table", "md"), ("figure", "png"))}
+    runs = {"s0_auto": {"camera": {"precision": "bfloat16", "device": "cpu (Zen 4)", "cpu": "x"}}}
+    write_spread(figures, "s0_auto", out, runs=runs)
+    s = json.loads(out["json"].read_text())
+    assert s["runs"] == runs
+    rows = {r["label"]: r for r in manuscript_rows(s)}
+    vp = rows["camera: viewpoint, worst pitch, force NRMSE %"]
+    assert (vp["default"], vp["min"], vp["max"], vp["mean"], vp["n"]) == (4.0, 3.0, 4.0, 3.5, 2)
+    assert rows["camera: held-out shapes, force NRMSE %"]["range"] == pytest.approx(1.0)
+    assert rows["sim-to-real, 2 context objects, coverage %"]["mean"] == pytest.approx(88.0)
+    assert not any(r.startswith("plain") for r in rows)

@@ -175,6 +175,7 @@ rule summary:
         lab_takes=f"{RESULTS}/lab/qa.csv",
         sim2real=f"{EVALUATE}/sim2real/summary.json",
         diversity=diversity_files(),  # none unless the config has generated training objects
+        spread=manuscript_spread(),  # none unless evaluate.spread.manuscript
     output:
         json=f"{RESULTS}/summary.json",
     params:

@@ -152,16 +152,84 @@ def spread_figure(table: pd.DataFrame, variants: list[str], path) -> None:
     plt.close(fig)
 
 
-def write_spread(figures: dict[str, dict[str, float]], default: str, out: dict) -> pd.DataFrame:
-    """``out``: paths ``json``, ``csv``, ``table`` (Markdown) and ``figure``."""
+def variant_runs(histories: dict[str, dict]) -> dict[str, dict]:
+    """Where and how a variant's models trained (model -> ``precision``, ``device``,
+    ``cpu``), from their ``history.json``: a figure is worth saying which machine gave it."""
+    return {m: {k: h.get(k) for k in ("precision", "device", "cpu")} for m, h in sorted(histories.items())}
+
+
+def write_spread(figures: dict[str, dict[str, float]], default: str, out: dict,
+                 runs: dict[str, dict] | None = None) -> pd.DataFrame:
+    """``out``: paths ``json``, ``csv``, ``table`` (Markdown) and ``figure``; ``runs``:
+    variant -> :func:`variant_runs` (kept in the JSON)."""
     variants = list(figures)
     table = spread_table(figures, default)
     table.to_csv(out["csv"], float_format="%.6g")
     Path(out["table"]).write_text(_markdown(table, variants, default))
-    summary = {"variants": variants, "default": default,
+    summary = {"variants": variants, "default": default, "runs": runs or {},
                "figures": {name: {c: (None if not np.isfinite(r[c]) else float(r[c]))
                                   for c in ["default", "mean", "min", "max", "range"] + variants}
                            for name, r in table.iterrows()}}
     Path(out["json"]).write_text(json.dumps(summary, indent=1))
     spread_figure(table, variants, out["figure"])
     return table
+
+
+#: The rows the manuscript quotes (:func:`manuscript_rows`): (label, figure names; one
+#: name, or several of which each variant's worst is taken)
+MODELS = ("camera", "plain", "occlusion", "pitch")
+
+
+def _worst(figures: dict, names: list[str], variants: list[str]) -> dict | None:
+    """Per variant the largest value over ``names`` (e.g. the worst pitch), and its
+    mean, min, max, range and n over the variants."""
+    per = {}
+    for v in variants:
+        vals = [figures[n][v] for n in names if figures[n].get(v) is not None]
+        if vals:
+            per[v] = max(vals)
+    if not per:
+        return None
+    x = np.array(list(per.values()))
+    return {**per, "mean": float(x.mean()), "min": float(x.min()), "max": float(x.max()),
+            "range": float(x.max() - x.min()), "n": len(x)}
+
+
+def manuscript_rows(spread: dict) -> list[dict]:
+    """The headline figures over the variants, for the manuscript: per model its force
+    NRMSE (%) and log-stress MSE on the held-out shapes, its NRMSE on the ring materials,
+    its worst pitch of the viewpoint experiment (each variant's worst), the occlusion
+    model's worst level, the pitch model's worst pitch; sim-to-real per context count
+    (NRMSE %, coverage %). Each row: ``label``, ``default`` (the default variant's
+    value, None if it did not run), ``mean``, ``min``, ``max``, ``range``, ``n``."""
+    figs, variants, default = spread["figures"], spread["variants"], spread["default"]
+    rows = []
+
+    def add(label, names):
+        names = [n for n in names if n in figs]
+        if not names:
+            return
+        w = _worst(figs, names, variants)
+        if w:
+            rows.append({"label": label, "default": w.get(default),
+                         **{k: w[k] for k in ("mean", "min", "max", "range", "n")}})
+
+    for m in MODELS:
+        add(f"{m}: held-out shapes, force NRMSE %", [f"shape | all | {m} | force NRMSE %"])
+        add(f"{m}: held-out shapes, log-stress MSE", [f"shape | all | {m} | log-stress MSE"])
+        add(f"{m}: ring materials, force NRMSE %", [f"material | all | {m} | force NRMSE %"])
+        add(f"{m}: viewpoint, worst pitch, force NRMSE %",
+            [n for n in figs if n.startswith("viewpoint | ") and n.endswith(f" | {m} | force NRMSE %")])
+    add("occlusion: worst occlusion level, force NRMSE %",
+        [n for n in figs if n.startswith("occlusion | ") and n.endswith(" | occlusion | force NRMSE %")
+         and not n.startswith("occlusion | all |")])
+    add("pitch: worst pitch (raster), force NRMSE %",
+        [n for n in figs if n.startswith("pitch | ") and n.endswith(" | pitch | force NRMSE %")
+         and not n.startswith("pitch | all |")])
+    ks = sorted({n.split(" | ")[1].split()[0] for n in figs
+                 if n.startswith("sim2real | ") and " context | " in n and "pooled" not in n}, key=int)
+    for k in ks:
+        add(f"sim-to-real, {k} context objects, NRMSE %", [f"sim2real | {k} context | NRMSE %"])
+        add(f"sim-to-real, {k} context objects, coverage %", [f"sim2real | {k} context | coverage %"])
+    add("sim-to-real, 1+ context objects pooled, coverage %", ["sim2real | 1+ context pooled | coverage %"])
+    return rows

@@ -29,6 +29,12 @@ def variant_experiments():
             if experiment_setup(SimpleNamespace(experiment=e, variant="s0_auto"))["models"]]
 
 
+def manuscript_spread():
+    """The spread study's summary where the manuscript quotes it (evaluate.spread.manuscript),
+    else nothing: the default run does not wait for the study's trainings."""
+    return [f"{SPREAD}/summary.json"] if config["evaluate"]["spread"]["manuscript"] else []
+
+
 def spread_variants():
     """Every variant of evaluate.spread, seeds within each numeric type."""
     sp = config["evaluate"]["spread"]
