@@ -237,6 +237,7 @@ NEW_VALUES = {
     "train.schedule": "constant",
     "train.keep": "last",
     "evaluate.spread.types": ["fp32"],
+    "evaluate.spread.models": ["camera"],
     "benchmarks.fea_arc_chord_sizes_mm": [0.05],
     "benchmarks.train_sizes": [[64, 32]],
     "benchmarks.latency_model": "occlusion",

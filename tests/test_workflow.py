@@ -102,8 +102,9 @@ def test_smoke_dataset_and_training(smoke_run):
 
 
 def test_smoke_spread(smoke_run):
-    """The spread study on the smoke config's two seeds: every model retrained per seed,
-    every headline figure per variant; the default seed's variant is the run itself
+    """The spread study on the smoke config's two seeds: its two models (camera, plain)
+    retrained per seed, every headline figure per variant, the experiments that compare
+    one of them only; the default seed's variant is the run itself
     (training is deterministic), so its figures are the run's own. The training-budget
     study beside it: its default point is the spread's seed 0, its point f2 trains on
     every other frame."""
@@ -133,6 +134,8 @@ def test_smoke_spread(smoke_run):
     shape = b["figures"]["shape | all | camera | force NRMSE %"]
     assert shape["default"]["mean"] == pytest.approx(f["shape | all | camera | force NRMSE %"]["s0_auto"])
     assert shape["f2"]["n"] == 1 and shape["f2"]["mean"] != shape["default"]["mean"]
+    assert sorted(p.name for p in (spread / "s1_auto" / "train").iterdir()) == ["camera", "plain"]
+    assert s["runs"]["s1_auto"]["camera"]["precision"] in ("float32", "bfloat16")
     full = json.loads((spread / "s0_auto" / "train" / "plain" / "history.json").read_text())
     half = json.loads((spread / "s0_auto_f2" / "train" / "plain" / "history.json").read_text())
     assert (half["frame_every"], len(half["epoch"])) == (2, 1)
