@@ -7,7 +7,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from finray.config import ConfigError, load_config, scenes, validate_config
+from finray.config import (ConfigError, load_config, merge_config, read_config_file, scenes,
+                           validate_config)
 
 ROOT = Path(__file__).resolve().parents[1]
 FULL = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
@@ -31,13 +32,16 @@ def test_smoke_config_is_valid_and_small():
     assert {s.split for s in scenes(cfg)} == {"train", "shape", "material"}
 
 
-DIVERSE = yaml.safe_load((ROOT / "config" / "diverse.yaml").read_text())
+DIVERSE = read_config_file(ROOT / "config" / "diverse.yaml")  # config.yaml + generated
 SLICE = yaml.safe_load((ROOT / "config" / "diverse_slice.yaml").read_text())
 
 
 def test_diverse_config_is_the_paper_config_plus_generated_objects():
-    """config/diverse.yaml: config/config.yaml unchanged plus 300 generated training
-    objects, all at the three heights; the held-out test scenes are the paper's."""
+    """config/diverse.yaml: config/config.yaml unchanged (it extends it) plus 300
+    generated training objects, all at the three heights; the held-out test scenes are
+    the paper's."""
+    raw = yaml.safe_load((ROOT / "config" / "diverse.yaml").read_text())
+    assert sorted(raw) == ["extends", "generated"] and raw["extends"] == "config.yaml"
     assert {k: v for k, v in DIVERSE.items() if k != "generated"} == FULL
     paper, cfg = validate_config(FULL), validate_config(DIVERSE)
     blobs = [n for n in cfg["objects"] if n not in paper["objects"]]
@@ -175,3 +179,17 @@ def test_one_schema_the_package_ships_the_workflow_schema():
     assert link.is_symlink() and link.resolve() == workflow_schema.resolve()
     shipped = resources.files("finray").joinpath("config.schema.yaml").read_bytes()
     assert shipped == workflow_schema.read_bytes()
+
+
+def test_extends_merges_mappings_and_replaces_the_rest(tmp_path):
+    """A config that extends another: mappings merged key by key, lists and values
+    replaced, the path relative to the file; a file that extends itself is one line."""
+    (tmp_path / "base.yaml").write_text("a: {x: 1, y: [1, 2]}\nb: 3\n")
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "over.yaml").write_text("extends: ../base.yaml\na: {y: [9]}\nc: 4\n")
+    assert read_config_file(tmp_path / "sub" / "over.yaml") == {"a": {"x": 1, "y": [9]}, "b": 3, "c": 4}
+    assert merge_config({"a": {"x": 1}}, {"a": 2}) == {"a": 2}
+    (tmp_path / "loop.yaml").write_text("extends: loop.yaml\nb: 1\n")
+    with pytest.raises(ConfigError) as err:
+        read_config_file(tmp_path / "loop.yaml")
+    assert str(err.value).startswith("extends:") and "extends itself" in str(err.value)

@@ -247,8 +247,15 @@ def _check_stage_sections(cfg: dict) -> None:
 
 
 def read_config_file(path: str | Path) -> dict:
-    """The YAML mapping of a config file, not validated; :class:`ConfigError` when the
-    file is missing, a folder, not UTF-8, not YAML, empty or not a mapping."""
+    """The YAML mapping of a config file (its ``extends`` resolved: :func:`resolve_extends`),
+    not validated; :class:`ConfigError` when the file is missing, a folder, not UTF-8, not
+    YAML, empty or not a mapping."""
+    path = Path(path)
+    return resolve_extends(read_config_file_raw(path), path.parent)
+
+
+def read_config_file_raw(path: str | Path) -> dict:
+    """The YAML mapping of a config file as written (see :func:`read_config_file`)."""
     path = Path(path)
     if path.is_dir():
         raise ConfigError("<config>", f"'{path}' is a folder, not a config file")
@@ -267,6 +274,30 @@ def read_config_file(path: str | Path) -> dict:
     if not isinstance(raw, dict):
         raise ConfigError("<config>", f"'{path}' is not a mapping of config keys")
     return raw
+
+
+def merge_config(base: dict, over: dict) -> dict:
+    """``base`` with ``over`` on top: mappings merged key by key (recursively), any other
+    value (lists included) replaced, as Snakemake merges ``--configfile a b``."""
+    out = copy.deepcopy(base)
+    for k, v in over.items():
+        out[k] = merge_config(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) \
+            else copy.deepcopy(v)
+    return out
+
+
+def resolve_extends(raw: dict, folder: str | Path, seen: tuple = ()) -> dict:
+    """A config that ``extends: <file>`` (relative to ``folder``, the config's own): that
+    file's config (itself resolved) with this one's keys on top (:func:`merge_config`),
+    so that a variant of a config holds only what differs. Unchanged without the key."""
+    if "extends" not in raw:
+        return raw
+    base_path = Path(folder) / str(raw["extends"])
+    if base_path.resolve() in seen:
+        raise ConfigError("extends", f"'{base_path}' extends itself (through {len(seen)} file(s))")
+    base = read_config_file_raw(base_path)
+    base = resolve_extends(base, base_path.parent, seen + (base_path.resolve(),))
+    return merge_config(base, {k: v for k, v in raw.items() if k != "extends"})
 
 
 def load_config(path: str | Path) -> dict:

@@ -10,8 +10,8 @@ import zlib
 import yaml
 from snakemake.utils import update_config
 
-from finray.config import (ConfigError, diversity_models, generated_training_objects,
-                           object_is_meshed, scenes, validate_config)
+from finray.config import (ConfigError, diversity_models, generated_training_objects, merge_config,
+                           object_is_meshed, read_config_file, scenes, validate_config)
 from finray.dataset import pitch_object, scene_splits
 from finray.dataset.shards import SHARD_KEYS
 from finray.lab.as_built import as_built_fea, as_built_finger, as_built_material
@@ -24,6 +24,17 @@ if not workflow.config_settings.configfiles:
     config.clear()
     config.update(yaml.safe_load(open(DEFAULT_CONFIGFILE)))
     update_config(config, _overrides)
+elif "extends" in config:
+    # a config file that extends another (config/diverse.yaml: config.yaml plus the
+    # generated objects): that file under the given ones, the path relative to the last
+    # given file that names it (finray.config.read_config_file does the same)
+    _named = [f for f in workflow.config_settings.configfiles
+              if "extends" in (yaml.safe_load(open(f)) or {})]
+    _merged = merge_config(read_config_file(os.path.join(os.path.dirname(_named[-1]),
+                                                          str(config["extends"]))),
+                           {k: v for k, v in config.items() if k != "extends"})
+    config.clear()
+    config.update(_merged)
 
 try:
     _validated = validate_config(config, base_dir=workflow.basedir)
