@@ -4,8 +4,9 @@ train -> evaluate -> paper, and an import against that flow is a defect.
 The ranks are defined here once. A module may import finray modules of its own rank
 or lower. The top-level modules that are not stages get the rank of what they import:
 
-- ``logs``, ``precision``, ``paper_reference``, ``media``: import nothing of finray;
-  shared helpers (rank 0; ``media`` reads camera frames for predict and recording).
+- ``logs``, ``precision``, ``paper_reference``, ``media``, ``annotate``: import nothing of
+  finray; shared helpers (rank 0; ``media`` reads camera frames for predict and
+  recording, ``annotate`` draws predict's output over them).
 - ``config``: validates every section, so it imports geometry (shapes), render and
   dataset (their parameters): above dataset, below train. No stage below it may
   import it (the FEA studies do, from ``benchmarks``).
@@ -28,7 +29,7 @@ import pytest
 SRC = Path(__file__).resolve().parents[1] / "src" / "finray"
 
 RANK = {
-    "__init__": 0, "logs": 0, "precision": 0, "paper_reference": 0, "media": 0,
+    "__init__": 0, "logs": 0, "precision": 0, "paper_reference": 0, "media": 0, "annotate": 0,
     "geometry": 10,
     "fea": 20,
     "render": 30,

@@ -360,9 +360,10 @@ def test_cli_predict_on_a_video(exported, render_png, tmp_path, capsys):
     rows = list(csv.DictReader(open(out / "forces.csv")))
     assert [r["frame"] for r in rows] == ["clip_00000", "clip_00002", "clip_00003"]
     assert all(np.isfinite(float(r["fx_N"])) for r in rows)
+    assert [float(r["t_s"]) for r in rows] == pytest.approx([0.0, 0.2, 0.3], abs=1e-6)  # 10 FPS
     # the decoded frames are the rendered ones, in order (H.264 moves a few edge pixels)
     p = Predictor(d / "model.ts", backend="torchscript")
-    decoded = dict(read_frames(video))
+    decoded = {name: f for name, f, _ in read_frames(video)}
     assert list(decoded) == [f"clip_{k:05d}" for k in range(4)]
     for name, f in zip(["clip_00000", "clip_00002", "clip_00003"], frames):
         assert decoded[name].shape == f.shape and decoded[name].dtype == np.uint8
@@ -406,3 +407,48 @@ def test_cli_predict_on_a_video_with_a_corrupt_frame(exported, render_png, tmp_p
     assert err[1].startswith("finray predict: 1 of 6 frames skipped") and len(err) == 2
     rows = list(csv.DictReader(open(out / "forces.csv")))
     assert sorted(r["frame"] for r in rows) == [f"clip_{k:05d}" for k in range(6) if k != rank]
+
+
+def test_cli_predict_annotates_a_video(exported, render_png, tmp_path):
+    """--annotate on a video: annotated.mp4 with a frame per predicted frame, the frame
+    and a colour-bar panel beside it; forces.png; --force-only with it is refused."""
+    import av
+
+    _, d = exported
+    frames = [np.asarray(Image.open(f).convert("RGB"))
+              for f in sorted(render_png.parent.glob("image_*.png"))]
+    video = write_video(tmp_path / "clip.mp4", frames)
+    out = tmp_path / "out"
+    assert main(["predict", "--model", str(d / "model.ts"), str(video), "--out", str(out),
+                 "--annotate"]) == 0
+    with av.open(str(out / "annotated.mp4")) as c:
+        decoded = [f.to_ndarray(format="rgb24") for f in c.decode(video=0)]
+    from finray.annotate import BAR_PX
+
+    h, w = frames[0].shape[:2]
+    assert len(decoded) == len(frames) and decoded[0].shape == (h, (w + BAR_PX) // 2 * 2, 3)
+    assert (out / "forces.png").stat().st_size > 1000
+    assert not list(out.glob("*_annotated.png"))  # a video's frames go into the video
+    assert main(["predict", "--model", str(d / "model.ts"), str(video), "--out",
+                 str(tmp_path / "o2"), "--annotate", "--force-only"]) == 2
+    assert not (tmp_path / "o2").exists()
+
+
+def test_overlay_colours_the_mask_inside_the_window_only():
+    """Each masked pixel in the window takes its map cell's colour (blended); pixels
+    outside the mask or the window keep the frame's value."""
+    from finray.annotate import STRESS_LOG_MAX, _lut, annotate_frame, overlay_stress
+
+    frame = np.full((40, 30), 100, np.uint8)
+    mask = np.zeros((40, 30), bool)
+    mask[5:35, 5:25] = True
+    box = (0.0, 0.0, 20.0, 40.0)  # columns 0-19: the window; 20-29 outside it
+    stress = np.array([[0.0, STRESS_LOG_MAX], [STRESS_LOG_MAX / 2, 0.0]])  # 2 x 2 cells
+    out = overlay_stress(frame, mask, box, stress, alpha=1.0)
+    lut = _lut()
+    assert (out[10, 8] == lut[0]).all() and (out[10, 12] == lut[255]).all()  # top cells
+    assert (out[30, 8] == lut[128]).all() and (out[30, 12] == lut[0]).all()  # bottom cells
+    assert (out[2, 2] == 100).all() and (out[10, 22] == 100).all()  # off the mask; off the window
+    img = annotate_frame(frame, mask, box, stress, {"fx_N": 2.0, "fy_N": 0.5},
+                         {"force_N": 2.1, "lo_N": 1.9, "hi_N": 2.3, "level": 0.9}, "f0")
+    assert img.shape[:2] == (40, 30 + 96) and img.dtype == np.uint8

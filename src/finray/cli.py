@@ -255,7 +255,7 @@ PREDICT_HELP = """\
 Predict the contact force (N) and the stress map of each frame of an image, a folder
 of images or a video (PyAV). The finger is segmented and cropped as in the dataset
 stage, anchored on its clamped base, so camera frames of any size work. Writes
-forces.csv (frame,fx_N,fy_N: the model's force outputs; a row as each frame completes) and, per frame,
+forces.csv (frame[,t_s],fx_N,fy_N: the model's force outputs, a video frame's time; a row as each frame completes) and, per frame,
 <name>_stress.exr (log10(1 + sigma / 1 kPa)) and <name>_stress.png. A frame that
 cannot be predicted (corrupt, no finger) is reported on stderr and skipped, the
 others are written (exit code 1); bad input stops with one line (exit code 2).
@@ -269,6 +269,8 @@ examples:
   finray predict --model results/train/camera/model.ts take.mp4 --out pred/ --force-only --threads 2
   # calibrated forces with their 90 % interval, from `finray calibrate`'s output
   finray predict --calibration rig/calibration.json take.mp4 --out pred/
+  # a video to watch: annotated.mp4 (stress over the finger, force arrow) and forces.png
+  finray predict --model results/train/camera/model.ts take.mp4 --out pred/ --annotate
 """
 
 
@@ -296,13 +298,19 @@ def _predict_parser(sub) -> None:
     p.add_argument("--overwrite", action="store_true",
                    help="replace an earlier run's forces.csv and stress maps in --out (refused "
                         "without it)")
+    p.add_argument("--annotate", action="store_true",
+                   help="also each frame with its stress map drawn over the finger (MPa, log "
+                        "scale), the force arrow (N) and the calibrated force: "
+                        "<name>_annotated.png, for a video annotated.mp4; and forces.png, the "
+                        "force against time")
     p.set_defaults(func=_run_predict)
 
 
 def _force_line(row: dict) -> str:
-    """``<frame>\tfx 1.2345 N\tfy -0.2345 N`` of a predicted row."""
-    return "\t".join([row["frame"], *(f"{k.removesuffix('_N')} {v:.4f} N"
-                                       for k, v in row.items() if k != "frame")])
+    """``<frame>\t[t 1.2345 s\t]fx 1.2345 N\tfy -0.2345 N`` of a predicted row."""
+    t = [f"t {row['t_s']:.4f} s"] if row.get("t_s") is not None else []
+    return "\t".join([row["frame"], *t, *(f"{k.removesuffix('_N')} {v:.4f} N"
+                                           for k, v in row.items() if k.endswith("_N"))])
 
 
 def _calibrated_line(row: dict) -> str:
@@ -339,13 +347,15 @@ def _predict(args) -> int:
                              f"calibrates ({cal_model}): leave --model out")
     if args.model is None:
         raise UsageError("give --model (or --calibration)")
+    if args.annotate and args.force_only:
+        raise UsageError("--annotate draws the stress map: leave out --force-only")
     line = _calibrated_line if cal is not None else _force_line
     out = predict_files(args.model, args.source, args.out, args.threads, args.backend,
                         args.force_only, calibration=cal,
                         on_frame=lambda r: print(line(r), flush=True),
                         on_skip=lambda name, msg: print(f"finray predict: skipped {msg}",
                                                         file=sys.stderr, flush=True),
-                        device=args.device, overwrite=args.overwrite)
+                        device=args.device, overwrite=args.overwrite, annotate=args.annotate)
     if out["skipped"]:
         n = len(out["rows"]) + len(out["skipped"])
         print(f"finray predict: {len(out['skipped'])} of {n} frames skipped; the other "

@@ -311,21 +311,22 @@ def latency_report(model_path: str | Path, images, n_frames: int = 200, repeats:
 
 
 def read_frames(path: str | Path):
-    """``(name, frame)`` of every frame of an image, a folder of images or a video (read
-    with PyAV), lazily. A frame that cannot be read comes as ``(name, FrameError)``, so
-    that the caller can report it and go on; a source that cannot be read at all
-    raises :class:`InputError` here."""
+    """``(name, frame, t_s)`` of every frame of an image, a folder of images or a video
+    (read with PyAV), lazily; ``t_s`` the frame's time in a video (s, from its time
+    stamps), None for images. A frame that cannot be read comes as ``(name,
+    FrameError, t_s)``, so that the caller can report it and go on; a source that
+    cannot be read at all raises :class:`InputError` here."""
     path = Path(path)
     if path.is_dir():
         files = sorted(p for p in path.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
         if not files:
             raise InputError(f"no images ({', '.join(IMAGE_SUFFIXES)}) in {path}")
-        return ((p.name, _read_image(p)) for p in files)
+        return ((p.name, _read_image(p), None) for p in files)
     if not path.is_file():
         raise InputError(f"{path} does not exist")
     if path.suffix.lower() in VIDEO_SUFFIXES:
         return _video_frames(path)
-    return iter([(path.name, _read_image(path))])
+    return iter([(path.name, _read_image(path), None)])
 
 
 def _read_image(path: Path) -> np.ndarray | FrameError:
@@ -335,7 +336,7 @@ def _read_image(path: Path) -> np.ndarray | FrameError:
 
 
 def _video_frames(path: Path):
-    """``(name, rgb (H, W, 3) uint8 | FrameError)`` of each frame of a video
+    """``(name, rgb (H, W, 3) uint8 | FrameError, t_s)`` of each frame of a video
     (:func:`finray.media.video_frames`: a lost frame comes as a FrameError in its
     place); names ``<stem>_<k:05d>``, k the frame's rank in the stream (from its time
     stamp, so that a lost frame leaves its rank out; by order where a frame has none),
@@ -349,10 +350,10 @@ def _video_frames(path: Path):
     def named():
         for f in frames:
             if f.rest:
-                yield f"{path.stem} (rest)", FrameError(f.error)
+                yield f"{path.stem} (rest)", FrameError(f.error), f.t_s
                 continue
             name = f"{path.stem}_{f.rank if f.rank is not None else next(count):05d}"
-            yield name, (f.image if f.error is None else FrameError(f.error))
+            yield name, (f.image if f.error is None else FrameError(f.error)), f.t_s
     return named()
 
 
@@ -376,25 +377,35 @@ def _colour_segmenter(spec: dict):
     return seg
 
 
+#: what a run of :func:`predict_files` leaves in its folder, besides the per-frame files
+RUN_FILES = ("forces.csv", "forces.png", "annotated.mp4")
+
+
 def run_files(out_dir) -> list[Path]:
-    """The files a run of :func:`predict_files` leaves in ``out_dir``: ``forces.csv`` and
-    the stress maps (``*_stress.exr``, ``*_stress.png``)."""
+    """The files a run of :func:`predict_files` leaves in ``out_dir``: ``forces.csv``, the
+    stress maps (``*_stress.exr``, ``*_stress.png``) and, annotated, ``*_annotated.png``,
+    ``annotated.mp4`` and ``forces.png``."""
     out_dir = Path(out_dir)
     if not out_dir.is_dir():
         return []
-    return sorted([f for f in [out_dir / "forces.csv"] if f.is_file()]
-                  + list(out_dir.glob("*_stress.exr")) + list(out_dir.glob("*_stress.png")))
+    return sorted([f for f in (out_dir / n for n in RUN_FILES) if f.is_file()]
+                  + [f for g in ("*_stress.exr", "*_stress.png", "*_annotated.png")
+                     for f in out_dir.glob(g)])
 
 
 def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = "auto",
                   force_only: bool = False, on_frame=None, on_skip=None,
                   device: str = "auto", calibration: dict | None = None,
-                  overwrite: bool = False) -> dict:
+                  overwrite: bool = False, annotate: bool = False) -> dict:
     """Predict every frame of ``source`` (image, folder of images or video) into
     ``out_dir``: ``forces.csv`` (``frame,fx_N``; also ``fy_N`` for a model that predicts
     it; while it runs ``forces.csv.part``, a row appended and flushed as each frame
-    completes) and, per frame unless
-    ``force_only``, the stress map as EXR and as a coloured PNG.
+    completes; for a video also ``t_s``, each frame's time) and, per frame unless
+    ``force_only``, the stress map as EXR and as a coloured PNG. ``annotate``
+    (:mod:`finray.annotate`): each frame with its stress map drawn over the finger, the
+    force arrow and values (``<name>_annotated.png``; a video's frames go into
+    ``annotated.mp4`` instead, at its frame rate) and, for more than one frame, the
+    force against time (``forces.png``).
 
     A frame that cannot be predicted (unreadable, not an image, no finger) is skipped:
     ``on_skip(name, message)`` is called and the run goes on. ``on_frame(row)`` gets
@@ -416,8 +427,11 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
         raise InputError(f"{out_dir} holds another run's results ({len(old)} files: "
                          f"{', '.join(f.name for f in old[:2])}{', ...' if len(old) > 2 else ''}); "
                          "give --overwrite to replace them, or another --out")
+    if annotate and force_only:
+        raise InputError("annotating draws the stress map: leave out force-only")
     frames = read_frames(source)  # checks the source before the model loads
     one_image = Path(source).is_file() and Path(source).suffix.lower() not in VIDEO_SUFFIXES
+    video = Path(source).is_file() and Path(source).suffix.lower() in VIDEO_SUFFIXES
     p = Predictor(model_path, threads, backend, device)
     for f in old:
         f.unlink()
@@ -426,7 +440,7 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
     written: list[Path] = []
     try:
         out = _predict_into(p, frames, out_dir, part, written, one_image, source, force_only,
-                            on_frame, on_skip, calibration)
+                            on_frame, on_skip, calibration, annotate, video)
     except KeyboardInterrupt:
         if part.is_file() and sum(1 for _ in open(part)) > 1:
             part.replace(out_dir / "forces.csv")  # the frames done so far
@@ -446,9 +460,36 @@ def _remove(*paths: Path) -> None:
 
 
 def _predict_into(p, frames, out_dir: Path, part: Path, written: list, one_image: bool, source,
-                  force_only: bool, on_frame, on_skip, calibration) -> dict:
-    """:func:`predict_files`'s loop: rows into ``part``, stress maps into ``out_dir``
-    (their paths appended to ``written``)."""
+                  force_only: bool, on_frame, on_skip, calibration, annotate: bool = False,
+                  video: bool = False) -> dict:
+    """:func:`predict_files`'s loop (:func:`_predict_loop`), with the annotated video
+    open around it and the force-against-time figure after it where ``annotate``."""
+    writer = None
+    if annotate and video:
+        from .annotate import VideoWriter
+        from .media import video_info
+
+        writer = VideoWriter(out_dir / "annotated.mp4", video_info(source).rate_hz or 30.0)
+        written.append(writer.path)
+    try:
+        out = _predict_loop(p, frames, out_dir, part, written, one_image, source, force_only,
+                            on_frame, on_skip, calibration, annotate, video, writer)
+    finally:
+        if writer is not None:
+            writer.close()
+    if annotate and len(out["rows"]) > 1:
+        from .annotate import force_time_figure
+
+        written.append(out_dir / "forces.png")
+        force_time_figure(out["rows"], written[-1], title=Path(source).name)
+    return out
+
+
+def _predict_loop(p, frames, out_dir: Path, part: Path, written: list, one_image: bool, source,
+                  force_only: bool, on_frame, on_skip, calibration, annotate: bool, video: bool,
+                  writer) -> dict:
+    """Rows into ``part``, stress maps (and annotated frames) into ``out_dir`` (their
+    paths appended to ``written``), annotated video frames to ``writer``."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -462,13 +503,15 @@ def _predict_into(p, frames, out_dir: Path, part: Path, written: list, one_image
     rows, skipped = [], []
     with open(part, "w") as table:
         cal_cols = ["force_N", "lo_N", "hi_N"] if calibration is not None else []
-        table.write(",".join(["frame", *p.force_names, *cal_cols]) + "\n")
+        time_cols = ["t_s"] if video else []
+        table.write(",".join(["frame", *time_cols, *p.force_names, *cal_cols]) + "\n")
         table.flush()
-        for name, frame in frames:
+        for name, frame, t_s in frames:
             try:
                 if isinstance(frame, FrameError):
                     raise frame
-                x = p.network_input(segment_frame(frame))
+                mask = segment_frame(frame)
+                x = p.network_input(mask)
                 if force_only:
                     fvec = p.run_force(x)[0]
                 else:
@@ -490,7 +533,8 @@ def _predict_into(p, frames, out_dir: Path, part: Path, written: list, one_image
                           {"source": str(name), "force_N": force})
                 s = np.clip(stress / max(float(stress.max()), 1e-6), 0, 1)
                 write_png(written[-1], (cm.inferno(s)[..., :3] * 255).astype(np.uint8))
-            row = {"frame": name, **{n: float(v) for n, v in zip(p.force_names, fvec)}}
+            row = {"frame": name, **({"t_s": t_s} if video else {}),
+                   **{n: float(v) for n, v in zip(p.force_names, fvec)}}
             if calibration is not None:
                 from .calibration import predictive, spread
 
@@ -499,8 +543,20 @@ def _predict_into(p, frames, out_dir: Path, part: Path, written: list, one_image
                                   calibration.get("level", 0.9), seed=len(rows))
                 row.update(force_N=float(band["median"][0]), lo_N=float(band["lo"][0]),
                            hi_N=float(band["hi"][0]), level=band["level"])
-            table.write(",".join([name, *(f"{row[n]:.6g}" for n in [*p.force_names, *cal_cols])])
-                        + "\n")
+            if annotate:
+                from .annotate import annotate_frame
+
+                cal = {k: row[k] for k in ("force_N", "lo_N", "hi_N", "level")} if calibration else None
+                label = name + (f"  t = {t_s:.3f} s" if t_s is not None else "")
+                img = annotate_frame(frame, mask, p.crop_box(mask), stress, row, cal, label)
+                if writer is not None:
+                    writer.write(img)
+                else:
+                    written.append(out_dir / f"{Path(name).stem}_annotated.png")
+                    write_png(written[-1], img)
+            times = ["" if t_s is None else f"{t_s:.6f}"] if video else []
+            table.write(",".join([name, *times,
+                                  *(f"{row[n]:.6g}" for n in [*p.force_names, *cal_cols])]) + "\n")
             table.flush()  # a long video's forces can be read while it runs
             rows.append(row)
             if on_frame is not None:

@@ -1,0 +1,207 @@
+"""Annotated frames for a person to watch: the predicted stress map drawn over the finger
+in the camera's own pixels (log scale, a colour bar in MPa), the force as an arrow with
+its magnitude (N), the calibrated force with its interval; for a video, the annotated
+video (PyAV) and a force-against-time plot.
+
+The stress map covers the network's input window, which :meth:`finray.predict.Predictor.
+crop_box` places on the camera frame (pixel edges, rows down): each camera pixel of the
+finger's mask inside that window takes the map's value of the cell it falls in (nearest;
+vectorised), coloured on a fixed log scale so that a video's frames compare.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+#: top of the colour scale, in the maps' unit log10(1 + sigma / 1 kPa): sigma = 1 MPa
+STRESS_LOG_MAX = math.log10(1.0 + 1000.0)
+#: colour-bar ticks (MPa)
+TICKS_MPA = (0.0, 0.01, 0.1, 1.0)
+#: the arrow's scale: this many N span the input window's width
+ARROW_N_PER_WINDOW = 5.0
+BAR_PX = 96  # width of the colour-bar panel right of the frame
+
+
+def stress_log(mpa):
+    """MPa -> the maps' unit, log10(1 + sigma / 1 kPa)."""
+    return np.log10(1.0 + np.asarray(mpa, dtype=float) * 1e3)
+
+
+def _lut(name: str = "inferno") -> np.ndarray:
+    from matplotlib import colormaps
+
+    return (colormaps[name](np.linspace(0, 1, 256))[:, :3] * 255).astype(np.uint8)
+
+
+def stress_cells(shape: tuple[int, int], box, map_shape: tuple[int, int]):
+    """For a frame of ``shape`` (H, W) and the window ``box`` (col0, row0, col1, row1 in
+    pixel edges): each row's and column's cell of a map of ``map_shape`` (h, w), and
+    whether it falls inside the window: ``(i (H,), j (W,), in_rows (H,), in_cols (W,))``."""
+    H, W = shape
+    h, w = map_shape
+    c0, r0, c1, r1 = box
+    i = np.floor((np.arange(H) + 0.5 - r0) / (r1 - r0) * h).astype(np.int64)
+    j = np.floor((np.arange(W) + 0.5 - c0) / (c1 - c0) * w).astype(np.int64)
+    return np.clip(i, 0, h - 1), np.clip(j, 0, w - 1), (i >= 0) & (i < h), (j >= 0) & (j < w)
+
+
+def overlay_stress(frame: np.ndarray, mask: np.ndarray, box, stress: np.ndarray,
+                   alpha: float = 0.65, vmax: float = STRESS_LOG_MAX) -> np.ndarray:
+    """RGB (H, W, 3) uint8: ``frame`` (grey or RGB) with the log-stress map ``stress``
+    (h, w) blended over the pixels of ``mask`` inside ``box``; pixels elsewhere keep the
+    frame's values."""
+    rgb = np.asarray(frame)
+    rgb = np.repeat(rgb[..., None], 3, axis=2) if rgb.ndim == 2 else rgb[..., :3]
+    rgb = rgb.astype(np.uint8, copy=True)
+    i, j, in_r, in_c = stress_cells(rgb.shape[:2], box, stress.shape)
+    rows, cols = np.flatnonzero(in_r), np.flatnonzero(in_c)
+    if not len(rows) or not len(cols):
+        return rgb
+    sub = np.s_[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1]  # the window's part of the frame
+    m = np.asarray(mask, bool)[sub]
+    v = stress[i[rows][:, None], j[cols][None, :]]
+    colour = _lut()[np.clip(np.rint(v / vmax * 255), 0, 255).astype(np.int64)]
+    part = rgb[sub]
+    part[m] = np.rint((1 - alpha) * part[m] + alpha * colour[m]).astype(np.uint8)
+    return rgb
+
+
+def peak_front_point(mask: np.ndarray, box, stress: np.ndarray,
+                     clamp_frac: float = 0.12) -> tuple[int, int] | None:
+    """(row, col) of the finger's front edge (its leftmost mask pixel) at the row of the
+    map's largest stress above the clamp (the window's lowest ``clamp_frac``, where the
+    base's stress peaks whatever the contact): where the arrow points (the contact)."""
+    i, _, in_r, _ = stress_cells(mask.shape, box, stress.shape)
+    row_peak = stress.max(axis=1)[i]  # each frame row's largest stress in the window
+    in_r = in_r & (i < (1.0 - clamp_frac) * stress.shape[0])
+    rows = np.flatnonzero(in_r & mask.any(axis=1))
+    if not len(rows):
+        return None
+    r = int(rows[np.argmax(row_peak[rows])])
+    return r, int(np.argmax(mask[r]))
+
+
+def annotate_frame(frame: np.ndarray, mask: np.ndarray, box, stress: np.ndarray,
+                   forces: dict[str, float], calibrated: dict | None = None,
+                   label: str = "") -> np.ndarray:
+    """The annotated frame (H, W + BAR_PX, 3) uint8: the stress overlay
+    (:func:`overlay_stress`), the force arrow at the front edge (``fx_N`` along the push,
+    to the right; ``fy_N`` across it, up), its magnitude, the calibrated force and its
+    interval (``calibrated``: ``force_N``, ``lo_N``, ``hi_N``, ``level``), ``label`` (e.g.
+    the frame's name and time) and a colour bar in MPa."""
+    from PIL import Image, ImageDraw
+
+    body = overlay_stress(frame, mask, box, stress)
+    H, W = body.shape[:2]
+    canvas = np.zeros((H, W + BAR_PX, 3), np.uint8)
+    canvas[:, :W] = body
+    img = Image.fromarray(canvas)
+    draw = ImageDraw.Draw(img)
+    font = _font(max(12, H // 40))
+    fx, fy = forces.get("fx_N", 0.0), forces.get("fy_N", 0.0)
+    mag = math.hypot(fx, fy)
+    tip = peak_front_point(np.asarray(mask, bool), box, stress)
+    if tip is not None and mag > 0:
+        scale = (box[2] - box[0]) / ARROW_N_PER_WINDOW  # px per N
+        r, c = tip
+        tail = (c - scale * fx, r + scale * fy)  # image rows grow down
+        draw.line([tail, (c, r)], fill=(0, 255, 255), width=max(2, H // 240))
+        ang = math.atan2(-fy, fx)
+        head = max(6.0, H / 60)
+        for da in (2.6, -2.6):
+            draw.line([(c, r), (c + head * math.cos(ang + da), r + head * math.sin(ang + da))],
+                      fill=(0, 255, 255), width=max(2, H // 240))
+    lines = [label] if label else []
+    lines.append(f"|F| {mag:.2f} N  (fx {fx:.2f} N, fy {fy:.2f} N)" if "fy_N" in forces
+                 else f"fx {fx:.2f} N")
+    if calibrated:
+        lines.append(f"calibrated {calibrated['force_N']:.2f} N, "
+                     f"{100 * calibrated['level']:.0f} % [{calibrated['lo_N']:.2f}, "
+                     f"{calibrated['hi_N']:.2f}] N")
+    draw.multiline_text((8, 6), "\n".join(lines), fill=(255, 255, 255), font=font,
+                        stroke_width=2, stroke_fill=(0, 0, 0))
+    _colour_bar(draw, img, W, H, font)
+    return np.asarray(img)
+
+
+def _font(size: int):
+    from PIL import ImageFont
+
+    try:
+        return ImageFont.load_default(size=size)
+    except TypeError:  # pragma: no cover - Pillow < 10.1
+        return ImageFont.load_default()
+
+
+def _colour_bar(draw, img, x0: int, H: int, font) -> None:
+    """The colour scale on the panel right of the frame: log stress, ticks in MPa."""
+    from PIL import Image
+
+    top, bottom = int(0.12 * H), int(0.88 * H)
+    n = bottom - top
+    ramp = _lut()[np.rint(np.linspace(255, 0, n)).astype(np.int64)]
+    img.paste(Image.fromarray(np.repeat(ramp[:, None], 18, axis=1)), (x0 + 10, top))
+    for t in TICKS_MPA:
+        y = bottom - float(stress_log(t)) / STRESS_LOG_MAX * n
+        draw.line([(x0 + 28, y), (x0 + 34, y)], fill=(255, 255, 255))
+        draw.text((x0 + 37, y), f"{t:g}", fill=(255, 255, 255), font=font, anchor="lm")
+    draw.text((x0 + 8, top - 8), "stress\n(MPa)", fill=(255, 255, 255), font=font, anchor="ld")
+
+
+class VideoWriter:
+    """Annotated frames into a video file (PyAV, H.264 where the FFmpeg build has it,
+    else MPEG-4), at ``fps``; the size is the first frame's (rounded down to even)."""
+
+    def __init__(self, path: str | Path, fps: float = 30.0):
+        self.path, self.fps = Path(path), fps
+        self._container = self._stream = None
+
+    def write(self, rgb: np.ndarray) -> None:
+        import av
+        from fractions import Fraction
+
+        if self._container is None:
+            self._container = av.open(str(self.path), "w")
+            codec = "libx264" if "libx264" in av.codecs_available else "mpeg4"
+            self._stream = self._container.add_stream(codec, rate=Fraction(self.fps).limit_denominator(1001))
+            self._stream.height, self._stream.width = (rgb.shape[0] // 2) * 2, (rgb.shape[1] // 2) * 2
+            self._stream.pix_fmt = "yuv420p"
+        rgb = np.ascontiguousarray(rgb[:self._stream.height, :self._stream.width])
+        for packet in self._stream.encode(av.VideoFrame.from_ndarray(rgb, format="rgb24")):
+            self._container.mux(packet)
+
+    def close(self) -> None:
+        if self._container is not None:
+            for packet in self._stream.encode():
+                self._container.mux(packet)
+            self._container.close()
+            self._container = None
+
+
+def force_time_figure(rows: list[dict], path: str | Path, title: str = "") -> None:
+    """Force against time (or frame) of a run's rows (``t_s`` where known): each force
+    output, and the calibrated force with its interval where the rows have one."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t = np.array([r.get("t_s") if r.get("t_s") is not None else np.nan for r in rows], float)
+    x, xlabel = (t, "time (s)") if np.isfinite(t).all() else (np.arange(len(rows)), "frame")
+    fig, ax = plt.subplots(figsize=(7, 3))
+    for name in ("fx_N", "fy_N"):
+        if rows and name in rows[0]:
+            ax.plot(x, [r[name] for r in rows], lw=1, label=name.replace("_N", " (network)"))
+    if rows and "force_N" in rows[0]:
+        ax.fill_between(x, [r["lo_N"] for r in rows], [r["hi_N"] for r in rows], alpha=0.3,
+                        color="C2", label=f"{100 * rows[0]['level']:.0f} % interval")
+        ax.plot(x, [r["force_N"] for r in rows], color="C2", lw=1, label="calibrated")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("force (N)")
+    ax.legend(fontsize=7)
+    ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
