@@ -452,3 +452,57 @@ def test_overlay_colours_the_mask_inside_the_window_only():
     img = annotate_frame(frame, mask, box, stress, {"fx_N": 2.0, "fy_N": 0.5},
                          {"force_N": 2.1, "lo_N": 1.9, "hi_N": 2.3, "level": 0.9}, "f0")
     assert img.shape[:2] == (40, 30 + 96) and img.dtype == np.uint8
+
+
+SERVE = """
+import sys, numpy as np, av
+from PIL import Image
+port, pngs = int(sys.argv[1]), sys.argv[2:]
+frames = [np.asarray(Image.open(p).convert("RGB")) for p in pngs] * 3
+h, w = frames[0].shape[:2]
+with av.open(f"tcp://127.0.0.1:{port}?listen=1", "w", format="mpegts") as c:
+    s = c.add_stream("mpeg2video", rate=10)
+    s.width, s.height, s.pix_fmt = w, h, "yuv420p"
+    for f in frames:
+        c.mux(s.encode(av.VideoFrame.from_ndarray(np.ascontiguousarray(f), format="rgb24")))
+    c.mux(s.encode())
+"""
+
+
+def test_cli_predict_on_a_live_network_stream(exported, render_png, tmp_path, capsys):
+    """A TCP stream (MPEG-TS, served by PyAV in another process) read as a live source
+    until it ends: a row per frame kept, each with its time; the summary line counts the
+    frames received and dropped; a stream nobody serves is one line, exit code 2."""
+    import socket
+    import subprocess
+    import sys
+    import time
+
+    _, d = exported
+    pngs = sorted(str(f) for f in render_png.parent.glob("image_*.png"))
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        port = sock.getsockname()[1]
+    (tmp_path / "serve.py").write_text(SERVE)
+    server = subprocess.Popen([sys.executable, str(tmp_path / "serve.py"), str(port), *pngs])
+    out, rc = tmp_path / "out", 2
+    try:
+        for _ in range(100):  # until the server listens
+            rc = main(["predict", "--model", str(d / "model.ts"), f"tcp://127.0.0.1:{port}",
+                       "--out", str(out), "--backend", "torchscript"])
+            if rc != 2:
+                break
+            time.sleep(0.1)
+    finally:
+        server.wait(timeout=60)
+    assert rc == 0
+    rows = list(csv.DictReader(open(out / "forces.csv")))
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    n = int(err.split("frames predicted of ")[1].split()[0])
+    dropped = int(err.split("received (")[1].split()[0])
+    assert 1 <= len(rows) and len(rows) + dropped == n <= 3 * len(pngs), err
+    assert "the stream ended" in err
+    assert all(r["frame"].startswith("live_") and r["t_s"] != "" for r in rows)
+    assert main(["predict", "--model", str(d / "model.ts"), f"tcp://127.0.0.1:{port}",
+                 "--out", str(tmp_path / "none")]) == 2
+    assert not (tmp_path / "none").exists()

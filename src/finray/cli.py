@@ -253,7 +253,10 @@ def _run_simulate(args) -> int:
 
 PREDICT_HELP = """\
 Predict the contact force (N) and the stress map of each frame of an image, a folder
-of images or a video (PyAV). The finger is segmented and cropped as in the dataset
+of images, a video or a live source (PyAV): a camera (/dev/video0, or 0) or a network
+stream (rtsp://, udp://, tcp://, http://), read until it ends or Ctrl-C, the newest
+frame each time (frames that come while the network is busy are dropped and counted).
+The finger is segmented and cropped as in the dataset
 stage, anchored on its clamped base, so camera frames of any size work. Writes
 forces.csv (frame[,t_s],fx_N,fy_N: the model's force outputs, a video frame's time; a row as each frame completes) and, per frame,
 <name>_stress.exr (log10(1 + sigma / 1 kPa)) and <name>_stress.png. A frame that
@@ -271,6 +274,9 @@ examples:
   finray predict --calibration rig/calibration.json take.mp4 --out pred/
   # a video to watch: annotated.mp4 (stress over the finger, force arrow) and forces.png
   finray predict --model results/train/camera/model.ts take.mp4 --out pred/ --annotate
+  # a live camera (V4L2) until Ctrl-C, annotated; or a network stream
+  finray predict --model results/train/camera/model.ts /dev/video0 --out live/ --annotate
+  finray predict --model results/train/camera/model.ts rtsp://192.168.1.20:8554/cam --out live/
 """
 
 
@@ -284,7 +290,9 @@ def _predict_parser(sub) -> None:
     p.add_argument("--calibration", type=Path,
                    help="calibration.json of finray calibrate: each frame's force also "
                         "calibrated, with its predictive interval")
-    p.add_argument("source", type=Path, help="image, folder of images or video")
+    p.add_argument("source", help="image, folder of images, video, or a live source: a camera "
+                                  "device (/dev/video0, or its index 0) or a network stream "
+                                  "(rtsp://, udp://, tcp://, http:// ...), read until it ends or Ctrl-C")
     p.add_argument("--out", type=Path, required=True, help="output directory")
     p.add_argument("--threads", type=int, default=1, help="intra-op threads (default 1)")
     p.add_argument("--backend", choices=["auto", "onnx", "torchscript"], default="auto",
@@ -356,6 +364,11 @@ def _predict(args) -> int:
                         on_skip=lambda name, msg: print(f"finray predict: skipped {msg}",
                                                         file=sys.stderr, flush=True),
                         device=args.device, overwrite=args.overwrite, annotate=args.annotate)
+    if "received" in out:  # a live source: what it sent, what could be kept up with
+        print(f"finray predict: {len(out['rows'])} frames predicted of {out['received']} received "
+              f"({out['dropped']} dropped while the network was busy"
+              + ("; stopped by Ctrl-C" if out["interrupted"] else "; the stream ended")
+              + f"), forces in {Path(args.out) / 'forces.csv'}", file=sys.stderr)
     if out["skipped"]:
         n = len(out["rows"]) + len(out["skipped"])
         print(f"finray predict: {len(out['skipped'])} of {n} frames skipped; the other "

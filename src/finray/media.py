@@ -163,3 +163,98 @@ def video_frames(path: str | Path, threads: bool = False):
                     k += 1
 
     return frames()
+
+
+#: URL schemes of network streams that PyAV (FFmpeg) opens
+STREAM_SCHEMES = ("rtsp", "rtsps", "rtmp", "udp", "tcp", "srt", "http", "https")
+
+
+def is_live(source: str | Path) -> bool:
+    """A live source: a network stream URL (:data:`STREAM_SCHEMES`), a V4L2 camera
+    device (``/dev/video*``) or a camera's index (``0``, ``1``, ...: ``/dev/video<k>``)."""
+    s = str(source)
+    return (s.split("://", 1)[0].lower() in STREAM_SCHEMES and "://" in s) or \
+        s.startswith("/dev/video") or s.isdigit()
+
+
+class LiveFrames:
+    """The frames of a live source (:func:`is_live`), newest first: a reader thread
+    decodes as fast as the source sends, and keeps only the latest frame, so that a
+    consumer slower than the source drops frames instead of falling behind (``dropped``
+    counts them). Iterating yields :class:`Frame` (RGB, ``t_s`` from the stream's time
+    stamps, else the wall clock since it opened) until the stream ends or
+    :meth:`close`. Opening raises :class:`MediaError` (unreachable, no video)."""
+
+    def __init__(self, source: str | Path, open_timeout_s: float = 10.0):
+        import threading
+        import time
+
+        import av
+
+        s = str(source)
+        device = f"/dev/video{s}" if s.isdigit() else s
+        fmt = "v4l2" if device.startswith("/dev/video") else None
+        options = {"rtsp_transport": "tcp"} if s.lower().startswith("rtsp") else {}
+        try:
+            self._container = av.open(device, format=fmt, options=options,
+                                      timeout=(open_timeout_s, open_timeout_s))
+        except (av.FFmpegError, OSError) as exc:
+            raise MediaError(f"{source} cannot be opened as a live source ({one_line(exc)})") from None
+        if not self._container.streams.video:
+            self._container.close()
+            raise MediaError(f"{source} has no video stream")
+        self.source, self.dropped, self.received = s, 0, 0
+        self.rate_hz = float(self._container.streams.video[0].average_rate or 0)
+        self._t0 = time.perf_counter()
+        self._latest, self._done, self._error = None, False, None
+        self._cond = threading.Condition()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._read, daemon=True)
+        self._thread.start()
+
+    def _read(self) -> None:
+        import time
+
+        import av
+
+        try:
+            for fr in self._container.decode(video=0):
+                t = float(fr.pts * fr.time_base) if fr.pts is not None and fr.time_base else \
+                    time.perf_counter() - self._t0
+                frame = Frame(self.received, t, None, fr.to_ndarray(format="rgb24"))
+                with self._cond:
+                    if self._latest is not None:
+                        self.dropped += 1  # the consumer had not taken the last one
+                    self._latest = frame
+                    self.received += 1
+                    self._cond.notify()
+                if self._stop.is_set():
+                    break
+        except (av.FFmpegError, OSError) as exc:
+            self._error = f"the stream cannot be read on ({one_line(exc)})"
+        finally:
+            with self._cond:
+                self._done = True
+                self._cond.notify()
+
+    def __iter__(self):
+        while True:
+            with self._cond:
+                while self._latest is None and not self._done:
+                    self._cond.wait()
+                frame, self._latest = self._latest, None
+                done, error = self._done, self._error
+            if frame is not None:
+                yield frame
+            elif done:
+                if error:
+                    yield Frame(self.received, None, None, None, error, rest=True)
+                return
+
+    def close(self) -> None:
+        self._stop.set()
+        try:
+            self._container.close()
+        except Exception:  # noqa: BLE001 - closing a broken stream: nothing left to save
+            pass
+        self._thread.join(timeout=2.0)

@@ -29,7 +29,8 @@ import numpy as np
 import torch
 
 from .dataset.imageops import EmptyMaskError, base_anchored_box, segment, silhouette_input
-from .media import IMAGE_SUFFIXES, VIDEO_SUFFIXES, MediaError, one_line, read_image, video_frames
+from .media import (IMAGE_SUFFIXES, VIDEO_SUFFIXES, LiveFrames, MediaError, is_live, one_line,
+                    read_image, video_frames)
 from .precision import DeviceError, resolve_device
 
 BACKENDS = ("auto", "onnx", "torchscript")
@@ -316,6 +317,8 @@ def read_frames(path: str | Path):
     stamps), None for images. A frame that cannot be read comes as ``(name,
     FrameError, t_s)``, so that the caller can report it and go on; a source that
     cannot be read at all raises :class:`InputError` here."""
+    if is_live(path):
+        return _Live(path)
     path = Path(path)
     if path.is_dir():
         files = sorted(p for p in path.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
@@ -327,6 +330,26 @@ def read_frames(path: str | Path):
     if path.suffix.lower() in VIDEO_SUFFIXES:
         return _video_frames(path)
     return iter([(path.name, _read_image(path), None)])
+
+
+class _Live:
+    """``(name, rgb | FrameError, t_s)`` of a live source's frames (:class:`finray.media.
+    LiveFrames`: the newest frame each time, the ones in between dropped), named
+    ``live_<k>``, k the frame's count since it opened."""
+
+    def __init__(self, source):
+        try:
+            self.frames = LiveFrames(source)
+        except MediaError as exc:
+            raise InputError(str(exc)) from None
+
+    def __iter__(self):
+        for f in self.frames:
+            name = f"live_{f.index:06d}" if not f.rest else "live (rest)"
+            yield name, (f.image if f.error is None else FrameError(f.error)), f.t_s
+
+    def close(self) -> None:
+        self.frames.close()
 
 
 def _read_image(path: Path) -> np.ndarray | FrameError:
@@ -430,8 +453,21 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
     if annotate and force_only:
         raise InputError("annotating draws the stress map: leave out force-only")
     frames = read_frames(source)  # checks the source before the model loads
-    one_image = Path(source).is_file() and Path(source).suffix.lower() not in VIDEO_SUFFIXES
-    video = Path(source).is_file() and Path(source).suffix.lower() in VIDEO_SUFFIXES
+    live = isinstance(frames, _Live)
+    one_image = not live and Path(source).is_file() and Path(source).suffix.lower() not in VIDEO_SUFFIXES
+    video = live or (Path(source).is_file() and Path(source).suffix.lower() in VIDEO_SUFFIXES)
+    try:
+        return _predict_files(frames, model_path, source, out_dir, old, threads, backend, device,
+                              one_image, video, force_only, on_frame, on_skip, calibration, annotate)
+    finally:
+        if live:
+            frames.close()
+
+
+def _predict_files(frames, model_path, source, out_dir: Path, old: list, threads, backend, device,
+                   one_image, video, force_only, on_frame, on_skip, calibration, annotate) -> dict:
+    """:func:`predict_files` once its source is open: the model loaded, the table written
+    as ``forces.csv.part`` and moved into place."""
     p = Predictor(model_path, threads, backend, device)
     for f in old:
         f.unlink()
@@ -469,7 +505,8 @@ def _predict_into(p, frames, out_dir: Path, part: Path, written: list, one_image
         from .annotate import VideoWriter
         from .media import video_info
 
-        writer = VideoWriter(out_dir / "annotated.mp4", video_info(source).rate_hz or 30.0)
+        rate = frames.frames.rate_hz if isinstance(frames, _Live) else video_info(source).rate_hz
+        writer = VideoWriter(out_dir / "annotated.mp4", rate or 30.0)
         written.append(writer.path)
     try:
         out = _predict_loop(p, frames, out_dir, part, written, one_image, source, force_only,
@@ -477,6 +514,8 @@ def _predict_into(p, frames, out_dir: Path, part: Path, written: list, one_image
     finally:
         if writer is not None:
             writer.close()
+    if isinstance(frames, _Live):
+        out.update(received=frames.frames.received, dropped=frames.frames.dropped)
     if annotate and len(out["rows"]) > 1:
         from .annotate import force_time_figure
 
@@ -500,69 +539,74 @@ def _predict_loop(p, frames, out_dir: Path, part: Path, written: list, one_image
     segment_frame = p.segment
     if calibration is not None and calibration.get("segment"):
         segment_frame = _colour_segmenter(calibration["segment"])
-    rows, skipped = [], []
+    rows, skipped, interrupted = [], [], False
     with open(part, "w") as table:
         cal_cols = ["force_N", "lo_N", "hi_N"] if calibration is not None else []
         time_cols = ["t_s"] if video else []
         table.write(",".join(["frame", *time_cols, *p.force_names, *cal_cols]) + "\n")
         table.flush()
-        for name, frame, t_s in frames:
-            try:
-                if isinstance(frame, FrameError):
-                    raise frame
-                mask = segment_frame(frame)
-                x = p.network_input(mask)
-                if force_only:
-                    fvec = p.run_force(x)[0]
-                else:
-                    stress, fvec = p.run(x)
-                    stress, fvec = stress[0, 0], fvec[0]
-                force = float(fvec[0])
-            except FrameError as exc:
-                msg = f"{name}: {exc}"
-                if one_image:
-                    raise InputError(msg) from None
-                skipped.append((name, msg))
-                if on_skip is not None:
-                    on_skip(name, msg)
-                continue
-            if not force_only:
-                stem = Path(name).stem
-                written += [out_dir / f"{stem}_stress.exr", out_dir / f"{stem}_stress.png"]
-                write_exr(written[-2], {"stress": stress.astype(np.float32)},
-                          {"source": str(name), "force_N": force})
-                s = np.clip(stress / max(float(stress.max()), 1e-6), 0, 1)
-                write_png(written[-1], (cm.inferno(s)[..., :3] * 255).astype(np.uint8))
-            row = {"frame": name, **({"t_s": t_s} if video else {}),
-                   **{n: float(v) for n, v in zip(p.force_names, fvec)}}
-            if calibration is not None:
-                from .calibration import predictive, spread
+        try:
+            for name, frame, t_s in frames:
+                try:
+                    if isinstance(frame, FrameError):
+                        raise frame
+                    mask = segment_frame(frame)
+                    x = p.network_input(mask)
+                    if force_only:
+                        fvec = p.run_force(x)[0]
+                    else:
+                        stress, fvec = p.run(x)
+                        stress, fvec = stress[0, 0], fvec[0]
+                    force = float(fvec[0])
+                except FrameError as exc:
+                    msg = f"{name}: {exc}"
+                    if one_image:
+                        raise InputError(msg) from None
+                    skipped.append((name, msg))
+                    if on_skip is not None:
+                        on_skip(name, msg)
+                    continue
+                if not force_only:
+                    stem = Path(name).stem
+                    written += [out_dir / f"{stem}_stress.exr", out_dir / f"{stem}_stress.png"]
+                    write_exr(written[-2], {"stress": stress.astype(np.float32)},
+                              {"source": str(name), "force_N": force})
+                    s = np.clip(stress / max(float(stress.max()), 1e-6), 0, 1)
+                    write_png(written[-1], (cm.inferno(s)[..., :3] * 255).astype(np.uint8))
+                row = {"frame": name, **({"t_s": t_s} if video else {}),
+                       **{n: float(v) for n, v in zip(p.force_names, fvec)}}
+                if calibration is not None:
+                    from .calibration import predictive, spread
 
-                members = p.run_members(x)[0]
-                band = predictive(calibration, [members.mean()], spread(members[:, None]),
-                                  calibration.get("level", 0.9), seed=len(rows))
-                row.update(force_N=float(band["median"][0]), lo_N=float(band["lo"][0]),
-                           hi_N=float(band["hi"][0]), level=band["level"])
-            if annotate:
-                from .annotate import annotate_frame
+                    members = p.run_members(x)[0]
+                    band = predictive(calibration, [members.mean()], spread(members[:, None]),
+                                      calibration.get("level", 0.9), seed=len(rows))
+                    row.update(force_N=float(band["median"][0]), lo_N=float(band["lo"][0]),
+                               hi_N=float(band["hi"][0]), level=band["level"])
+                if annotate:
+                    from .annotate import annotate_frame
 
-                cal = {k: row[k] for k in ("force_N", "lo_N", "hi_N", "level")} if calibration else None
-                label = name + (f"  t = {t_s:.3f} s" if t_s is not None else "")
-                img = annotate_frame(frame, mask, p.crop_box(mask), stress, row, cal, label)
-                if writer is not None:
-                    writer.write(img)
-                else:
-                    written.append(out_dir / f"{Path(name).stem}_annotated.png")
-                    write_png(written[-1], img)
-            times = ["" if t_s is None else f"{t_s:.6f}"] if video else []
-            table.write(",".join([name, *times,
-                                  *(f"{row[n]:.6g}" for n in [*p.force_names, *cal_cols])]) + "\n")
-            table.flush()  # a long video's forces can be read while it runs
-            rows.append(row)
-            if on_frame is not None:
-                on_frame(row)
+                    cal = {k: row[k] for k in ("force_N", "lo_N", "hi_N", "level")} if calibration else None
+                    label = name + (f"  t = {t_s:.3f} s" if t_s is not None else "")
+                    img = annotate_frame(frame, mask, p.crop_box(mask), stress, row, cal, label)
+                    if writer is not None:
+                        writer.write(img)
+                    else:
+                        written.append(out_dir / f"{Path(name).stem}_annotated.png")
+                        write_png(written[-1], img)
+                times = ["" if t_s is None else f"{t_s:.6f}"] if video else []
+                table.write(",".join([name, *times,
+                                      *(f"{row[n]:.6g}" for n in [*p.force_names, *cal_cols])]) + "\n")
+                table.flush()  # a long video's forces can be read while it runs
+                rows.append(row)
+                if on_frame is not None:
+                    on_frame(row)
+        except KeyboardInterrupt:
+            if not isinstance(frames, _Live):
+                raise
+            interrupted = True  # Ctrl-C is how a live source ends: the rows so far stand
     if not rows:
         if not skipped:
             raise InputError(f"{source} has no frames")
         raise InputError(f"no frame of {source} could be predicted ({len(skipped)} skipped)")
-    return {"rows": rows, "skipped": skipped}
+    return {"rows": rows, "skipped": skipped, "interrupted": interrupted}
