@@ -137,3 +137,19 @@ def test_planning_the_dag_imports_no_torch():
     code = "import sys\n" + "".join(f"import {m}\n" for m in modules) + "print('torch' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False", modules
+
+
+def test_reading_shards_and_training_load_no_renderer_or_mesher():
+    """Training and a reader of shards (the train stage, load_frames, the pitch
+    augmentation) load neither the meshing library (triangle), nor VTK, nor the
+    rasterisers: a training machine needs only the train stage's packages."""
+    import subprocess
+    import sys
+
+    code = ("import sys\nimport finray.train.stage, finray.train.augment, finray.dataset.viewpoint\n"
+            "from finray.dataset import load_frames\n"
+            "print(sorted(m for m in ('triangle', 'vtk', 'pyvista', 'finray.render.raster',\n"
+            "                         'finray.render.perspective', 'finray.geometry.mesh')\n"
+            "             if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"

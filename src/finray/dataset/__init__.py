@@ -14,12 +14,21 @@ Public API:
 """
 from .augment import (NOISE_LEVELS, OCCLUSION_LEVELS, AugmentParams, apply_augment, augment_seed,
                       disc_diameters, sample_augment)
-from .figures import example_figure
 from .imageops import area_resample, segment, to_gray
 from .shards import (FRAME_COLUMNS, MANIFEST_COLUMNS, DatasetParams, FramePreparer, build_shard,
                      load_frames, load_shard, prepare_frame, render_shard, scene_id, size_key,
                      write_manifest)
 from .splits import SPLITS, pitch_object, scene_splits
+
+
+def __getattr__(name: str):
+    # the figure renders frames (render.scene): loaded on first use, so that a reader of
+    # shards (training, evaluation, predict) does not load the renderer
+    if name == "example_figure":
+        from .figures import example_figure
+
+        return example_figure
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 __all__ = [
     "FRAME_COLUMNS", "MANIFEST_COLUMNS", "NOISE_LEVELS", "OCCLUSION_LEVELS", "SPLITS",

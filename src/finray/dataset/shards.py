@@ -42,7 +42,6 @@ import numpy as np
 
 from ..render.camera_views import VIEW_COLUMNS
 from ..render.params import RenderParams
-from ..render.scene import load_render_index, read_render_frame, render_scene
 from .augment import NOISE_LEVELS, OCCLUSION_LEVELS
 from .imageops import _axis_weights, segment
 
@@ -309,6 +308,8 @@ def build_shard(render_dir: str | Path, out_npz: str | Path, scene: dict | None 
     render index holds; ``pitch_deg`` always comes from the render. ``splits``
     defaults to ``[split]`` (see :func:`~finray.dataset.splits.scene_splits`).
     """
+    from ..render.scene import load_render_index, read_render_frame  # the writer's only
+
     params = params or DatasetParams()
     index = load_render_index(render_dir)
     rparams = RenderParams.from_config(index["params"])
@@ -337,6 +338,8 @@ def render_shard(result_npz: str | Path, render_dir: str | Path, out_npz: str | 
     ``camera_view`` (:mod:`finray.dataset.camera_views`; ``base_width_mm`` anchors
     their crop).
     """
+    from ..render.scene import render_scene  # the renderer: the writer's only
+
     render_params = render_params or RenderParams()
     params = params or DatasetParams()
     box = render_params.box_px(params.crop_x_mm, params.crop_y_mm)

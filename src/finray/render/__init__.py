@@ -13,18 +13,33 @@ Public API (see each module's docstring):
   :class:`~finray.render.pvrender.PyVistaPerspective` (shaded image)
 
 Their speed is measured by :func:`finray.benchmarks.render.benchmark`.
-"""
-from .camera import PinholeCamera, set_vtk_camera
-from .imageio import read_exr, read_png, write_exr, write_png
-from .params import RenderParams, inverse_stress_transform, stress_transform
-from .perspective import PerspectiveRaster
-from .raster import Rasterizer, composite
-from .result import FEAResult, ResultError, load_fea_result, resample_frames
-from .scene import SceneRenderer, load_render_index, read_render_frame, render_scene
 
-__all__ = [
-    "FEAResult", "PerspectiveRaster", "PinholeCamera", "Rasterizer", "RenderParams", "ResultError", "SceneRenderer",
-    "composite", "inverse_stress_transform", "load_fea_result", "load_render_index",
-    "read_exr", "read_png", "read_render_frame", "render_scene", "resample_frames",
-    "set_vtk_camera", "stress_transform", "write_exr", "write_png",
-]
+The names below load their module on first use (PEP 562, as :mod:`finray.train`), so that
+a reader of one module (the dataset's shard reader: ``render.camera_views``,
+``render.params``) does not load the rasterisers, the meshing library or VTK.
+"""
+from __future__ import annotations
+
+import importlib
+
+_HOMES = {
+    "camera": ("PinholeCamera", "set_vtk_camera"),
+    "imageio": ("read_exr", "read_png", "write_exr", "write_png"),
+    "params": ("RenderParams", "inverse_stress_transform", "stress_transform"),
+    "perspective": ("PerspectiveRaster",),
+    "raster": ("Rasterizer", "composite"),
+    "result": ("FEAResult", "ResultError", "load_fea_result", "resample_frames"),
+    "scene": ("SceneRenderer", "load_render_index", "read_render_frame", "render_scene"),
+}
+_WHERE = {name: module for module, names in _HOMES.items() for name in names}
+__all__ = sorted(_WHERE)
+
+
+def __getattr__(name: str):
+    if name not in _WHERE:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(importlib.import_module(f".{_WHERE[name]}", __name__), name)
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_WHERE))
