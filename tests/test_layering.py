@@ -146,7 +146,7 @@ def test_reading_shards_and_training_load_no_renderer_or_mesher():
     import subprocess
     import sys
 
-    code = ("import sys\nimport finray.train.stage, finray.train.augment, finray.dataset.viewpoint\n"
+    code = ("import sys\nimport finray.train.stage, finray.train.augment, finray.dataset.pitch\n"
             "from finray.dataset import load_frames\n"
             "print(sorted(m for m in ('triangle', 'vtk', 'pyvista', 'finray.render.raster',\n"
             "                         'finray.render.perspective', 'finray.geometry.mesh')\n"

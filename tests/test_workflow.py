@@ -289,7 +289,7 @@ def test_pitch_augmentation_matches_the_pitched_renders(smoke_run):
     import torch
 
     from finray.dataset import load_shard
-    from finray.dataset.viewpoint import pitch_silhouette
+    from finray.dataset.pitch import pitch_silhouette
     from finray.train import pitch_geometry
 
     cfg = yaml.safe_load((ROOT / "config" / "smoke.yaml").read_text())

@@ -284,7 +284,7 @@ def pitch_augmentation_iou(shard_paths, size, geometry: dict) -> dict[str, float
     front-view (pitch 0) inputs and the inputs rendered at that pitch (masks at 1/2)."""
     import torch
 
-    from ..dataset.viewpoint import pitch_silhouette
+    from ..dataset.pitch import pitch_silhouette
 
     arrays, table = load_test_set(shard_paths, size)
     pitch = table["pitch_deg"].to_numpy()

@@ -54,7 +54,7 @@ class TrainAugment:
                                    occlusion_levels=self.occlusion_levels)
                 x[i, :, torch.from_numpy(p.disc_mask())] = 0.0
         if self.cfg.pitch_p > 0:
-            from ..dataset.viewpoint import pitch_silhouette
+            from ..dataset.pitch import pitch_silhouette
 
             draw = torch.rand(len(x), generator=gen) < self.cfg.pitch_p
             pitch = torch.rand(len(x), generator=gen) * self.cfg.pitch_max_deg * draw

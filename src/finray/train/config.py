@@ -67,7 +67,7 @@ class AugmentConfig:
     salt_pepper_amount: tuple[float, float] = (0.0, 0.05)  # fraction of pixels
     occlusion_p: float = 0.0  # probability of a random occluding disc
     occlusion_levels: tuple[str, ...] = ("low", "medium", "high")
-    pitch_p: float = 0.0  # probability of a camera pitch (finray.dataset.viewpoint)
+    pitch_p: float = 0.0  # probability of a camera pitch (finray.dataset.pitch)
     pitch_max_deg: float = 30.0  # pitch drawn uniformly in [0, pitch_max_deg]
     # probability that a sample is its frame's randomised camera view (the shards'
     # camera_input_HxW, finray.dataset.camera_views) instead of the front view; the

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 import torch
 
-from finray.dataset.viewpoint import pitch_silhouette
+from finray.dataset.pitch import pitch_silhouette
 
 MM_PER_PX = 0.25
 H, W = 400, 80  # 100 mm x 20 mm image
