@@ -193,3 +193,13 @@ def test_extends_merges_mappings_and_replaces_the_rest(tmp_path):
     with pytest.raises(ConfigError) as err:
         read_config_file(tmp_path / "loop.yaml")
     assert str(err.value).startswith("extends:") and "extends itself" in str(err.value)
+
+
+def test_spread_config_is_the_paper_config_with_the_spread_in_the_manuscript():
+    """config/spread.yaml: config/config.yaml with evaluate.spread only changed."""
+    cfg = load_config(ROOT / "config" / "spread.yaml")
+    paper = validate_config(FULL)
+    assert cfg["evaluate"]["spread"] == {"seeds": [0, 1, 2], "types": ["auto", "fp32"],
+                                         "models": ["camera"], "manuscript": True}
+    cfg["evaluate"]["spread"] = paper["evaluate"]["spread"]
+    assert cfg == paper
