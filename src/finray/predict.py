@@ -420,7 +420,8 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
                   force_only: bool = False, on_frame=None, on_skip=None,
                   device: str = "auto", calibration: dict | None = None,
                   overwrite: bool = False, annotate: bool = False) -> dict:
-    """Predict every frame of ``source`` (image, folder of images or video) into
+    """Predict every frame of ``source`` (image, folder of images, video, or a live source:
+    :func:`finray.media.is_live`, read until it ends or Ctrl-C) into
     ``out_dir``: ``forces.csv`` (``frame,fx_N``; also ``fy_N`` for a model that predicts
     it; while it runs ``forces.csv.part``, a row appended and flushed as each frame
     completes; for a video also ``t_s``, each frame's time) and, per frame unless
@@ -433,7 +434,9 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
     A frame that cannot be predicted (unreadable, not an image, no finger) is skipped:
     ``on_skip(name, message)`` is called and the run goes on. ``on_frame(row)`` gets
     each row ``{"frame", "fx_N"[, "fy_N"]}`` as it completes. Returns ``{"rows": [...],
-    "skipped": [(name, message), ...]}``. With ``calibration`` (a ``calibration.json`` of
+    "skipped": [(name, message), ...], "interrupted"}`` (a live source ended by Ctrl-C),
+    for a live source also ``received`` and ``dropped`` (frames it sent; frames that
+    came while the network was busy). With ``calibration`` (a ``calibration.json`` of
     :func:`finray.calibration.calibrate_takes`, its model's heads' spread per frame) rows
     and columns also have ``force_N``, ``lo_N``, ``hi_N`` (the calibrated force's median
     and predictive interval, N) and ``level``. Raises :class:`InputError` for a missing
