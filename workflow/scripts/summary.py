@@ -1,7 +1,7 @@
 import json
 from pathlib import Path
 
-from finray.evaluate.spread import manuscript_rows
+from finray.evaluate.spread import manuscript_spread
 from finray.evaluate.summary import build_summary, lab_summary
 from finray.logs import log_to
 
@@ -21,11 +21,7 @@ with log_to(snakemake.log[0]):
     for path in snakemake.input.diversity:  # training on generated objects (config/diverse.yaml)
         s["diversity"] = json.loads(Path(path).read_text())
     for path in snakemake.input.spread:  # the spread over seeds and types (evaluate.spread.manuscript)
-        sp = json.loads(Path(path).read_text())
-        machines = sorted({f"{r['device']}, {r['precision']}" for runs in sp["runs"].values()
-                           for r in runs.values()})
-        s["spread"] = {k: sp[k] for k in ("variants", "default", "runs")} | {
-            "rows": manuscript_rows(sp), "machines": machines}
+        s["spread"] = manuscript_spread(json.loads(Path(path).read_text()))
     s["paper"] = snakemake.params.paper  # the paper's reference numbers (finray/paper_reference.yaml)
     with open(snakemake.output.json, "w") as f:
         json.dump(s, f, indent=1)

@@ -233,3 +233,13 @@ def manuscript_rows(spread: dict) -> list[dict]:
         add(f"sim-to-real, {k} context objects, coverage %", [f"sim2real | {k} context | coverage %"])
     add("sim-to-real, 1+ context objects pooled, coverage %", ["sim2real | 1+ context pooled | coverage %"])
     return rows
+
+
+def manuscript_spread(spread: dict) -> dict:
+    """What the manuscript quotes of a spread study's ``summary.json``: its variants, the
+    default, where each trained (``runs``; ``machines``: each device and numeric type
+    once) and :func:`manuscript_rows`."""
+    machines = sorted({f"{r['device']}, {r['precision']}" for runs in spread["runs"].values()
+                       for r in runs.values()})
+    return {k: spread[k] for k in ("variants", "default", "runs")} | {
+        "rows": manuscript_rows(spread), "machines": machines}

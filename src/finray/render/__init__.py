@@ -20,7 +20,7 @@ a reader of one module (the dataset's shard reader: ``render.camera_views``,
 """
 from __future__ import annotations
 
-import importlib
+from ..lazy import lazy_exports
 
 _HOMES = {
     "camera": ("PinholeCamera", "set_vtk_camera"),
@@ -31,15 +31,4 @@ _HOMES = {
     "result": ("FEAResult", "ResultError", "load_fea_result", "resample_frames"),
     "scene": ("SceneRenderer", "load_render_index", "read_render_frame", "render_scene"),
 }
-_WHERE = {name: module for module, names in _HOMES.items() for name in names}
-__all__ = sorted(_WHERE)
-
-
-def __getattr__(name: str):
-    if name not in _WHERE:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    return getattr(importlib.import_module(f".{_WHERE[name]}", __name__), name)
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_WHERE))
+__getattr__, __dir__, __all__ = lazy_exports(__name__, _HOMES, globals())

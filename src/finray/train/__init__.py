@@ -16,7 +16,7 @@ The names below load their module on first use (PEP 562), so that planning the D
 """
 from __future__ import annotations
 
-import importlib
+from ..lazy import lazy_exports
 
 _HOMES = {
     "config": ("TrainConfig", "History", "AugmentConfig", "pitch_geometry", "SCHEDULES", "KEEP"),
@@ -28,15 +28,4 @@ _HOMES = {
                "force_onnx_path"),
     "stage": ("train_from_shards", "training_curves"),
 }
-_WHERE = {name: module for module, names in _HOMES.items() for name in names}
-__all__ = sorted(n for n in _WHERE if not n.startswith("_"))
-
-
-def __getattr__(name: str):
-    if name not in _WHERE:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    return getattr(importlib.import_module(f".{_WHERE[name]}", __name__), name)
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_WHERE))
+__getattr__, __dir__, __all__ = lazy_exports(__name__, _HOMES, globals())
