@@ -80,6 +80,39 @@ def test_segment_edge_cases():
     np.testing.assert_array_equal(segment(full), reference_segment(full))
 
 
+def framed(img, shape=(720, 1280), at=(300, 500), bg=15):
+    """``img`` placed in a larger camera frame of background ``bg``."""
+    out = np.full(shape + img.shape[2:], bg, img.dtype)
+    out[at[0]:at[0] + img.shape[0], at[1]:at[1] + img.shape[1]] = img
+    return out
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_segment_roi_stride_matches_the_whole_frame(seed):
+    """The coarse-to-fine segmentation: with the same grey level, the mask of the whole
+    frame pixel for pixel; with the threshold from the coarse grid, the same mask up
+    to a few edge pixels."""
+    rng = np.random.default_rng(seed)
+    img = framed(blobby_image(rng, noise=[5.0, 30.0][seed % 2]), at=(300 + seed, 500 + 3 * seed))
+    stride = [2, 3, 4][seed % 3]  # the shape's bars are 4 px wide: each meets the grid
+    for kw in ({"threshold": 0.3}, {"threshold": 0.3, "keep_largest": False}):
+        np.testing.assert_array_equal(segment(img, roi_stride=stride, **kw), segment(img, **kw))
+    fast, whole = segment(img, roi_stride=stride), segment(img)
+    assert (fast != whole).sum() <= 0.02 * whole.sum()
+    dark = 255 - img  # a dark finger on a bright background
+    np.testing.assert_array_equal(segment(dark, foreground="dark", threshold=0.7, roi_stride=stride),
+                                  segment(dark, foreground="dark", threshold=0.7))
+
+
+def test_segment_roi_stride_edge_cases():
+    assert not segment(np.zeros((720, 1280, 3), np.uint8), roi_stride=4).any()
+    one = np.zeros((300, 200))
+    one[3:150, 1:7] = 1.0  # at the frame's edge, between grid rows and columns
+    np.testing.assert_array_equal(segment(one, roi_stride=4), one > 0.5)
+    with pytest.raises(ValueError, match="foreground"):
+        segment(one, foreground="grey", roi_stride=4)
+
+
 def test_threshold_isodata_matches_skimage():
     rng = np.random.default_rng(0)
     for _ in range(50):

@@ -106,3 +106,34 @@ def test_kept_epoch_follows_train_keep():
     assert best.best_epoch == 1 + int(np.argmin(best.val_force_rmse_N))
     with pytest.raises(ValueError, match="train.keep"):
         train(x, s, f, val, net, TrainConfig(**CFG, keep="best"), log=lambda m: None)
+
+
+def test_validation_scenes_follow_split_seed_not_seed(tmp_path, monkeypatch):
+    """The validation scenes are part of the data (``train.split_seed``): a seed study
+    trains every seed on the same scenes."""
+    import finray.train.stage as stage
+
+    n_scenes, per = 20, 3
+    ids = np.repeat([f"scene{k:02d}" for k in range(n_scenes)], per)
+    images = np.repeat(np.arange(n_scenes, dtype="f4"), per)[:, None, None, None] * np.ones((1, 1, 32, 16), "f4")
+    fake = {"images": images, "stress": np.zeros_like(images),
+            "force_N": np.zeros((len(ids), 1), "f4"), "scene_id": ids}
+    monkeypatch.setattr(stage, "load_split", lambda *a, **k: fake)
+
+    class Stop(Exception):
+        pass
+
+    def held_out(seed, split_seed):
+        def capture(images, stress, force, val, *a, **k):
+            raise Stop({f"scene{int(v):02d}" for v in val[0][:, 0, 0, 0]})
+        monkeypatch.setattr(stage, "train", capture)
+        with pytest.raises(Stop) as stop:
+            stage.train_from_shards([], tmp_path, NetConfig(height=32, width=16),
+                                    TrainConfig(seed=seed, split_seed=split_seed), None, 0.1,
+                                    log=lambda m: None)
+        return stop.value.args[0]
+
+    same = held_out(0, 0)
+    assert len(same) == 2 and same == stage.validation_scenes(ids, 0.1, 0)
+    assert held_out(1, 0) == same and held_out(2, 0) == same
+    assert held_out(0, 5) == stage.validation_scenes(ids, 0.1, 5) != same

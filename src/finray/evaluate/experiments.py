@@ -155,7 +155,8 @@ def run_experiment(out_dir, shard_paths, size, models: dict[str, str], baseline_
     out_dir.mkdir(parents=True, exist_ok=True)
     arrays, table = load_test_set(shard_paths, size)
     # TorchScript: batched, and the same runtime as the training's export
-    nets = {name: Predictor(path, threads=1, backend="torchscript") for name, path in models.items()}
+    nets = {name: Predictor(path, threads=1, backend="torchscript", roi_stride=1)
+            for name, path in models.items()}
     base = RidgeBaseline.load(baseline_path) if baseline_path else None
     predictors = list(nets) + (["baseline"] if base is not None else [])
     conditions = conditions or {"all": {}}
@@ -240,7 +241,8 @@ def run_viewpoint(out_dir, index_paths, shard_paths, size, models: dict[str, str
     writes (``path`` camera, ``frames`` all) and returns the metrics table."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    nets = {name: Predictor(path, threads=1, backend="torchscript") for name, path in models.items()}
+    nets = {name: Predictor(path, threads=1, backend="torchscript", roi_stride=1)
+            for name, path in models.items()}
     base = RidgeBaseline.load(baseline_path) if baseline_path else None
     predictors = list(nets) + (["baseline"] if base is not None else [])
     t0 = time.perf_counter()

@@ -73,7 +73,7 @@ def model_forces(shards: dict, model_path, size) -> pd.DataFrame:
     from ..predict import Predictor
     from .predictions import predict_images
 
-    net = Predictor(model_path, threads=1, backend="torchscript")
+    net = Predictor(model_path, threads=1, backend="torchscript", roi_stride=1)
     parts = []
     for take, shard in shards.items():
         a, table = load_frames([shard], tuple(size))

@@ -14,7 +14,10 @@ class TrainConfig:
     lr: float = 4e-4  # the peak of the cosine (the paper: a constant 1e-4)
     alpha_stress: float = 1.0
     alpha_force: float = 10.0
-    seed: int = 0
+    seed: int = 0  # the training's draws: initial weights, batch order, augmentation
+    # the validation scenes (part of the data, not of the training's draw: a seed study
+    # varies the training on the same data)
+    split_seed: int = 0
     threads: int = 1
     bf16: bool | str = "auto"  # "auto": bfloat16 autocast where the device runs it natively
     device: str = "auto"  # "auto" (the GPU when torch sees one), "cpu" or "cuda"

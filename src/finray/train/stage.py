@@ -42,7 +42,7 @@ def train_from_shards(shards, out_dir: str | Path, net_cfg: NetConfig, cfg: Trai
     camera = augment is not None and augment.camera_p > 0
     data = load_split(shards, (net_cfg.height, net_cfg.width), every=frame_every, forces=forces,
                       camera=camera)
-    val_ids = validation_scenes(data["scene_id"], val_fraction, cfg.seed)
+    val_ids = validation_scenes(data["scene_id"], val_fraction, cfg.split_seed)
     is_val = np.isin(data["scene_id"], list(val_ids))
     tr = {k: v[~is_val] for k, v in data.items()}
     va = {k: v[is_val] for k, v in data.items()}
