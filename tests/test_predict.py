@@ -9,7 +9,8 @@ from PIL import Image
 
 from finray.cli import main
 from finray.model import FinRayNet, NetConfig
-from finray.predict import Predictor, latency, read_frames
+from finray.benchmarks.realtime import latency
+from finray.predict import Predictor, read_frames
 from finray.train import export_onnx, export_torchscript, force_onnx_path
 
 PREPROCESS = {"base_width_mm": 30.0, "crop_x_mm": [-5.0, 35.0], "crop_y_mm": [0.0, 80.0],
@@ -506,3 +507,37 @@ def test_cli_predict_on_a_live_network_stream(exported, render_png, tmp_path, ca
     assert main(["predict", "--model", str(d / "model.ts"), f"tcp://127.0.0.1:{port}",
                  "--out", str(tmp_path / "none")]) == 2
     assert not (tmp_path / "none").exists()
+
+
+def test_fit_frame_crops_to_the_aspect_and_resizes():
+    from finray.benchmarks.realtime import fit_frame
+
+    tall = np.zeros((1280, 720, 3), np.uint8)
+    tall[160:1120] = 200  # the rows the 4:3 crop keeps
+    out = fit_frame(tall, (640, 480))
+    assert out.shape == (640, 480, 3) and (out == 200).all()
+    assert fit_frame(tall, (100, 400)).shape == (100, 400, 3)
+
+
+def test_stream_benchmark_on_a_live_stream(exported, render_png, tmp_path):
+    """The real-time benchmark's measurement (the figures themselves are timings, not
+    asserted): a served stream read alone and by finray predict; every frame the server
+    sent is received, each predicted or dropped; latencies from the server's clock."""
+    from PIL import Image
+
+    from finray.benchmarks.realtime import WARMUP_FRAMES, stream_benchmark, write_stream_video
+
+    _, d = exported
+    pngs = sorted(render_png.parent.glob("image_*.png"))
+    frames = [np.asarray(Image.open(p).convert("RGB")) for p in pngs]
+    video = write_stream_video(frames, tmp_path / "s.ts", (160, 96), 60, 30.0)  # 2 s
+    for mode in ("read", "force"):
+        r = stream_benchmark(d / "model.ts", video, tmp_path / mode, mode, cores=None)
+        assert r["frames_sent"] == r["received"] == 60, r
+        assert r["predicted"] + r["dropped"] == r["received"] and r["predicted"] > WARMUP_FRAMES
+        assert 0 < r["latency_p50_ms"] <= r["latency_p99_ms"] <= r["latency_max_ms"]
+        assert r["cpu_ms_per_frame"] > 0 and r["mode"] == mode
+    rows = list(csv.DictReader(open(tmp_path / "force" / "forces.csv")))
+    assert len(rows) == r["predicted"]
+    with pytest.raises(ValueError, match="mode"):
+        stream_benchmark(d / "model.ts", video, tmp_path / "x", "fast")

@@ -10,6 +10,7 @@ vectorised), coloured on a fixed log scale so that a video's frames compare.
 """
 from __future__ import annotations
 
+import functools
 import math
 from pathlib import Path
 
@@ -29,6 +30,7 @@ def stress_log(mpa):
     return np.log10(1.0 + np.asarray(mpa, dtype=float) * 1e3)
 
 
+@functools.lru_cache(maxsize=4)
 def _lut(name: str = "inferno") -> np.ndarray:
     from matplotlib import colormaps
 
@@ -54,7 +56,12 @@ def overlay_stress(frame: np.ndarray, mask: np.ndarray, box, stress: np.ndarray,
     frame's values."""
     rgb = np.asarray(frame)
     rgb = np.repeat(rgb[..., None], 3, axis=2) if rgb.ndim == 2 else rgb[..., :3]
-    rgb = rgb.astype(np.uint8, copy=True)
+    return _overlay_into(rgb.astype(np.uint8, copy=True), mask, box, stress, alpha, vmax)
+
+
+def _overlay_into(rgb: np.ndarray, mask: np.ndarray, box, stress: np.ndarray, alpha: float,
+                  vmax: float) -> np.ndarray:
+    """:func:`overlay_stress` in place on ``rgb`` (H, W, 3) uint8 (returned)."""
     i, j, in_r, in_c = stress_cells(rgb.shape[:2], box, stress.shape)
     rows, cols = np.flatnonzero(in_r), np.flatnonzero(in_c)
     if not len(rows) or not len(cols):
@@ -90,15 +97,15 @@ def annotate_frame(frame: np.ndarray, mask: np.ndarray, box, stress: np.ndarray,
     (:func:`overlay_stress`), the force arrow at the front edge (``fx_N`` along the push,
     to the right; ``fy_N`` across it, up), its magnitude, the calibrated force and its
     interval (``calibrated``: ``force_N``, ``lo_N``, ``hi_N``, ``level``), ``label`` (e.g.
-    the frame's name and time) and a colour bar in MPa."""
-    from PIL import Image, ImageDraw
-
-    body = overlay_stress(frame, mask, box, stress)
-    H, W = body.shape[:2]
-    canvas = np.zeros((H, W + BAR_PX, 3), np.uint8)
-    canvas[:, :W] = body
-    img = Image.fromarray(canvas)
-    draw = ImageDraw.Draw(img)
+    the frame's name and time) and a colour bar in MPa. Text and arrow are drawn on the
+    patches they cover only, the colour bar is drawn once per frame height: a 1280x720
+    frame costs a few ms (``finray.benchmarks.realtime``)."""
+    rgb = np.asarray(frame)
+    H, W = rgb.shape[:2]
+    canvas = np.empty((H, W + BAR_PX, 3), np.uint8)
+    canvas[:, :W] = rgb[..., None] if rgb.ndim == 2 else rgb[..., :3]
+    _overlay_into(canvas[:, :W], mask, box, stress, 0.65, STRESS_LOG_MAX)
+    canvas[:, W:] = _bar_panel(H)
     font = _font(max(12, H // 40))
     fx, fy = forces.get("fx_N", 0.0), forces.get("fy_N", 0.0)
     mag = math.hypot(fx, fy)
@@ -106,26 +113,67 @@ def annotate_frame(frame: np.ndarray, mask: np.ndarray, box, stress: np.ndarray,
     if tip is not None and mag > 0:
         scale = (box[2] - box[0]) / ARROW_N_PER_WINDOW  # px per N
         r, c = tip
-        tail = (c - scale * fx, r + scale * fy)  # image rows grow down
-        draw.line([tail, (c, r)], fill=(0, 255, 255), width=max(2, H // 240))
         ang = math.atan2(-fy, fx)
         head = max(6.0, H / 60)
-        for da in (2.6, -2.6):
-            draw.line([(c, r), (c + head * math.cos(ang + da), r + head * math.sin(ang + da))],
-                      fill=(0, 255, 255), width=max(2, H // 240))
-    lines = [label] if label else []
-    lines.append(f"|F| {mag:.2f} N  (fx {fx:.2f} N, fy {fy:.2f} N)" if "fy_N" in forces
-                 else f"fx {fx:.2f} N")
+        width = max(2, H // 240)
+        lines = [[(c - scale * fx, r + scale * fy), (c, r)]]  # image rows grow down
+        lines += [[(c, r), (c + head * math.cos(ang + da), r + head * math.sin(ang + da))]
+                  for da in (2.6, -2.6)]
+        pts = np.array([p for line in lines for p in line])
+
+        def arrow(draw, dx, dy):
+            for line in lines:
+                draw.line([(x - dx, y - dy) for x, y in line], fill=(0, 255, 255), width=width)
+        _draw_on(canvas, (*(pts.min(0) - width), *(pts.max(0) + width + 1)), arrow)
+    text = [label] if label else []
+    text.append(f"|F| {mag:.2f} N  (fx {fx:.2f} N, fy {fy:.2f} N)" if "fy_N" in forces
+                else f"fx {fx:.2f} N")
     if calibrated:
-        lines.append(f"calibrated {calibrated['force_N']:.2f} N, "
-                     f"{100 * calibrated['level']:.0f} % [{calibrated['lo_N']:.2f}, "
-                     f"{calibrated['hi_N']:.2f}] N")
-    draw.multiline_text((8, 6), "\n".join(lines), fill=(255, 255, 255), font=font,
-                        stroke_width=2, stroke_fill=(0, 0, 0))
-    _colour_bar(draw, img, W, H, font)
-    return np.asarray(img)
+        text.append(f"calibrated {calibrated['force_N']:.2f} N, "
+                    f"{100 * calibrated['level']:.0f} % [{calibrated['lo_N']:.2f}, "
+                    f"{calibrated['hi_N']:.2f}] N")
+    text = "\n".join(text)
+    kw = {"font": font, "stroke_width": 2}
+    _draw_on(canvas, _text_box((8, 6), text, kw),
+             lambda draw, dx, dy: draw.multiline_text((8 - dx, 6 - dy), text, fill=(255, 255, 255),
+                                                      stroke_fill=(0, 0, 0), **kw))
+    return canvas
 
 
+def _text_box(xy, text: str, kw: dict) -> tuple[int, int, int, int]:
+    from PIL import Image, ImageDraw
+
+    return ImageDraw.Draw(Image.new("L", (1, 1))).multiline_textbbox(xy, text, **kw)
+
+
+def _draw_on(canvas: np.ndarray, box, draw_fn) -> None:
+    """Draw on the patch ``box`` (x0, y0, x1, y1; clipped to the canvas) of ``canvas``
+    only, in place: ``draw_fn(draw, x0, y0)`` gets a PIL ``ImageDraw`` of the patch and
+    its offset (a whole-frame PIL round trip costs more than the drawing)."""
+    from PIL import Image, ImageDraw
+
+    x0, y0 = max(int(math.floor(box[0])), 0), max(int(math.floor(box[1])), 0)
+    x1, y1 = min(int(math.ceil(box[2])), canvas.shape[1]), min(int(math.ceil(box[3])), canvas.shape[0])
+    if x1 <= x0 or y1 <= y0:
+        return
+    patch = Image.fromarray(canvas[y0:y1, x0:x1])
+    draw_fn(ImageDraw.Draw(patch), x0, y0)
+    canvas[y0:y1, x0:x1] = np.asarray(patch)
+
+
+@functools.lru_cache(maxsize=4)
+def _bar_panel(H: int) -> np.ndarray:
+    """The colour-bar panel (H, BAR_PX, 3) uint8 right of a frame of height H."""
+    from PIL import Image, ImageDraw
+
+    img = Image.new("RGB", (BAR_PX, H))
+    _colour_bar(ImageDraw.Draw(img), img, 0, H, _font(max(12, H // 40)))
+    panel = np.asarray(img)
+    panel.flags.writeable = False
+    return panel
+
+
+@functools.lru_cache(maxsize=8)
 def _font(size: int):
     from PIL import ImageFont
 

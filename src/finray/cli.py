@@ -275,7 +275,7 @@ examples:
   # a video to watch: annotated.mp4 (stress over the finger, force arrow) and forces.png
   finray predict --model results/train/camera/model.ts take.mp4 --out pred/ --annotate
   # a live camera (V4L2) until Ctrl-C, annotated; or a network stream
-  finray predict --model results/train/camera/model.ts /dev/video0 --out live/ --annotate
+  finray predict --model results/train/camera/model.ts /dev/video0 --out live/ --annotate --no-maps
   finray predict --model results/train/camera/model.ts rtsp://192.168.1.20:8554/cam --out live/
 """
 
@@ -303,6 +303,9 @@ def _predict_parser(sub) -> None:
                         "the CPU; default), cpu, or cuda (stops with one line without a GPU)")
     p.add_argument("--force-only", action="store_true",
                    help="forces (N) only, no stress maps (skips the stress decoder)")
+    p.add_argument("--no-maps", dest="maps", action="store_false",
+                   help="no per-frame stress map files (a long video or a stream; "
+                        "--annotate still draws the maps)")
     p.add_argument("--overwrite", action="store_true",
                    help="replace an earlier run's forces.csv and stress maps in --out (refused "
                         "without it)")
@@ -363,7 +366,8 @@ def _predict(args) -> int:
                         on_frame=lambda r: print(line(r), flush=True),
                         on_skip=lambda name, msg: print(f"finray predict: skipped {msg}",
                                                         file=sys.stderr, flush=True),
-                        device=args.device, overwrite=args.overwrite, annotate=args.annotate)
+                        device=args.device, overwrite=args.overwrite, annotate=args.annotate,
+                        maps=args.maps)
     if "received" in out:  # a live source: what it sent, what could be kept up with
         print(f"finray predict: {len(out['rows'])} frames predicted of {out['received']} received "
               f"({out['dropped']} dropped while the network was busy"

@@ -22,7 +22,6 @@ installed ONNX Runtime has it; preprocessing stays on the CPU.
 from __future__ import annotations
 
 import json
-import time
 from pathlib import Path
 
 import numpy as np
@@ -46,10 +45,6 @@ class DeviceInputError(InputError, DeviceError):
 
 class FrameError(InputError):
     """One frame that cannot be predicted: unreadable, not an image, or no finger in it."""
-
-
-#: The paper's inference time (GPU), for comparison with :func:`latency`.
-PAPER_LATENCY_MS = 8.0
 
 
 class Predictor:
@@ -182,6 +177,15 @@ class Predictor:
         mask = self.segment(frame)
         return torch.from_numpy(self.network_input(mask)), mask
 
+    def warm_up(self) -> None:
+        """Each path once on a synthetic frame (the segmentation's compiled kernels, ONNX
+        Runtime's first runs), so that a live source's first frame takes its usual time."""
+        frame = np.zeros((96, 48, 3), np.uint8)
+        frame[8:88, 8:40] = 255
+        x = self.network_input(self.segment(frame))
+        self.run(x)
+        self.run_force(x)
+
     def run(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The network on inputs (B, 1, H, W) float32: log-stress maps (B, 1, H, W) and
         forces (B, n_forces) in N."""
@@ -233,98 +237,13 @@ class Predictor:
         return float(self.run_force(self.network_input(self.segment(frame)))[0, 0])
 
 
-def latency(predictor: Predictor, frames: list[np.ndarray], n_frames: int = 200,
-            repeats: int = 3) -> dict:
-    """Per-frame latency (ms) at batch 1 of ``predictor`` from raw images: medians over
-    ``repeats`` x ``n_frames`` calls (frames cycled), end to end (``force``: force only;
-    ``full``: force and stress map) and per stage (segmentation, crop + resample,
-    network full / force only). Wall time (``*_ms``) and the calling thread's CPU time
-    (``*_cpu_ms``: on a machine shared with other jobs, the wall time also counts the
-    time the thread waited for a core; one-thread runtimes compute in the calling
-    thread). Timings, not correctness: run on a quiet machine."""
-    if not frames:
-        raise ValueError("no frames to time")
-    names = ("segment", "resample", "network_full", "network_force", "force", "full")
-    wall = {k: [] for k in names}
-    cpu = {k: [] for k in names}
-    for f in frames[:10]:  # warm-up (allocators, ONNX Runtime's first runs)
-        predictor(f)
-        predictor.force(f)
-    for _ in range(repeats):
-        for k in range(n_frames):
-            f = frames[k % len(frames)]
-            t, c = [time.perf_counter()], [time.thread_time()]
-
-            def tick():
-                t.append(time.perf_counter())
-                c.append(time.thread_time())
-
-            mask = predictor.segment(f)
-            tick()
-            x = predictor.network_input(mask)
-            tick()
-            predictor.run(x)
-            tick()
-            predictor.run_force(x)
-            tick()
-            predictor.force(f)
-            tick()
-            predictor(f)
-            tick()
-            for j, key in enumerate(names):
-                wall[key].append((t[j + 1] - t[j]) * 1e3)
-                cpu[key].append((c[j + 1] - c[j]) * 1e3)
-    out = {"backend": predictor.backend, "device": str(predictor.device),
-           "input_size": list(predictor.size),
-           "base_channels": predictor.meta.get("base_channels"),
-           "frame_shape": list(np.asarray(frames[0]).shape), "n_calls": repeats * n_frames,
-           "n_distinct_frames": min(len(frames), n_frames)}
-    for key in names:
-        out[f"{key}_ms"] = float(np.median(wall[key]))
-        out[f"{key}_p90_ms"] = float(np.percentile(wall[key], 90))
-        out[f"{key}_cpu_ms"] = float(np.median(cpu[key]))
-    out["median_of_repeats_force_ms"] = [float(np.median(wall["force"][r * n_frames:(r + 1) * n_frames]))
-                                         for r in range(repeats)]
-    out["paper_ms"] = PAPER_LATENCY_MS
-    out["paper_note"] = "the paper's inference time per image, on a GPU"
-    return out
-
-
-def latency_report(model_path: str | Path, images, n_frames: int = 200, repeats: int = 3,
-                   backends=("onnx", "torchscript"), device: str = "cpu") -> dict:
-    """Latency (ms) per frame at batch 1 on one thread of the exported model on raw
-    camera images (paths; up to ``n_frames`` distinct ones, evenly picked), per
-    backend (:func:`latency`); the first backend's figures at the top level, the
-    machine's load average before and after (timings on a shared machine are high).
-    On the CPU by default, whatever the machine has (``finray.benchmarks.device``
-    times a GPU)."""
-    import os
-
-    import imageio.v3 as iio
-
-    images = list(images)
-    if not images:
-        raise ValueError("no images to time")
-    pick = np.unique(np.linspace(0, len(images) - 1, min(n_frames, len(images))).round().astype(int))
-    frames = [iio.imread(images[k]) for k in pick]
-    load_before = os.getloadavg()
-    runs = {b: latency(Predictor(model_path, threads=1, backend=b, device=device), frames,
-                       n_frames, repeats)
-            for b in backends}
-    out = dict(runs[backends[0]])
-    out.update({"model": str(model_path), "cpu_count": os.cpu_count(),
-                "load_average_before": list(load_before),
-                "load_average_after": list(os.getloadavg()),
-                "target_ms": 2.0, "by_backend": runs})
-    return out
-
-
 def read_frames(path: str | Path):
     """``(name, frame, t_s)`` of every frame of an image, a folder of images or a video
     (read with PyAV), lazily; ``t_s`` the frame's time in a video (s, from its time
     stamps), None for images. A frame that cannot be read comes as ``(name,
     FrameError, t_s)``, so that the caller can report it and go on; a source that
-    cannot be read at all raises :class:`InputError` here."""
+    cannot be read at all raises :class:`InputError` here (a live source: when it is
+    opened, see :class:`_Live`)."""
     if is_live(path):
         return _Live(path)
     path = Path(path)
@@ -343,21 +262,29 @@ def read_frames(path: str | Path):
 class _Live:
     """``(name, rgb | FrameError, t_s)`` of a live source's frames (:class:`finray.media.
     LiveFrames`: the newest frame each time, the ones in between dropped), named
-    ``live_<k>``, k the frame's count since it opened."""
+    ``live_<k>``, k the frame's count since it opened. Opened by :meth:`open` (by
+    :func:`predict_files` once the model is loaded: a source opened earlier would send
+    frames that the loading drops)."""
 
     def __init__(self, source):
+        self.source, self.frames = source, None
+
+    def open(self) -> None:
         try:
-            self.frames = LiveFrames(source)
+            self.frames = LiveFrames(self.source)
         except MediaError as exc:
             raise InputError(str(exc)) from None
 
     def __iter__(self):
+        if self.frames is None:
+            self.open()
         for f in self.frames:
             name = f"live_{f.index:06d}" if not f.rest else "live (rest)"
             yield name, (f.image if f.error is None else FrameError(f.error)), f.t_s
 
     def close(self) -> None:
-        self.frames.close()
+        if self.frames is not None:
+            self.frames.close()
 
 
 def _read_image(path: Path) -> np.ndarray | FrameError:
@@ -427,7 +354,7 @@ def run_files(out_dir) -> list[Path]:
 def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = "auto",
                   force_only: bool = False, on_frame=None, on_skip=None,
                   device: str = "auto", calibration: dict | None = None,
-                  overwrite: bool = False, annotate: bool = False) -> dict:
+                  overwrite: bool = False, annotate: bool = False, maps: bool = True) -> dict:
     """Predict every frame of ``source`` (image, folder of images, video, or a live source:
     :func:`finray.media.is_live`, read until it ends or Ctrl-C) into
     ``out_dir``: ``forces.csv`` (``frame,fx_N``; also ``fy_N`` for a model that predicts
@@ -437,7 +364,8 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
     (:mod:`finray.annotate`): each frame with its stress map drawn over the finger, the
     force arrow and values (``<name>_annotated.png``; a video's frames go into
     ``annotated.mp4`` instead, at its frame rate) and, for more than one frame, the
-    force against time (``forces.png``).
+    force against time (``forces.png``). ``maps=False``: no per-frame stress map files
+    (a long video or a stream; the annotated frames still show the maps).
 
     A frame that cannot be predicted (unreadable, not an image, no finger) is skipped:
     ``on_skip(name, message)`` is called and the run goes on. ``on_frame(row)`` gets
@@ -463,23 +391,31 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
                          "give --overwrite to replace them, or another --out")
     if annotate and force_only:
         raise InputError("annotating draws the stress map: leave out force-only")
-    frames = read_frames(source)  # checks the source before the model loads
+    frames = read_frames(source)  # checks a file source before the model loads
     live = isinstance(frames, _Live)
     one_image = not live and Path(source).is_file() and Path(source).suffix.lower() not in VIDEO_SUFFIXES
     video = live or (Path(source).is_file() and Path(source).suffix.lower() in VIDEO_SUFFIXES)
     try:
         return _predict_files(frames, model_path, source, out_dir, old, threads, backend, device,
-                              one_image, video, force_only, on_frame, on_skip, calibration, annotate)
+                              one_image, video, force_only, on_frame, on_skip, calibration, annotate,
+                              maps)
     finally:
         if live:
             frames.close()
 
 
 def _predict_files(frames, model_path, source, out_dir: Path, old: list, threads, backend, device,
-                   one_image, video, force_only, on_frame, on_skip, calibration, annotate) -> dict:
+                   one_image, video, force_only, on_frame, on_skip, calibration, annotate,
+                   maps: bool = True) -> dict:
     """:func:`predict_files` once its source is open: the model loaded, the table written
     as ``forces.csv.part`` and moved into place."""
     p = Predictor(model_path, threads, backend, device)
+    if isinstance(frames, _Live):  # opened once ready: no frames dropped while loading
+        import matplotlib  # noqa: F401 - the loop's imports, done before the stream runs
+
+        from .render import imageio  # noqa: F401
+        p.warm_up()
+        frames.open()
     for f in old:
         f.unlink()
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -487,7 +423,7 @@ def _predict_files(frames, model_path, source, out_dir: Path, old: list, threads
     written: list[Path] = []
     try:
         out = _predict_into(p, frames, out_dir, part, written, one_image, source, force_only,
-                            on_frame, on_skip, calibration, annotate, video)
+                            on_frame, on_skip, calibration, annotate, video, maps)
     except KeyboardInterrupt:
         if part.is_file() and sum(1 for _ in open(part)) > 1:
             part.replace(out_dir / "forces.csv")  # the frames done so far
@@ -508,7 +444,7 @@ def _remove(*paths: Path) -> None:
 
 def _predict_into(p, frames, out_dir: Path, part: Path, written: list, one_image: bool, source,
                   force_only: bool, on_frame, on_skip, calibration, annotate: bool = False,
-                  video: bool = False) -> dict:
+                  video: bool = False, maps: bool = True) -> dict:
     """:func:`predict_files`'s loop (:func:`_predict_loop`), with the annotated video
     open around it and the force-against-time figure after it where ``annotate``."""
     writer = None
@@ -521,7 +457,7 @@ def _predict_into(p, frames, out_dir: Path, part: Path, written: list, one_image
         written.append(writer.path)
     try:
         out = _predict_loop(p, frames, out_dir, part, written, one_image, source, force_only,
-                            on_frame, on_skip, calibration, annotate, video, writer)
+                            on_frame, on_skip, calibration, annotate, video, writer, maps)
     finally:
         if writer is not None:
             writer.close()
@@ -537,7 +473,7 @@ def _predict_into(p, frames, out_dir: Path, part: Path, written: list, one_image
 
 def _predict_loop(p, frames, out_dir: Path, part: Path, written: list, one_image: bool, source,
                   force_only: bool, on_frame, on_skip, calibration, annotate: bool, video: bool,
-                  writer) -> dict:
+                  writer, maps: bool = True) -> dict:
     """Rows into ``part``, stress maps (and annotated frames) into ``out_dir`` (their
     paths appended to ``written``), annotated video frames to ``writer``."""
     import matplotlib
@@ -577,7 +513,7 @@ def _predict_loop(p, frames, out_dir: Path, part: Path, written: list, one_image
                     if on_skip is not None:
                         on_skip(name, msg)
                     continue
-                if not force_only:
+                if not force_only and maps:
                     stem = Path(name).stem
                     written += [out_dir / f"{stem}_stress.exr", out_dir / f"{stem}_stress.png"]
                     write_exr(written[-2], {"stress": stress.astype(np.float32)},

@@ -60,6 +60,34 @@ rule inference_latency:
         "../scripts/inference_latency.py"
 
 
+rule realtime_benchmark:
+    # finray predict on live 30 FPS streams (finray.benchmarks.realtime): both cores, the
+    # predicting process on one, the stream's server on the other; nothing else runs
+    input:
+        model=f"{TRAIN}/{config['benchmarks']['realtime_model']}/model.ts",
+        onnx=f"{TRAIN}/{config['benchmarks']['realtime_model']}/model.onnx",
+        onnx_force=f"{TRAIN}/{config['benchmarks']['realtime_model']}/model.force.onnx",
+        renders=viewpoint_indices()[:1],
+    output:
+        json=f"{RESULTS}/benchmarks/realtime.json",
+        table=f"{RESULTS}/benchmarks/realtime.md",
+    params:
+        benchmarks=section("benchmarks", keys=("realtime_seconds", "realtime_sizes", "realtime_pitch_deg")),
+        work=f"{RESULTS}/benchmarks/realtime",
+    log:
+        f"{RESULTS}/logs/train/benchmark_realtime.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/studies/realtime.tsv"
+    threads: 2
+    resources:
+        mem_mb=1500,
+        runtime=5,
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/realtime_benchmark.py"
+
+
 rule train_time:
     input:
         histories=expand(f"{TRAIN}/{{model}}/history.json", model=model_names()),

@@ -1,7 +1,7 @@
 import json
 
 from finray.logs import log_to
-from finray.predict import latency_report
+from finray.benchmarks.realtime import latency_report
 from finray.render.scene import load_render_index
 
 b = snakemake.params.benchmarks

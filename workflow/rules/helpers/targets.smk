@@ -23,4 +23,6 @@ def all_targets():
         f"{RESULTS}/lab/qa.png",
     ] + expand("paper/figures/{name}.pdf", name=FIGURES) + expand(
         f"{TRAIN}/{{model}}/model.ts", model=model_names()
-    ) + object_geometry_files()
+    ) + object_geometry_files() + (
+        [f"{RESULTS}/benchmarks/realtime.md"]
+        if config["benchmarks"]["realtime_model"] in config["train"]["models"] else [])
