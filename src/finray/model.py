@@ -13,6 +13,14 @@ Outputs: the log-scale stress map ``(B, 1, H, W)`` and the force ``(B, n_forces)
   output; sigmoid after the first, ReLU after the others, batch-norm after the
   first two. The force is predicted normalised; the mean and scale (N) are stored
   in the model's buffers, so ``forward`` returns newtons.
+
+Initial weights (``NetConfig.init``; the paper does not say): ``"he"`` draws each
+convolution from N(0, gain^2 / fan_in) with zero bias (He et al. 2015; gain sqrt(2)
+before a ReLU, 1 before none), so that the activations keep their scale through the
+encoder's eight convolutions; ``"torch"`` keeps PyTorch's default (uniform, a third of
+that variance), under which the latent came out ~1e-4 of the input's scale and the
+force head's first batch-norm saw sigmoid outputs that differed by less than bfloat16
+resolves (README, "Seeds, numeric types and what to expect").
 """
 from __future__ import annotations
 
@@ -30,13 +38,30 @@ class NetConfig:
     width: int = 32
     n_forces: int = 1
     hidden: tuple[int, ...] = (128, 64, 32, 8)
+    init: str = "he"  # initial weights: "he" or "torch" (PyTorch's default; module docstring)
 
     def __post_init__(self):
+        if self.init not in INITS:
+            raise ValueError(f"init must be one of {INITS}, not {self.init!r}")
         if self.height % 16 or self.width % 16:
             raise ValueError(f"input size {self.height}x{self.width} must be divisible by 16 "
                              "(four 2x2 poolings)")
         if self.base_channels < 2 or self.base_channels % 2:
             raise ValueError("base_channels must be an even number >= 2")
+
+
+INITS = ("he", "torch")
+
+
+def he_init(module: nn.Module) -> None:
+    """He-normal convolutions (fan in, zero bias): gain sqrt(2) where a ReLU follows, 1
+    elsewhere (the up-steps' 2x2 reductions, the stress output)."""
+    mods = list(module.modules())
+    for k, m in enumerate(mods):
+        if isinstance(m, nn.Conv2d):
+            relu = k + 1 < len(mods) and isinstance(mods[k + 1], nn.ReLU)
+            nn.init.kaiming_normal_(m.weight, mode="fan_in", nonlinearity="relu" if relu else "linear")
+            nn.init.zeros_(m.bias)
 
 
 def _double_conv(c_in: int, c_out: int) -> nn.Sequential:
@@ -94,6 +119,8 @@ class FinRayNet(nn.Module):
         self.force_head = nn.Sequential(*layers)
         self.register_buffer("force_mean_N", torch.zeros(cfg.n_forces))
         self.register_buffer("force_scale_N", torch.ones(cfg.n_forces))
+        if cfg.init == "he":
+            he_init(self)
 
     def encode(self, x: torch.Tensor) -> tuple[torch.Tensor, list[torch.Tensor]]:
         skips = []

@@ -7,7 +7,8 @@ from finray.train import AugmentConfig, TrainConfig, pitch_geometry, train_from_
 t, p = snakemake.params.train, snakemake.params
 with log_to(snakemake.log[0]):
     h, w = t["input_size"]
-    net = NetConfig(in_channels=1, base_channels=t["base_channels"], height=h, width=w)
+    net = NetConfig(in_channels=1, base_channels=t["base_channels"], height=h, width=w,
+                    init=t["init"])
     cfg = TrainConfig(epochs=t["epochs"], batch_size=t["batch_size"], lr=t["lr"],
                       alpha_stress=t["alpha_stress"], alpha_force=t["alpha_force"], seed=t["seed"],
                       split_seed=t["split_seed"],
