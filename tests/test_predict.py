@@ -435,6 +435,39 @@ def test_cli_predict_annotates_a_video(exported, render_png, tmp_path):
     assert not (tmp_path / "o2").exists()
 
 
+def test_show_without_a_display_says_so_and_writes_the_files(exported, render_png, tmp_path,
+                                                              capsys, monkeypatch):
+    """--show on a machine without a display: one line says so, the run writes what
+    --annotate writes; --no-maps leaves out the per-frame stress maps; each annotated
+    frame also goes to ``on_annotated`` (the window's hook)."""
+    from finray.annotate import Window
+    from finray.predict import predict_files
+
+    _, d = exported
+    frames = [np.asarray(Image.open(f).convert("RGB"))
+              for f in sorted(render_png.parent.glob("image_*.png"))]
+    video = write_video(tmp_path / "clip.mp4", frames)
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    out = tmp_path / "out"
+    assert main(["predict", "--model", str(d / "model.ts"), str(video), "--out", str(out),
+                 "--show", "--no-maps"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["finray predict: --show: no display (DISPLAY and WAYLAND_DISPLAY unset); "
+                   "writing the annotated files only"]
+    assert (out / "annotated.mp4").is_file() and (out / "forces.png").is_file()
+    assert not list(out.glob("*_stress.*"))
+    shown = []
+    predict_files(d / "model.ts", video, tmp_path / "o2", annotate=True, on_annotated=shown.append)
+    assert len(shown) == len(frames) and shown[0].ndim == 3
+    assert len(list((tmp_path / "o2").glob("*_stress.exr"))) == len(frames)
+    with pytest.raises(RuntimeError, match="no display"):
+        Window()
+    monkeypatch.setenv("DISPLAY", ":97")  # no X server there
+    with pytest.raises(RuntimeError, match="cannot open a window"):
+        Window()
+
+
 def test_overlay_colours_the_mask_inside_the_window_only():
     """Each masked pixel in the window takes its map cell's colour (blended); pixels
     outside the mask or the window keep the frame's value."""

@@ -198,6 +198,65 @@ def _colour_bar(draw, img, x0: int, H: int, font) -> None:
     draw.text((x0 + 8, top - 8), "stress\n(MPa)", fill=(255, 255, 255), font=font, anchor="ld")
 
 
+def display_missing() -> str | None:
+    """Why no window can open here (one line), or None where a display may exist."""
+    import os
+    import sys
+
+    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY")
+                                                 or os.environ.get("WAYLAND_DISPLAY")):
+        return "no display (DISPLAY and WAYLAND_DISPLAY unset)"
+    return None
+
+
+class Window:
+    """Annotated frames in a window (Tk, through Pillow's ImageTk), for a person to watch
+    a run: at most ``max_fps`` frames a second are drawn (a frame that comes sooner is
+    not: the loop never waits for the screen), halved until they fit ``max_height_px``.
+    Raises :class:`RuntimeError` (one line) where no window can open; closing the window
+    stops the drawing, not the run."""
+
+    def __init__(self, title: str = "finray predict", max_fps: float = 15.0,
+                 max_height_px: int = 900):
+        import time
+
+        why = display_missing()
+        if why:
+            raise RuntimeError(why)
+        try:
+            import tkinter
+
+            from PIL import ImageTk  # noqa: F401 - Pillow's Tk support, checked here
+            self._root = tkinter.Tk()
+        except Exception as exc:  # noqa: BLE001 - Tcl/Tk's and Pillow's own error types
+            raise RuntimeError(f"cannot open a window ({str(exc).splitlines()[0]})") from None
+        self._root.title(title)
+        self._label = tkinter.Label(self._root)
+        self._label.pack()
+        self._root.protocol("WM_DELETE_WINDOW", self.close)
+        self._min_dt, self._last, self._clock = 1.0 / max_fps, -float("inf"), time.perf_counter
+        self.max_height_px, self.open, self.shown = max_height_px, True, 0
+
+    def show(self, rgb: np.ndarray) -> None:
+        from PIL import Image, ImageTk
+
+        now = self._clock()
+        if not self.open or now - self._last < self._min_dt:
+            return
+        self._last = now
+        while rgb.shape[0] > self.max_height_px:
+            rgb = rgb[::2, ::2]
+        self._photo = ImageTk.PhotoImage(Image.fromarray(np.ascontiguousarray(rgb)))
+        self._label.configure(image=self._photo)
+        self._root.update()
+        self.shown += 1
+
+    def close(self) -> None:
+        if self.open:
+            self.open = False
+            self._root.destroy()
+
+
 class VideoWriter:
     """Annotated frames into a video file (PyAV, H.264 where the FFmpeg build has it,
     else MPEG-4), at ``fps``; the size is the first frame's (rounded down to even)."""

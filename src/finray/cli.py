@@ -303,6 +303,10 @@ def _predict_parser(sub) -> None:
                         "the CPU; default), cpu, or cuda (stops with one line without a GPU)")
     p.add_argument("--force-only", action="store_true",
                    help="forces (N) only, no stress maps (skips the stress decoder)")
+    p.add_argument("--show", action="store_true",
+                   help="also show the annotated frames in a window as they come (implies "
+                        "--annotate; where there is no display, one line says so and the "
+                        "files are written as without it)")
     p.add_argument("--no-maps", dest="maps", action="store_false",
                    help="no per-frame stress map files (a long video or a stream; "
                         "--annotate still draws the maps)")
@@ -358,8 +362,18 @@ def _predict(args) -> int:
                              f"calibrates ({cal_model}): leave --model out")
     if args.model is None:
         raise UsageError("give --model (or --calibration)")
-    if args.annotate and args.force_only:
-        raise UsageError("--annotate draws the stress map: leave out --force-only")
+    if (args.annotate or args.show) and args.force_only:
+        raise UsageError("--annotate and --show draw the stress map: leave out --force-only")
+    window = None
+    if args.show:
+        from .annotate import Window
+
+        args.annotate = True
+        try:
+            window = Window(f"finray predict {args.source}")
+        except RuntimeError as exc:
+            print(f"finray predict: --show: {exc}; writing the annotated files only",
+                  file=sys.stderr, flush=True)
     line = _calibrated_line if cal is not None else _force_line
     out = predict_files(args.model, args.source, args.out, args.threads, args.backend,
                         args.force_only, calibration=cal,
@@ -367,7 +381,9 @@ def _predict(args) -> int:
                         on_skip=lambda name, msg: print(f"finray predict: skipped {msg}",
                                                         file=sys.stderr, flush=True),
                         device=args.device, overwrite=args.overwrite, annotate=args.annotate,
-                        maps=args.maps)
+                        maps=args.maps, on_annotated=window.show if window else None)
+    if window is not None:
+        window.close()
     if "received" in out:  # a live source: what it sent, what could be kept up with
         print(f"finray predict: {len(out['rows'])} frames predicted of {out['received']} received "
               f"({out['dropped']} dropped while the network was busy"

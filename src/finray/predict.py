@@ -22,6 +22,7 @@ installed ONNX Runtime has it; preprocessing stays on the CPU.
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -354,7 +355,8 @@ def run_files(out_dir) -> list[Path]:
 def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = "auto",
                   force_only: bool = False, on_frame=None, on_skip=None,
                   device: str = "auto", calibration: dict | None = None,
-                  overwrite: bool = False, annotate: bool = False, maps: bool = True) -> dict:
+                  overwrite: bool = False, annotate: bool = False, maps: bool = True,
+                  on_annotated=None) -> dict:
     """Predict every frame of ``source`` (image, folder of images, video, or a live source:
     :func:`finray.media.is_live`, read until it ends or Ctrl-C) into
     ``out_dir``: ``forces.csv`` (``frame,fx_N``; also ``fy_N`` for a model that predicts
@@ -366,6 +368,7 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
     ``annotated.mp4`` instead, at its frame rate) and, for more than one frame, the
     force against time (``forces.png``). ``maps=False``: no per-frame stress map files
     (a long video or a stream; the annotated frames still show the maps).
+    ``on_annotated(rgb)`` gets each annotated frame too (a window, ``--show``).
 
     A frame that cannot be predicted (unreadable, not an image, no finger) is skipped:
     ``on_skip(name, message)`` is called and the run goes on. ``on_frame(row)`` gets
@@ -395,20 +398,39 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
     live = isinstance(frames, _Live)
     one_image = not live and Path(source).is_file() and Path(source).suffix.lower() not in VIDEO_SUFFIXES
     video = live or (Path(source).is_file() and Path(source).suffix.lower() in VIDEO_SUFFIXES)
+    run = _Run(frames, source, out_dir, one_image, video, force_only, on_frame, on_skip,
+               calibration, annotate, maps, on_annotated)
     try:
-        return _predict_files(frames, model_path, source, out_dir, old, threads, backend, device,
-                              one_image, video, force_only, on_frame, on_skip, calibration, annotate,
-                              maps)
+        return _predict_files(run, model_path, old, threads, backend, device)
     finally:
         if live:
             frames.close()
 
 
-def _predict_files(frames, model_path, source, out_dir: Path, old: list, threads, backend, device,
-                   one_image, video, force_only, on_frame, on_skip, calibration, annotate,
-                   maps: bool = True) -> dict:
+@dataclass
+class _Run:
+    """What one :func:`predict_files` run reads, writes and reports."""
+
+    frames: object
+    source: object
+    out_dir: Path
+    one_image: bool
+    video: bool
+    force_only: bool
+    on_frame: object
+    on_skip: object
+    calibration: dict | None
+    annotate: bool
+    maps: bool
+    on_annotated: object
+    part: Path | None = None
+    written: list = field(default_factory=list)  # files made so far (removed on failure)
+
+
+def _predict_files(run: _Run, model_path, old: list, threads, backend, device) -> dict:
     """:func:`predict_files` once its source is open: the model loaded, the table written
     as ``forces.csv.part`` and moved into place."""
+    frames, out_dir = run.frames, run.out_dir
     p = Predictor(model_path, threads, backend, device)
     if isinstance(frames, _Live):  # opened once ready: no frames dropped while loading
         import matplotlib  # noqa: F401 - the loop's imports, done before the stream runs
@@ -419,19 +441,17 @@ def _predict_files(frames, model_path, source, out_dir: Path, old: list, threads
     for f in old:
         f.unlink()
     out_dir.mkdir(parents=True, exist_ok=True)
-    part = out_dir / "forces.csv.part"
-    written: list[Path] = []
+    part = run.part = out_dir / "forces.csv.part"
     try:
-        out = _predict_into(p, frames, out_dir, part, written, one_image, source, force_only,
-                            on_frame, on_skip, calibration, annotate, video, maps)
+        out = _predict_into(p, run)
     except KeyboardInterrupt:
         if part.is_file() and sum(1 for _ in open(part)) > 1:
             part.replace(out_dir / "forces.csv")  # the frames done so far
         else:
-            _remove(part, *written)
+            _remove(part, *run.written)
         raise
     except BaseException:
-        _remove(part, *written)
+        _remove(part, *run.written)
         raise
     part.replace(out_dir / "forces.csv")
     return out
@@ -442,40 +462,38 @@ def _remove(*paths: Path) -> None:
         f.unlink(missing_ok=True)
 
 
-def _predict_into(p, frames, out_dir: Path, part: Path, written: list, one_image: bool, source,
-                  force_only: bool, on_frame, on_skip, calibration, annotate: bool = False,
-                  video: bool = False, maps: bool = True) -> dict:
+def _predict_into(p, run: _Run) -> dict:
     """:func:`predict_files`'s loop (:func:`_predict_loop`), with the annotated video
     open around it and the force-against-time figure after it where ``annotate``."""
+    frames, out_dir, written = run.frames, run.out_dir, run.written
     writer = None
-    if annotate and video:
+    if run.annotate and run.video:
         from .annotate import VideoWriter
         from .media import video_info
 
-        rate = frames.frames.rate_hz if isinstance(frames, _Live) else video_info(source).rate_hz
+        rate = frames.frames.rate_hz if isinstance(frames, _Live) else video_info(run.source).rate_hz
         writer = VideoWriter(out_dir / "annotated.mp4", rate or 30.0)
         written.append(writer.path)
     try:
-        out = _predict_loop(p, frames, out_dir, part, written, one_image, source, force_only,
-                            on_frame, on_skip, calibration, annotate, video, writer, maps)
+        out = _predict_loop(p, run, writer)
     finally:
         if writer is not None:
             writer.close()
     if isinstance(frames, _Live):
         out.update(received=frames.frames.received, dropped=frames.frames.dropped)
-    if annotate and len(out["rows"]) > 1:
+    if run.annotate and len(out["rows"]) > 1:
         from .annotate import force_time_figure
 
         written.append(out_dir / "forces.png")
-        force_time_figure(out["rows"], written[-1], title=Path(source).name)
+        force_time_figure(out["rows"], written[-1], title=Path(run.source).name)
     return out
 
 
-def _predict_loop(p, frames, out_dir: Path, part: Path, written: list, one_image: bool, source,
-                  force_only: bool, on_frame, on_skip, calibration, annotate: bool, video: bool,
-                  writer, maps: bool = True) -> dict:
-    """Rows into ``part``, stress maps (and annotated frames) into ``out_dir`` (their
-    paths appended to ``written``), annotated video frames to ``writer``."""
+def _predict_loop(p, run: _Run, writer) -> dict:
+    """Rows into ``run.part``, stress maps (and annotated frames) into ``run.out_dir``
+    (their paths appended to ``run.written``), annotated video frames to ``writer``."""
+    frames, out_dir, written, calibration, video = (run.frames, run.out_dir, run.written,
+                                                     run.calibration, run.video)
     import matplotlib
 
     matplotlib.use("Agg")
@@ -487,7 +505,7 @@ def _predict_loop(p, frames, out_dir: Path, part: Path, written: list, one_image
     if calibration is not None and calibration.get("segment"):
         segment_frame = _colour_segmenter(calibration["segment"])
     rows, skipped, interrupted = [], [], False
-    with open(part, "w") as table:
+    with open(run.part, "w") as table:
         cal_cols = ["force_N", "lo_N", "hi_N"] if calibration is not None else []
         time_cols = ["t_s"] if video else []
         table.write(",".join(["frame", *time_cols, *p.force_names, *cal_cols]) + "\n")
@@ -499,7 +517,7 @@ def _predict_loop(p, frames, out_dir: Path, part: Path, written: list, one_image
                         raise frame
                     mask = segment_frame(frame)
                     x = p.network_input(mask)
-                    if force_only:
+                    if run.force_only:
                         fvec = p.run_force(x)[0]
                     else:
                         stress, fvec = p.run(x)
@@ -507,13 +525,13 @@ def _predict_loop(p, frames, out_dir: Path, part: Path, written: list, one_image
                     force = float(fvec[0])
                 except FrameError as exc:
                     msg = f"{name}: {exc}"
-                    if one_image:
+                    if run.one_image:
                         raise InputError(msg) from None
                     skipped.append((name, msg))
-                    if on_skip is not None:
-                        on_skip(name, msg)
+                    if run.on_skip is not None:
+                        run.on_skip(name, msg)
                     continue
-                if not force_only and maps:
+                if not run.force_only and run.maps:
                     stem = Path(name).stem
                     written += [out_dir / f"{stem}_stress.exr", out_dir / f"{stem}_stress.png"]
                     write_exr(written[-2], {"stress": stress.astype(np.float32)},
@@ -530,12 +548,14 @@ def _predict_loop(p, frames, out_dir: Path, part: Path, written: list, one_image
                                       calibration.get("level", 0.9), seed=len(rows))
                     row.update(force_N=float(band["median"][0]), lo_N=float(band["lo"][0]),
                                hi_N=float(band["hi"][0]), level=band["level"])
-                if annotate:
+                if run.annotate:
                     from .annotate import annotate_frame
 
                     cal = {k: row[k] for k in ("force_N", "lo_N", "hi_N", "level")} if calibration else None
                     label = name + (f"  t = {t_s:.3f} s" if t_s is not None else "")
                     img = annotate_frame(frame, mask, p.crop_box(mask), stress, row, cal, label)
+                    if run.on_annotated is not None:
+                        run.on_annotated(img)
                     if writer is not None:
                         writer.write(img)
                     else:
@@ -546,14 +566,14 @@ def _predict_loop(p, frames, out_dir: Path, part: Path, written: list, one_image
                                       *(f"{row[n]:.6g}" for n in [*p.force_names, *cal_cols])]) + "\n")
                 table.flush()  # a long video's forces can be read while it runs
                 rows.append(row)
-                if on_frame is not None:
-                    on_frame(row)
+                if run.on_frame is not None:
+                    run.on_frame(row)
         except KeyboardInterrupt:
             if not isinstance(frames, _Live):
                 raise
             interrupted = True  # Ctrl-C is how a live source ends: the rows so far stand
     if not rows:
         if not skipped:
-            raise InputError(f"{source} has no frames")
-        raise InputError(f"no frame of {source} could be predicted ({len(skipped)} skipped)")
+            raise InputError(f"{run.source} has no frames")
+        raise InputError(f"no frame of {run.source} could be predicted ({len(skipped)} skipped)")
     return {"rows": rows, "skipped": skipped, "interrupted": interrupted}
