@@ -4,8 +4,9 @@ train -> evaluate -> paper, and an import against that flow is a defect.
 The ranks are defined here once. A module may import finray modules of its own rank
 or lower. The top-level modules that are not stages get the rank of what they import:
 
-- ``logs``, ``precision``, ``paper_reference``, ``media``, ``annotate``, ``lazy``: import nothing of
-  finray; shared helpers (rank 0; ``media`` reads camera frames for predict and
+- ``errors``, ``logs``, ``precision``, ``paper_reference``, ``media``, ``annotate``,
+  ``lazy``: import nothing of finray but ``errors``; shared helpers (rank 0; ``errors``
+  holds the package's exceptions, ``media`` reads camera frames for predict and
   recording, ``annotate`` draws predict's output over them, ``lazy`` loads a package's
   names on first use).
 - ``config``: validates every section, so it imports geometry (shapes), render and
@@ -30,8 +31,8 @@ import pytest
 SRC = Path(__file__).resolve().parents[1] / "src" / "finray"
 
 RANK = {
-    "__init__": 0, "logs": 0, "precision": 0, "paper_reference": 0, "media": 0, "annotate": 0,
-    "lazy": 0,
+    "__init__": 0, "errors": 0, "logs": 0, "precision": 0, "paper_reference": 0, "media": 0,
+    "annotate": 0, "lazy": 0,
     "geometry": 10,
     "fea": 20,
     "render": 30,

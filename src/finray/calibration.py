@@ -27,12 +27,10 @@ from pathlib import Path
 
 import numpy as np
 
+from .errors import CalibrationError
+
 PARAMS = ("gain", "offset_N", "log_sigma_N", "log_rho", "log_kappa", "log_nu")
 LABELS = ("g", "b (N)", r"log $\sigma$ (N)", r"log $\rho$", r"log $\kappa$", r"log $\nu$")
-
-
-class CalibrationError(ValueError):
-    """A calibration that cannot be fitted or read; ``str`` is one line."""
 
 
 @dataclass(frozen=True)

@@ -6,10 +6,7 @@ import sys
 from pathlib import Path
 
 from . import __version__
-
-
-class UsageError(Exception):
-    """Options that do not go together; ``main`` prints ``finray <command>: <message>``."""
+from .errors import BadInput, ConfigError, GeometryError, UsageError
 
 
 def _positive(args, *names: str) -> None:
@@ -513,29 +510,13 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Run a subcommand: 0 done, 1 failed part way (solver, skipped frames), 2 bad input
     (one line on stderr that names the subcommand)."""
-    from .config import ConfigError
-    from .geometry.finger import GeometryError
-
     args = build_parser().parse_args(argv)
-    bad_input: tuple[type[Exception], ...] = (UsageError,)
-    if args.command == "predict":  # (importing predict loads torch: only for predict)
-        from .predict import InputError
-
-        bad_input += (InputError,)
-    if args.command in ("ingest", "calibrate"):
-        from .recording import TakeError
-
-        bad_input += (TakeError,)
-    if args.command in ("predict", "calibrate"):
-        from .calibration import CalibrationError
-
-        bad_input += (CalibrationError,)
     try:
         return args.func(args)
     except (ConfigError, GeometryError) as exc:
         print(f"finray {args.command}: config error: {exc}", file=sys.stderr)
         return 2
-    except bad_input as exc:
+    except BadInput as exc:  # finray.errors: every check at the door
         print(f"finray {args.command}: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -17,14 +17,7 @@ import yaml
 from .geometry.blobs import blob_name, generated_objects
 from .geometry.finger import FingerParams, GeometryError, check_ribs, finger_polygon
 from .geometry.objects import object_shape, place_object
-
-
-class ConfigError(ValueError):
-    """A config that cannot run; ``str(err)`` is ``'<key>: <reason>'``."""
-
-    def __init__(self, key: str, message: str):
-        super().__init__(f"{key}: {message}")
-        self.key = key
+from .errors import ConfigError
 
 
 def load_schema() -> dict:

@@ -15,12 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
+from .errors import MediaError
+
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm")
-
-
-class MediaError(ValueError):
-    """A source (file or video) that cannot be read at all; ``str`` is one line."""
 
 
 def one_line(exc: BaseException) -> str:

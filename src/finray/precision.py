@@ -16,6 +16,8 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 
+from .errors import DeviceError
+
 # oneDNN ISA caps (ONEDNN_MAX_CPU_ISA) under which bf16 convolutions run natively
 _ONEDNN_BF16_ISAS = ("AVX512_CORE_BF16", "AVX10_1_512", "AVX512_CORE_AMX", "AVX10_1_512_AMX",
                      "AVX512_CORE_AMX_FP16", "AVX10_1_512_AMX_FP16", "AVX10_2_512",
@@ -111,10 +113,6 @@ def resolve_bf16(setting: bool | str, cpu: CpuPrecision | None = None, device=No
 
 #: Values of ``train.device`` and of ``Predictor(device=...)``.
 DEVICES = ("auto", "cpu", "cuda")
-
-
-class DeviceError(ValueError):
-    """A device this machine does not have, or an unknown one; ``str`` is one line."""
 
 
 def _device_type(device) -> str:

@@ -31,21 +31,11 @@ import torch
 from .dataset.imageops import EmptyMaskError, base_anchored_box, segment, silhouette_input
 from .media import (IMAGE_SUFFIXES, VIDEO_SUFFIXES, LiveFrames, MediaError, is_live, one_line,
                     read_image, video_frames)
+
+from .errors import DeviceInputError, FrameError, InputError  # noqa: F401 - callers import them here
 from .precision import DeviceError, resolve_device
 
 BACKENDS = ("auto", "onnx", "torchscript")
-
-
-class InputError(ValueError):
-    """Input that cannot be predicted (model, source or frame); ``str`` is one line."""
-
-
-class DeviceInputError(InputError, DeviceError):
-    """A device this machine does not have (``device="cuda"`` without a GPU)."""
-
-
-class FrameError(InputError):
-    """One frame that cannot be predicted: unreadable, not an image, or no finger in it."""
 
 
 class Predictor:

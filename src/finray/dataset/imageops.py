@@ -9,6 +9,8 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from ..errors import EmptyMaskError
+
 
 def to_gray(image: np.ndarray) -> np.ndarray:
     """Luminance in [0, 1] (float64) of an (H, W) or (H, W, 3|4) image (uint8 or float in [0, 1])."""
@@ -238,10 +240,6 @@ def area_resample(image: np.ndarray, box_px: tuple[float, float, float, float],
     if img.ndim == 2:
         return wy @ img @ wx.T
     return np.einsum("ij,jkc,lk->ilc", wy, img, wx, optimize=True)
-
-
-class EmptyMaskError(ValueError):
-    """A mask without foreground: no finger to anchor a crop on."""
 
 
 def base_anchored_box(mask: np.ndarray, base_width_mm: float, crop_x_mm: tuple[float, float],

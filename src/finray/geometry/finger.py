@@ -21,14 +21,7 @@ import shapely
 from shapely.geometry import LineString, MultiPolygon, Polygon, box
 
 from .mesh import BOUNDARY_TAGS, TriMesh, quality, triangulate_polygon
-
-
-class GeometryError(ValueError):
-    """A geometry that cannot be built; ``key`` names the config entry at fault."""
-
-    def __init__(self, key: str, message: str):
-        super().__init__(f"{key}: {message}")
-        self.key = key
+from ..errors import GeometryError
 
 
 @dataclass

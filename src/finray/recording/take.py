@@ -26,14 +26,11 @@ from pathlib import Path
 import numpy as np
 
 from ..media import VIDEO_SUFFIXES, MediaError, one_line, read_image, video_frames, video_info
+from ..errors import TakeError
 
 FORCE_COLUMNS = ("fx_N", "fy_N", "fz_N")
 #: Fewest sensor samples and frames a take may have (a clock offset needs a shape).
 MIN_SAMPLES = 10
-
-
-class TakeError(ValueError):
-    """A take that cannot be ingested; ``str`` is one line."""
 
 
 _NUMBER = {"type": "number"}

@@ -26,13 +26,10 @@ import numba as nb
 import numpy as np
 
 from ..geometry.mesh import TriMesh
+from ..errors import ResultError
 
 REQUIRED_KEYS = ("points", "triangles", "boundary_edges", "displacement_mm", "u_mm",
                  "von_mises_MPa", "fx_N", "fy_N", "object_points_mm", "object_edges")
-
-
-class ResultError(ValueError):
-    """A ``result.npz`` that does not follow the contract."""
 
 
 @dataclass
