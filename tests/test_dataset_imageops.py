@@ -140,4 +140,4 @@ def test_fast_resample_equals_the_products(box):
         a = area_resample(mask, box, out)
         b = area_resample(mask, box, out, fast=True)
         assert b.shape == a.shape == out
-        np.testing.assert_allclose(b, a, atol=1e-6)
+        np.testing.assert_allclose(b, a, atol=1e-12)
