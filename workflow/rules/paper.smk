@@ -6,7 +6,7 @@ from finray.paper_reference import paper_reference
 
 PAPER = "paper"
 FIGURES = ["shape_generalisation", "material_generalisation", "occlusion", "viewpoint", "speed",
-           "sim2real"]
+           "sim2real", "annotated"]
 
 
 rule evaluate_speed:
@@ -111,6 +111,31 @@ rule figure_viewpoint:
     params:
         figure="viewpoint",
         usable_nrmse_pct=config["evaluate"]["usable_nrmse_pct"],
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/paper_figure.py"
+
+
+rule figure_annotated:
+    # what finray predict --annotate draws: a held-out shape's render, an emulated take
+    input:
+        model=f"{TRAIN}/{config['benchmarks']['realtime_model']}/model.ts",
+        render=viewpoint_indices()[:1],
+        video=f"{LAB}/{lab_takes()[0]}/take.mp4",
+        ingest=f"{LAB}/ingest/{lab_takes()[0]}/ingest.json",
+    output:
+        pdf=report(f"{PAPER}/figures/annotated.pdf", caption="../report/annotated.rst", category="Paper"),
+        png=f"{PAPER}/figures/annotated.png",
+    log:
+        f"{RESULTS}/logs/paper/annotated.log",
+    params:
+        figure="annotated",
+        pitch_deg=config["benchmarks"]["realtime_pitch_deg"],
     threads: 1
     resources:
         mem_mb=2000,

@@ -10,6 +10,10 @@ out = snakemake.output.pdf
 with log_to(snakemake.log[0]):
     if name == "speed":
         figures.speed_figure(json.loads(Path(snakemake.input.speed).read_text()), out)
+    elif name == "annotated":
+        figures.annotated_figure(snakemake.input.model, snakemake.input.render[0],
+                                 snakemake.input.video, snakemake.input.ingest, out,
+                                 snakemake.params.pitch_deg)
     elif name == "sim2real":
         import pandas as pd
 

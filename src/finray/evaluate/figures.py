@@ -215,3 +215,68 @@ def speed_figure(speed: dict, out_pdf):
     fig.suptitle("Speed: FEA against the network, and the pipeline's stages", fontsize=10)
     fig.tight_layout()
     _save(fig, out_pdf)
+
+
+def annotated_figure(model_path, render_index, lab_video, lab_ingest_json, out_pdf,
+                     pitch_deg: float = 15.0, distance_mm: float = 200.0):
+    """Two frames as ``finray predict --annotate`` draws them (:mod:`finray.annotate`):
+    a held-out shape's pyvista render (the frame of the largest true force at
+    ``pitch_deg`` and ``distance_mm``) and a frame of an emulated lab take (of every 30th
+    frame, the one of the largest predicted force), the latter segmented by the finger
+    colour its ingest learned, as ``finray predict --calibration`` does."""
+    import json
+
+    import imageio.v3 as iio
+
+    from ..annotate import annotate_frame
+    from ..media import video_frames
+    from ..predict import Predictor
+    from ..recording.colour import ColourRange, segment_finger
+    from ..render.scene import load_render_index
+
+    p = Predictor(model_path, threads=1, backend="torchscript", roi_stride=1)
+
+    def annotated(frame, mask, label, margin: float = 0.6):
+        """Annotated around the network's window (``margin`` of its size each side)."""
+        stress, f = p.run(p.network_input(mask))
+        forces = {n: float(v) for n, v in zip(p.force_names, f[0])}
+        c0, r0, c1, r1 = p.crop_box(mask)
+        dc, dr = margin * (c1 - c0), 0.25 * margin * (r1 - r0)
+        j0, i0 = max(int(c0 - dc), 0), max(int(r0 - dr), 0)
+        j1, i1 = min(int(c1 + dc) + 1, frame.shape[1]), min(int(r1 + dr) + 1, frame.shape[0])
+        box = (c0 - j0, r0 - i0, c1 - j0, r1 - i0)
+        return annotate_frame(frame[i0:i1, j0:j1], mask[i0:i1, j0:j1], box, stress[0, 0], forces,
+                              None, label), forces
+
+    folder = Path(render_index).parent
+    index = load_render_index(folder)
+    fr = max((f for f in index["frames"] if f["pitch_deg"] == pitch_deg
+              and f["distance_mm"] == distance_mm), key=lambda f: f["fx_N"])
+    rgb = iio.imread(folder / fr["image"])[..., :3]
+    scene = index["scene"]
+    left, _ = annotated(rgb, p.segment(rgb), f"{scene['object']}, pitch {pitch_deg:g} deg\n"
+                        f"FEA fx {fr['fx_N']:.2f} N")
+    colour = ColourRange.from_take(json.loads(Path(lab_ingest_json).read_text())["colour"])
+    best = None
+    for k, f in enumerate(video_frames(lab_video)):
+        if k % 30 or f.image is None:
+            continue
+        mask = segment_finger(f.image, colour)
+        if mask is None:
+            continue
+        img, forces = annotated(f.image, mask, f"emulated rig, t = {f.t_s:.2f} s")
+        if best is None or forces["fx_N"] > best[1]["fx_N"]:
+            best = (img, forces)
+    if best is None:
+        raise ValueError(f"no frame of {lab_video} shows the finger's colour")
+    plt = _plt()
+    fig, ax = plt.subplots(1, 2, figsize=(9, 6.2))
+    for a, img, title in ((ax[0], left, "pyvista render of a held-out shape"),
+                          (ax[1], best[0], "emulated lab rig (not a recording)")):
+        a.imshow(img)
+        a.set_title(title, fontsize=9)
+        a.axis("off")
+    fig.suptitle("finray predict --annotate: the camera model's stress map over the finger "
+                 "and its force", fontsize=10)
+    fig.tight_layout()
+    _save(fig, out_pdf)
