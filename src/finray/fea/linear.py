@@ -43,9 +43,13 @@ class SplitMatrix:
     the sum is formed only where something asks for it (:meth:`tocsr`).
     """
 
-    def __init__(self, base: sp.csr_matrix, extra: sp.coo_matrix | None = None):
+    def __init__(self, base: sp.csr_matrix, extra: sp.coo_matrix | None = None,
+                 margin=None):
         self.base = base
         self.extra = extra
+        # () -> (rows, cols) of entries the extra part is likely to get soon (contact
+        # pairs about to form), added to the analysed pattern when it is analysed anew
+        self.margin = margin
         self.shape = base.shape
         self._sum = None
 
@@ -154,9 +158,11 @@ class LinearSolver:
                 best, best_t = mode, dt
         return best
 
-    def _ensure_analysis(self, A: sp.csr_matrix, extra: sp.spmatrix | None) -> None:
+    def _ensure_analysis(self, A: sp.csr_matrix, extra: sp.spmatrix | None,
+                         margin=None) -> None:
         """Analyse the union of the base pattern and every extra pattern seen so far;
-        re-analyse only when an extra entry falls outside it.
+        re-analyse only when an extra entry falls outside it, then with the entries of
+        ``margin()`` ((rows, cols), see :class:`SplitMatrix`) too.
 
         ``extra``: the part of A whose pattern varies (contact); A minus extra is the
         fixed base pattern, taken from the first call. Without ``extra`` all of A is
@@ -181,6 +187,11 @@ class LinearSolver:
             new = self._missing(self._missing(keys, self._extra), self._base)
             if len(new) == 0 and self._factor is not None:
                 return
+            if margin is not None:
+                r, c = margin()
+                keys = r.astype(np.int64) * n + c
+                new = np.concatenate([new, self._missing(self._missing(keys, self._extra),
+                                                         self._base)])
             self._extra = np.union1d(self._extra, new)
         t0 = time.perf_counter()
         if self.backend == "cvxopt":
@@ -260,8 +271,9 @@ class LinearSolver:
     def _solve_cvxopt(self, A, b: np.ndarray) -> np.ndarray:
         vals = self._cvxopt_values(A)
         if vals is None:  # an entry outside the analysed pattern
+            margin = A.margin if isinstance(A, SplitMatrix) else None
             A = A.tocsr() if isinstance(A, SplitMatrix) else A
-            self._ensure_analysis(A, None)
+            self._ensure_analysis(A, None, margin)
             vals = self._cvxopt_values(A)
         self._spm.V = _cvxopt.matrix(vals)
         t0 = time.perf_counter()
@@ -301,16 +313,18 @@ class LinearSolver:
                 if self._base is not None and len(self._base) != A.base.nnz:
                     self._base = None  # another base pattern: analyse anew
                 self._ensure_analysis(A.base, A.extra if A.extra is not None
-                                      else sp.coo_matrix(A.shape))
+                                      else sp.coo_matrix(A.shape), A.margin)
                 return self._solve_cvxopt(A, b)
-            A, extra = A.tocsr(), A.extra
+            A, extra, margin = A.tocsr(), A.extra, A.margin
+        else:
+            margin = None
         A = A.tocsr()
         A.sort_indices()
         if self.backend == "cvxopt":
-            self._ensure_analysis(A, extra)
+            self._ensure_analysis(A, extra, margin)
             return self._solve_cvxopt(A, b)
         if self.backend == "cholmod":
-            self._ensure_analysis(A, extra)
+            self._ensure_analysis(A, extra, margin)
             t0 = time.perf_counter()
             # CSR of a symmetric matrix is the CSC of the same matrix
             Ac = sp.csc_matrix((A.data, A.indices, A.indptr), shape=A.shape)
