@@ -41,11 +41,21 @@ def perturbed(model, q, size_mm=4e-5):
     return q + size_mm * d / np.abs(d).max()
 
 
+def no_decrease(model, q0):
+    """Make every trial point's energy infinite (no trial point can decrease it): the
+    line search evaluates its first trial with derivatives, later ones by energy."""
+    evaluate = model.evaluate
+    model.energy = lambda q: np.inf
+    model.evaluate = lambda q, order=2, psd=None: (
+        evaluate(q, order, psd) if np.array_equal(q, q0) else (np.inf, None, None))
+
+
 def test_stalled_line_search_is_not_converged(solution):
     model = strip()
-    model.energy = lambda q: np.inf  # no trial point can decrease the energy
+    q0 = perturbed(model, solution)
+    no_decrease(model, q0)
     opts = NewtonOptions(tol_residual=1e-6)
-    res = newton(model, perturbed(model, solution), opts)
+    res = newton(model, q0, opts)
     dx = res.history[0][2]
     assert opts.tol_dx < dx < 100 * opts.tol_dx  # the old rule would say "converged"
     assert res.residual > opts.tol_residual
@@ -56,8 +66,9 @@ def test_stalled_line_search_is_not_converged(solution):
 
 def test_stalled_line_search_with_balanced_forces_converges_with_a_note(solution):
     model = strip()
-    model.energy = lambda q: np.inf
-    res = newton(model, perturbed(model, solution), NewtonOptions(tol_residual=1.0))
+    q0 = perturbed(model, solution)
+    no_decrease(model, q0)
+    res = newton(model, q0, NewtonOptions(tol_residual=1.0))
     assert res.converged and "line search stalled" in res.note
     assert model.counters["line_search_failures"] == 1
 
@@ -78,9 +89,11 @@ def test_small_step_alone_is_not_convergence():
 
 
 def test_chord_steps_assemble_no_hessian_in_vain(solution):
-    """A Hessian is assembled only where it is factorised: chord iterations evaluate the
-    gradient alone (order 1), a refused chord assembles it then. The solution is the
-    one without chord steps, to Newton's tolerance."""
+    """A Hessian is assembled only where it is factorised, or at a line search's first
+    trial that was then cut back (evaluated for the next iteration in case it is
+    taken): chord iterations evaluate the gradient alone (order 1), a refused chord
+    assembles it then. The solution is the one without chord steps, to Newton's
+    tolerance."""
     found = {}
     for chord_dx in (0.0, 1e-2):
         model = strip()
@@ -91,7 +104,9 @@ def test_chord_steps_assemble_no_hessian_in_vain(solution):
         res = newton(model, perturbed(model, solution, 0.05), opts)
         assert res.converged
         found[chord_dx] = res.q
-        assert orders.count(2) == model.linsolve.n_factorizations
+        cut_back = sum(row[5] < row[4] for row in res.history)  # alpha < CCD's alpha
+        assert (model.linsolve.n_factorizations <= orders.count(2)
+                <= model.linsolve.n_factorizations + cut_back)
         if chord_dx:
             assert model.linsolve.n_resolves > 0 and orders.count(1) > 0
         else:
