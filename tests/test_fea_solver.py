@@ -162,7 +162,8 @@ def test_cvxopt_backend_solves_spd_with_a_growing_pattern():
 
 def test_cvxopt_backend_raises_not_positive_definite():
     """Supernodal LL' raises NotPositiveDefinite on an indefinite matrix; simplicial LDL'
-    (the default, as scikit-sparse's) solves it and raises on a zero pivot only; both
+    (as scikit-sparse's) solves it and raises on a zero pivot only, and so does the
+    default "hybrid" (LL', LDL' where LL' fails), with the simplicial solution; all
     recover on the next SPD matrix (the Newton solver projects the Hessian on a raise
     and checks a direction for descent)."""
     import scipy.sparse as sp
@@ -175,17 +176,24 @@ def test_cvxopt_backend_raises_not_positive_definite():
     ll = S.LinearSolver("cvxopt", mode="supernodal")
     with pytest.raises(S.NotPositiveDefinite, match="not positive definite"):
         ll.solve(indefinite, b)
-    ldl = S.LinearSolver("cvxopt")
-    assert ldl.mode == "simplicial"
+    ldl = S.LinearSolver("cvxopt", mode="simplicial")
     x = ldl.solve(indefinite, b)
     assert np.abs(indefinite @ x - b).max() < 1e-10
+    hybrid = S.LinearSolver("cvxopt")
+    assert hybrid.mode == "hybrid"
+    np.testing.assert_allclose(hybrid.solve(indefinite, b), x, rtol=0, atol=1e-10)
+    assert hybrid.n_ldl_fallbacks == 1
+    np.testing.assert_allclose(hybrid.resolve(b), x, rtol=0, atol=1e-10)  # with the LDL'
     d = np.ones(n)
     d[0] = 0.0
-    with pytest.raises(S.NotPositiveDefinite, match="column 0"):
-        S.LinearSolver("cvxopt").solve(sp.diags(d, format="csr"), b)
-    for ls in (ll, ldl):
+    for mode in ("simplicial", "hybrid"):
+        with pytest.raises(S.NotPositiveDefinite, match="column 0"):
+            S.LinearSolver("cvxopt", mode=mode).solve(sp.diags(d, format="csr"), b)
+    for ls in (ll, ldl, hybrid):
         x = ls.solve(A, b)
         assert np.abs(A @ x - b).max() < 1e-10
+    assert hybrid.n_ldl_fallbacks == 1  # SPD: LL'
+    assert hybrid._last is not None and hybrid.resolve(b) is not None
 
 
 def test_unknown_linear_solver_is_one_line():
