@@ -245,3 +245,23 @@ def test_cvxopt_pattern_is_the_union_of_base_and_contact_entries():
     assert ls.n_analyses == 2
     ls.solve(base + extra, b, extra=extra)
     assert ls.n_analyses == 2  # inside the analysed pattern: no new analysis
+
+
+def test_tangent_predictor_is_newtons_first_step_without_a_factorisation(solution):
+    """From the equilibrium at load 1, the load step's "tangent" prediction for load 1.02
+    is Newton's first step there (solved with the factorisation of the Hessian at the
+    equilibrium, which it reuses: no new one), to a state of lower potential than the
+    unpredicted start."""
+    from finray.fea.stepping import _predict_tangent
+
+    model = strip()
+    _, _, H = model.evaluate(solution, 2)
+    model.linsolve.solve(H, np.ones(model.n))  # the last factorisation: H at the solution
+    n_fact = model.linsolve.n_factorizations
+    model.load = 1.02
+    q_pred = _predict_tangent(model, solution, 0.02)
+    assert model.linsolve.n_factorizations == n_fact and model.counters["predictor_solves"] == 1
+    g_new = model.evaluate(solution, 1)[1]
+    np.testing.assert_allclose(q_pred, solution + np.linalg.solve(H.tocsr().toarray(), -g_new),
+                               rtol=0, atol=1e-10)
+    assert model.energy(q_pred) < model.energy(solution)  # a start nearer the minimum
