@@ -265,3 +265,12 @@ def test_tangent_predictor_is_newtons_first_step_without_a_factorisation(solutio
     np.testing.assert_allclose(q_pred, solution + np.linalg.solve(H.tocsr().toarray(), -g_new),
                                rtol=0, atol=1e-10)
     assert model.energy(q_pred) < model.energy(solution)  # a start nearer the minimum
+
+
+def test_unknown_predictor_is_one_line():
+    from finray.fea.stepping import StepOptions, march
+
+    model = strip()
+    with pytest.raises(ValueError, match="unknown predictor True"):
+        march(model, np.zeros(model.n), lambda s: np.zeros(2), np.array([1.0]),
+              StepOptions(predictor=True))

@@ -56,6 +56,8 @@ def march(model: Model, q: np.ndarray, targets, frames: np.ndarray,
     """
     so = step_opts or StepOptions()
     no = newton_opts or NewtonOptions()
+    if so.predictor not in ("secant", "tangent", "none"):
+        raise ValueError(f"unknown predictor {so.predictor!r}: use secant, tangent or none")
     s = 0.0
     ds = so.initial_step
     step = 0
