@@ -243,3 +243,41 @@ def test_small_steps_skip_the_ccd_and_agree_with_it():
         assert cm.max_step(U0, small) == 1.0 and len(calls) == 3
     finally:
         C.ipctk.compute_collision_free_stepsize = ccd
+
+
+def test_near_pairs_hold_the_contact_hessian_pattern():
+    """The pattern the linear solver analyses ahead (pairs within dhat + the margin) holds
+    every Hessian entry of the pairs within dhat, and pairs up to the margin beyond; an
+    analysis with it needs no new one while the circle closes in."""
+    import scipy.sparse as sp
+
+    mesh = rectangle_mesh(np.linspace(-2, 2, 9), np.linspace(-1.5, 0, 4), order=2)
+    R, dhat = 2.0, 0.02
+    cp, ce = circle_polyline([0.0, R + 0.012], R, 160)
+    fixed = np.where(np.abs(mesh.points[:, 1] + 1.5) < 1e-9)[0]
+    model, cm = block_and_rigid(mesh, cp, ce, top_edges(mesh, 0.0),
+                                ContactParams(dhat=dhat, kappa=0.5, mu=0.0), fixed)
+    n = model.n
+
+    def keys(q):
+        _, _, H = model.evaluate(q, 2)
+        e = H.extra.tocoo()
+        r, c = H.margin()
+        return set(e.row.astype(np.int64) * n + e.col), set(r * n + c), H
+
+    q = np.zeros(model.n)
+    q[model.t_index] = [0.0, -0.005]  # 7 um gap: pairs within dhat
+    within, ahead, H = keys(q)
+    assert len(within) > 2 and within <= ahead
+    far = np.zeros(model.n)
+    far[model.t_index] = [0.0, 0.08]  # 92 um: no pair within dhat, all within the margin
+    within_far, ahead_far, _ = keys(far)
+    assert within_far <= {int(k) for k in model.t_index * n + model.t_index}  # driver only
+    assert within <= ahead_far
+    # analysed once at the far state, the closing contact fits its pattern
+    _, _, H_far = model.evaluate(far, 2)
+    model.linsolve.solve(H_far, np.ones(n))
+    analyses = model.linsolve.n_analyses
+    model.linsolve.solve(H, np.ones(n))
+    assert model.linsolve.n_analyses == analyses
+    assert isinstance(H.base, sp.csr_matrix)

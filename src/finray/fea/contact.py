@@ -285,6 +285,22 @@ class ContactModel:
             v1[ne:] = ids[:, 1]
         return {"b0": self.body[v0], "b1": self.body[v1], "d": d, "v0": v0, "v1": v1}
 
+    def near_vertices(self, U_full: np.ndarray, radius: float) -> np.ndarray:
+        """(K, 3) collision vertices of the pairs closer than ``radius`` (mm): an edge's
+        two vertices and the point (a vertex pair repeats its second vertex), the
+        vertices a barrier or friction Hessian couples once the pair is within dhat."""
+        col = self._new_collisions(self.vertices(U_full), radius)
+        # (ids by attribute: six times faster than vertex_ids() per collision)
+        ev = np.array([(c.edge_id, c.vertex_id) for c in col.ev_collisions], np.int64)
+        vv = np.array([(c.vertex0_id, c.vertex1_id) for c in col.vv_collisions], np.int64)
+        out = np.empty((len(ev) + len(vv), 3), np.int64)
+        if len(ev):
+            out[:len(ev), :2] = self.seg[ev[:, 0]]
+            out[:len(ev), 2] = ev[:, 1]
+        if len(vv):
+            out[len(ev):] = vv[:, [0, 1, 1]]
+        return out
+
     def boundary_arclength(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(loop id, arc length s (mm, rest), loop length) of each collision vertex.
 

@@ -180,9 +180,19 @@ def newton(model: Model, q0: np.ndarray, opts: NewtonOptions | None = None,
             hist[-1][4] = alpha
         t0 = time.perf_counter()
         slack = 1e-12 * max(1.0, abs(E))
+        # the first trial is evaluated with the derivatives the next iteration needs
+        # (a Hessian unless it will be a chord step): most steps are taken whole, and
+        # then the evaluation is that of the next iterate, not an energy made twice
+        ahead = None
         while True:
             q_try = q + alpha * d
-            E_try = model.energy(q_try)
+            if ahead is None:
+                ahead = model.evaluate(q_try, 1 if (alpha == 1.0 and dmax < opts.chord_dx)
+                                       else 2)
+                E_try = ahead[0]
+            else:
+                ahead = False
+                E_try = model.energy(q_try)
             if np.isfinite(E_try) and E_try <= E + opts.armijo * alpha * gd + slack:
                 break
             alpha *= 0.5
@@ -206,6 +216,8 @@ def newton(model: Model, q0: np.ndarray, opts: NewtonOptions | None = None,
             since_relag += 1
         if relags > 0 and since_relag is None and alpha == 1.0 and dmax <= relag_dx:
             E, g, H = do_relag(q)
+        elif ahead:  # the accepted first trial, evaluated at q
+            E, g, H = ahead
         else:
             E, g, H = assemble(q)
     # hist rows: [E, |g|, |d|, argmax, ccd alpha, alpha, residual]

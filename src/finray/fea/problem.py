@@ -42,6 +42,11 @@ class Model:
         per contact; True: always projected; False: never.
     """
 
+    #: mm beyond dhat: contact pairs this close get their Hessian entries in the linear
+    #: solver's analysed pattern whenever it is analysed anew
+    #: (0.1 mm: 13 analyses instead of 36 on a steel scene, for a little more fill-in)
+    PATTERN_MARGIN_MM = 0.1
+
     def __init__(self, points, blocks: list[ElementBlock], fixed_nodes=(), driven_nodes=(),
                  contact: ContactModel | None = None, driver_stiffness: float = 1e5,
                  external_force: np.ndarray | None = None, psd="auto",
@@ -95,10 +100,11 @@ class Model:
                       "line_search_s": 0.0}
         # per model (scene): backtracking that found no decrease, non-descent Newton
         # directions replaced by scaled gradient descent, the largest relative
-        # residual of a converged solve, and chord steps refused (a Hessian assembled
-        # and factorised instead)
+        # residual of a converged solve, chord steps refused (a Hessian assembled and
+        # factorised instead), and load-step predictions solved with the last
+        # factorisation (stepping's "tangent" predictor)
         self.counters = {"line_search_failures": 0, "gradient_fallbacks": 0,
-                         "residual_max_rel": 0.0, "chord_refused": 0}
+                         "residual_max_rel": 0.0, "chord_refused": 0, "predictor_solves": 0}
         self._fixed_dofs = np.flatnonzero(np.repeat(fixed, 2))
         self.force_scale = 0.0  # N/mm, set by evaluate() (see residual_norm)
 
@@ -190,7 +196,22 @@ class Model:
             C = sp.coo_matrix((np.concatenate(extra_v), (np.concatenate(extra_r),
                                                           np.concatenate(extra_c))),
                               shape=(self.n, self.n))
-        return E, g, SplitMatrix(self.elastic.pattern.matrix(Hdata), C)
+        margin = None
+        if self.contact is not None:
+            margin = lambda: self._contact_pattern(U)  # noqa: E731 - only on a re-analysis
+        return E, g, SplitMatrix(self.elastic.pattern.matrix(Hdata), C, margin)
+
+    def _contact_pattern(self, U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(rows, cols) of the reduced Hessian entries of the contact pairs closer than
+        dhat + PATTERN_MARGIN_MM at U: a re-analysis of the linear solver's pattern
+        includes them, so that pairs forming over the next iterations find their
+        entries there."""
+        tri = self.contact.near_vertices(U, self.contact.params.dhat + self.PATTERN_MARGIN_MM)
+        dofs = self.dof_map[self.contact.full_ids[tri]].reshape(len(tri), 6)
+        r = np.repeat(dofs, dofs.shape[1], axis=1).ravel()
+        c = np.tile(dofs, (1, dofs.shape[1])).ravel()
+        keep = (r >= 0) & (c >= 0)
+        return r[keep], c[keep]
 
     # -- reactions -----------------------------------------------------------------
     def contact_force(self, q: np.ndarray, nodes: np.ndarray, friction_only: bool = False) -> np.ndarray:

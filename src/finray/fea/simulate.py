@@ -363,8 +363,11 @@ def simulate(finger_mesh: TriMesh, obj: RigidObject | DeformableObject, material
         "contact": asdict(opts.contact), "driver_stiffness": opts.driver_stiffness,
         "linear_solver": model.linsolve.backend,
         "cholmod_mode": model.linsolve.mode,
+        "n_ldl_fallbacks": model.linsolve.n_ldl_fallbacks,  # "hybrid": LL' failed, LDL'
         "n_factorizations": model.linsolve.n_factorizations,
-        "n_chord_solves": model.linsolve.n_resolves,  # with an earlier factorisation
+        # with an earlier factorisation: chord steps, and the load steps' predictions
+        "n_chord_solves": model.linsolve.n_resolves - model.counters["predictor_solves"],
+        "n_predictor_solves": model.counters["predictor_solves"],
         "n_chord_refused": model.counters["chord_refused"],
         "line_search_failures": model.counters["line_search_failures"],
         "gradient_fallbacks": model.counters["gradient_fallbacks"],
