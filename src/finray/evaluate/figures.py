@@ -270,7 +270,7 @@ def annotated_figure(model_path, render_index, lab_video, lab_ingest_json, out_p
     if best is None:
         raise ValueError(f"no frame of {lab_video} shows the finger's colour")
     plt = _plt()
-    fig, ax = plt.subplots(1, 2, figsize=(9, 6.2))
+    fig, ax = plt.subplots(1, 2, figsize=(9, 4.6))
     for a, img, title in ((ax[0], left, "pyvista render of a held-out shape"),
                           (ax[1], best[0], "emulated lab rig (not a recording)")):
         a.imshow(img)
