@@ -574,3 +574,84 @@ def test_stream_benchmark_on_a_live_stream(exported, render_png, tmp_path):
     assert len(rows) == r["predicted"]
     with pytest.raises(ValueError, match="mode"):
         stream_benchmark(d / "model.ts", video, tmp_path / "x", "fast")
+
+
+def _serve(video, port):
+    """The real-time benchmark's server (finray.benchmarks.realtime.SERVE): the video's
+    own packets over TCP at their pace, in another process."""
+    import subprocess
+    import sys
+
+    from finray.benchmarks.realtime import SERVE
+
+    return subprocess.Popen([sys.executable, "-c", SERVE, str(video), str(port)],
+                            stdout=subprocess.PIPE, text=True)
+
+
+def test_a_stream_gives_the_files_forces_frame_for_frame(exported, render_png, tmp_path):
+    """A video served over 127.0.0.1 (its packets as they are, no re-encoding) and the
+    same file: every frame predicted from the stream has the file's forces for the frame
+    of the same time stamp."""
+    import time
+
+    from finray.benchmarks.realtime import _free_port, write_stream_video
+    from finray.predict import predict_files
+
+    _, d = exported
+    frames = [np.asarray(Image.open(f).convert("RGB")) for f in sorted(render_png.parent.glob("image_*.png"))]
+    video = write_stream_video(frames, tmp_path / "clip.ts", (160, 96), 30, 10.0)  # 3 s
+    from_file = predict_files(d / "model.ts", video, tmp_path / "file", force_only=True)["rows"]
+    from finray.predict import InputError
+
+    port = _free_port()
+    server = _serve(video, port)
+    try:
+        for _ in range(100):  # until the server listens
+            try:
+                live = predict_files(d / "model.ts", f"tcp://127.0.0.1:{port}", tmp_path / "live",
+                                     force_only=True)
+                break
+            except InputError as exc:
+                assert "cannot be opened" in str(exc)
+                time.sleep(0.1)
+    finally:
+        server.wait(timeout=60)
+    by_time = {round(r["t_s"], 4): r for r in from_file}
+    assert len(from_file) == 30 and live["received"] == 30 and len(live["rows"]) >= 10
+    for r in live["rows"]:
+        f = by_time[round(r["t_s"], 4)]
+        assert [r[k] for k in r if k.endswith("_N")] == [f[k] for k in f if k.endswith("_N")], (r, f)
+
+
+def test_sigint_ends_a_live_run_with_a_complete_table(exported, render_png, tmp_path):
+    """SIGINT (Ctrl-C) to `finray predict` on a live stream, the way a live run ends:
+    exit code 0, forces.csv in place with a full row per frame predicted, no .part left,
+    the summary line."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from finray.benchmarks.realtime import _free_port, write_stream_video
+
+    _, d = exported
+    frames = [np.asarray(Image.open(f).convert("RGB")) for f in sorted(render_png.parent.glob("image_*.png"))]
+    video = write_stream_video(frames, tmp_path / "long.ts", (160, 96), 600, 30.0)  # 20 s
+    port = _free_port()
+    server = _serve(video, port)
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "finray.cli", "predict", "--model", str(d / "model.ts"),
+                             f"tcp://127.0.0.1:{port}", "--out", str(out), "--force-only"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        lines = [proc.stdout.readline() for _ in range(5)]  # five rows predicted
+        proc.send_signal(signal.SIGINT)
+        rest, err = proc.communicate(timeout=60)
+    finally:
+        server.kill()
+    assert all(line.startswith("live_") for line in lines)
+    assert proc.returncode == 0, err
+    rows = list(csv.DictReader(open(out / "forces.csv")))
+    assert len(rows) >= 5 and all(r["fx_N"] and r["t_s"] for r in rows)
+    assert not (out / "forces.csv.part").exists()
+    assert "stopped by Ctrl-C" in err
