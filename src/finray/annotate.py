@@ -272,7 +272,11 @@ class VideoWriter:
         if self._container is None:
             self._container = av.open(str(self.path), "w")
             codec = "libx264" if "libx264" in av.codecs_available else "mpeg4"
-            self._stream = self._container.add_stream(codec, rate=Fraction(self.fps).limit_denominator(1001))
+            # x264's fastest preset: the encoder shares the live loop's core (the default
+            # preset took most of a 1280x720 frame's time; results/benchmarks/realtime.md)
+            self._stream = self._container.add_stream(
+                codec, rate=Fraction(self.fps).limit_denominator(1001),
+                options={"preset": "ultrafast", "tune": "zerolatency"} if codec == "libx264" else {})
             self._stream.height, self._stream.width = (rgb.shape[0] // 2) * 2, (rgb.shape[1] // 2) * 2
             self._stream.pix_fmt = "yuv420p"
         rgb = np.ascontiguousarray(rgb[:self._stream.height, :self._stream.width])
