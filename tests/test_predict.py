@@ -640,9 +640,12 @@ def test_sigint_ends_a_live_run_with_a_complete_table(exported, render_png, tmp_
     port = _free_port()
     server = _serve(video, port)
     out = tmp_path / "out"
+    # SIGINT's default disposition in the child (a test runner's workers may ignore it,
+    # and a Python started with SIGINT ignored installs no KeyboardInterrupt)
     proc = subprocess.Popen([sys.executable, "-m", "finray.cli", "predict", "--model", str(d / "model.ts"),
                              f"tcp://127.0.0.1:{port}", "--out", str(out), "--force-only"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         lines = [proc.stdout.readline() for _ in range(5)]  # five rows predicted
         proc.send_signal(signal.SIGINT)

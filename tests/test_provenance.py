@@ -113,6 +113,8 @@ READERS: list[tuple[str, set[str]]] = [
     ("train.batch_size", {"train_model", "train_pareto", "summary"}),
     ("train.forces", {"train_model"}),
     ("train.device", {"train_model"}),  # not the CPU study (train_pareto)
+    ("train.init", {"train_model"}),
+    ("train.split_seed", {"train_model"}),
     ("train.*", {"train_model", "train_pareto"}),
     ("evaluate.seed", {"evaluate_baseline", "evaluate_experiment"}),
     ("evaluate.usable_nrmse_pct", {"figure_viewpoint", "summary"}),
@@ -123,6 +125,10 @@ READERS: list[tuple[str, set[str]]] = [
                                     "spread_summary"}),
     ("benchmarks.fea_*", _STUDIES),
     ("benchmarks.latency_model", {"inference_latency"}),
+    # the live-stream benchmark's model also draws the annotated figure, at its pitch
+    ("benchmarks.realtime_model", {"realtime_benchmark", "figure_annotated"}),
+    ("benchmarks.realtime_pitch_deg", {"realtime_benchmark", "figure_annotated"}),
+    ("benchmarks.realtime_*", {"realtime_benchmark"}),
     ("benchmarks.latency_frames", {"inference_latency", "train_pareto"}),
     ("benchmarks.latency_repeats", {"inference_latency"}),
     ("benchmarks.train_*", {"train_pareto"}),
@@ -136,7 +142,10 @@ READERS: list[tuple[str, set[str]]] = [
     ("objects.circle_d10.split", {"fea_scene", "render_scene", "geometry_gallery",
                                   "dataset_examples", "dataset_manifest", "evaluate_baseline",
                                   "evaluate_experiment", "render_benchmark", "train_model",
-                                  "train_pareto", "viewpoint_render"}),  # it becomes the pitch object
+                                  "train_pareto", "viewpoint_render",
+                                  # the first held-out shape: the live-stream benchmark's
+                                  # and the annotated figure's renders
+                                  "realtime_benchmark", "figure_annotated"}),  # it becomes the pitch object
     ("objects.square_s10_a30.split", {"fea_scene", "render_scene", "geometry_gallery",
                                       "evaluate_baseline", "evaluate_experiment", "train_model",
                                       "train_pareto", "figure_material_generalisation", "sim2real"}),
@@ -145,7 +154,7 @@ READERS: list[tuple[str, set[str]]] = [
                                 "train_pareto", "figure_material_generalisation", "sim2real"}),
     ("objects.ellipse_16x9.split", {"fea_scene", "render_scene", "geometry_gallery",
                                     "evaluate_experiment", "figure_material_generalisation",
-                                    "sim2real"}),
+                                    "sim2real", "realtime_benchmark", "figure_annotated"}),
     # its materials: a deformable one meshes the object; new scenes (train objects: in
     # the training lists), removed ones (the lists lose them)
     ("objects.ring_d15.materials", {"geometry_object", "dataset_manifest", "evaluate_experiment",
@@ -154,7 +163,7 @@ READERS: list[tuple[str, set[str]]] = [
     ("objects.ellipse_16x9.materials", {"geometry_object", "fea_scene", "render_scene",
                                         "dataset_manifest", "evaluate_experiment",
                                         "fea_figures", "inference_latency", "viewpoint_render",
-                                        "sim2real"}),
+                                        "sim2real", "realtime_benchmark", "figure_annotated"}),
     ("objects.*.materials", {"geometry_object", "fea_scene", "render_scene"} | _LISTS),
     ("objects.*", {"geometry_object"}),  # the shape
     # one generated object more: its scenes, and what lists the training scenes
@@ -165,7 +174,9 @@ READERS: list[tuple[str, set[str]]] = [
     # the emulated lab rig: read by the lab's rules only (never by training or predict)
     ("lab.seed", {"lab_take"}),
     ("lab.objects.*", {"lab_object"}),  # the shape
-    ("lab.heights_mm", {"lab_object", "lab_fea", "lab_take", "lab_ingest", "lab_qa", "sim2real"}),
+    # (the annotated figure draws the first take: an evaluation, like sim2real)
+    ("lab.heights_mm", {"lab_object", "lab_fea", "lab_take", "lab_ingest", "lab_qa", "sim2real",
+                        "figure_annotated"}),
     # (the summary quotes how the takes were emulated: as built, motion, camera, sensor)
     ("lab.as_built.thickness_delta_mm", _LAB_GEOMETRY | {"summary"}),
     ("lab.as_built.*", {"lab_fea", "summary"}),
@@ -236,11 +247,13 @@ NEW_VALUES = {
     "train.device": "cpu",
     "train.schedule": "constant",
     "train.keep": "last",
+    "train.init": "torch",
     "evaluate.spread.types": ["fp32"],
     "evaluate.spread.models": ["camera"],
     "benchmarks.fea_arc_chord_sizes_mm": [0.05],
     "benchmarks.train_sizes": [[64, 32]],
     "benchmarks.latency_model": "occlusion",
+    "benchmarks.realtime_model": "plain",
     "materials.steel.rigid": lambda cfg: cfg["materials"]["steel"].update(
         rigid=False, youngs_modulus_MPa=2e5, poisson_ratio=0.3),
     "objects.circle_d10.type": lambda cfg: _with_wall(cfg["objects"]["circle_d10"]),
