@@ -29,10 +29,9 @@ import numpy as np
 import torch
 
 from .dataset.imageops import EmptyMaskError, base_anchored_box, segment, silhouette_input
+from .errors import DeviceInputError, FrameError, InputError  # noqa: F401 - callers import them here
 from .media import (IMAGE_SUFFIXES, VIDEO_SUFFIXES, LiveFrames, MediaError, is_live, one_line,
                     read_image, video_frames)
-
-from .errors import DeviceInputError, FrameError, InputError  # noqa: F401 - callers import them here
 from .precision import DeviceError, resolve_device
 
 BACKENDS = ("auto", "onnx", "torchscript")
