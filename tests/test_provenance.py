@@ -113,7 +113,7 @@ READERS: list[tuple[str, set[str]]] = [
     ("train.batch_size", {"train_model", "train_pareto", "summary"}),
     ("train.forces", {"train_model"}),
     ("train.device", {"train_model"}),  # not the CPU study (train_pareto)
-    ("train.init", {"train_model"}),
+    ("train.init", {"train_model", "summary"}),  # the manuscript states the init
     ("train.split_seed", {"train_model"}),
     ("train.*", {"train_model", "train_pareto"}),
     ("evaluate.seed", {"evaluate_baseline", "evaluate_experiment"}),

@@ -70,7 +70,7 @@ def setup_summary(cfg: dict) -> dict:
             "finger_E_MPa": mat.get("youngs_modulus_MPa"), "friction": fea["friction"],
             "push_mm": fea["push_mm"], "heights_mm": list(cfg["heights_mm"]),
             "mesh_size_mm": cfg["mesh"]["size_mm"], "input_size": list(cfg["train"]["input_size"]),
-            "base_channels": cfg["train"]["base_channels"],
+            "base_channels": cfg["train"]["base_channels"], "init": cfg["train"]["init"],
             "batch_size": cfg["train"]["batch_size"],
             "alpha_stress": cfg["train"]["alpha_stress"], "alpha_force": cfg["train"]["alpha_force"],
             "occlusion_levels": {k: list(v) for k, v in cfg["dataset"]["occlusion_levels"].items()},
