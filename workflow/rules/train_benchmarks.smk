@@ -73,7 +73,7 @@ rule realtime_benchmark:
         table=f"{RESULTS}/benchmarks/realtime.md",
     params:
         benchmarks=section("benchmarks", keys=("realtime_seconds", "realtime_sizes", "realtime_pitch_deg")),
-        work=f"{RESULTS}/benchmarks/realtime",
+        work=lambda w, output: os.path.splitext(output.json)[0],  # streams and runs' outputs
     log:
         f"{RESULTS}/logs/train/benchmark_realtime.log",
     benchmark:
