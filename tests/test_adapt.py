@@ -168,3 +168,12 @@ def test_calibrate_checks_every_take_before_ingesting_any(net, tmp_path, capsys)
     err = capsys.readouterr().err.strip()
     assert rc == 2 and len(err.splitlines()) == 1 and "forces.csv" in err, err
     assert not (tmp_path / "c.ingest").exists() and not (tmp_path / "c.json").exists()
+
+
+def test_epochs_give_the_same_passes_over_any_number_of_frames():
+    """With epochs, a head's steps follow its frames (two context objects get twice one's
+    steps); without, they are fixed."""
+    fit = HeadFit(epochs=60, batch=64)
+    assert fit.n_steps(900) == 844 and fit.n_steps(1800) == 1688
+    assert fit.n_steps(1) == 1
+    assert HeadFit(steps=400).n_steps(1800) == 400
