@@ -30,6 +30,7 @@ include: "workflow/rules/evaluate.smk"
 include: "workflow/rules/paper.smk"
 include: "workflow/rules/train_benchmarks.smk"
 include: "workflow/rules/lab.smk"
+include: "workflow/rules/rigs.smk"
 include: "workflow/rules/spread.smk"
 
 

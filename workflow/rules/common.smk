@@ -15,6 +15,7 @@ from finray.config import (ConfigError, diversity_models, generated_training_obj
 from finray.dataset import pitch_object, scene_splits
 from finray.dataset.shards import SHARD_KEYS
 from finray.lab.as_built import as_built_fea, as_built_finger, as_built_material
+from finray.lab.rigs import draw_rig, rig_index, rig_names as _rig_names
 from finray.render import RenderParams
 
 DEFAULT_CONFIGFILE = os.path.join(workflow.basedir, "config", "config.yaml")

@@ -6,7 +6,7 @@ from finray.paper_reference import paper_reference
 
 PAPER = "paper"
 FIGURES = ["shape_generalisation", "material_generalisation", "occlusion", "viewpoint", "speed",
-           "sim2real", "annotated"]
+           "sim2real", "annotated"] + (["sim2real_rigs"] if rig_names() else [])  # lab.rigs
 
 
 rule evaluate_speed:
@@ -199,6 +199,8 @@ rule summary:
         lab_qa=f"{RESULTS}/lab/qa.json",
         lab_takes=f"{RESULTS}/lab/qa.csv",
         sim2real=f"{EVALUATE}/sim2real/summary.json",
+        # sim-to-real on the drawn emulated rigs (lab.rigs), where there are any
+        sim2real_rigs=[f"{EVALUATE}/sim2real/rigs/summary.json"] if rig_names() else [],
         diversity=diversity_files(),  # none unless the config has generated training objects
         spread=manuscript_spread(),  # none unless evaluate.spread.manuscript
     output:

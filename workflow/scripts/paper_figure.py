@@ -21,6 +21,13 @@ with log_to(snakemake.log[0]):
 
         sim2real_figure(pd.read_csv(snakemake.input.frames),
                         json.loads(Path(snakemake.input.summary).read_text()), out)
+    elif name == "sim2real_rigs":
+        import pandas as pd
+
+        from finray.evaluate.rigs import rigs_figure
+
+        rigs_figure(pd.read_csv(snakemake.input.csv),
+                    json.loads(Path(snakemake.input.summary).read_text())["level"], out)
     else:
         exp_dir = Path(snakemake.input.metrics).parent
         if name == "shape_generalisation":

@@ -18,6 +18,8 @@ with log_to(snakemake.log[0]):
                            snakemake.params.lab)  # emulated takes, not recordings
     # sim-to-real on the emulated takes, with the calibrated force
     s["sim2real"] = json.loads(Path(snakemake.input.sim2real).read_text())
+    for path in snakemake.input.sim2real_rigs:  # the same on the drawn emulated rigs
+        s["sim2real_rigs"] = json.loads(Path(path).read_text())
     for path in snakemake.input.diversity:  # training on generated objects (config/diverse.yaml)
         s["diversity"] = json.loads(Path(path).read_text())
     for path in snakemake.input.spread:  # the spread over seeds and types (evaluate.spread.manuscript)

@@ -27,7 +27,7 @@ import numpy as np
 import pandas as pd
 
 from ..adapt import HeadFit, encoder_features, head_forces
-from ..calibration import (Priors, Sampler, coverage, fit_rig, fold_units, predictive,
+from ..calibration import (Priors, RigPrior, Sampler, coverage, fit_rig, fold_units, predictive,
                            shard_times, spread)
 from ..paper_reference import paper_value
 from .metrics import force_metrics
@@ -49,6 +49,7 @@ class Sim2RealConfig:
     sim_folds: int = 5
     priors: Priors = field(default_factory=Priors)
     sampler: Sampler = field(default_factory=Sampler)
+    rig_prior: RigPrior = field(default_factory=RigPrior)  # with no context frames
 
     @classmethod
     def from_params(cls, p: dict) -> "Sim2RealConfig":
@@ -58,7 +59,8 @@ class Sim2RealConfig:
                    level=float(p.get("level", 0.9)), max_context=int(p.get("max_context", 2)),
                    sim_every=int(p.get("sim_every", 4)), sim_folds=int(p.get("sim_folds", 5)),
                    priors=Priors(**{k: tuple(v) if isinstance(v, list) else v for k, v in pr.items()}),
-                   sampler=Sampler(**p.get("sampler", {})))
+                   sampler=Sampler(**p.get("sampler", {})),
+                   rig_prior=RigPrior(**p.get("rig_prior", {})))
 
 
 def _frames(shards, size, every=1):
@@ -110,7 +112,8 @@ def run_sim2real(model_pt, lab_shards, sim_shards, sim_test_shards, size, cfg: S
     def record(k, context, test, heads, cal):
         mu_all = head_forces(model, heads, f_lab[test])
         mu, sd = mu_all.mean(0), spread(mu_all)
-        band = predictive(cal, mu, sd, cfg.level)
+        # no context: the rig's gain and offset are unknown (cfg.rig_prior)
+        band = predictive(cal, mu, sd, cfg.level, rig=None if k else cfg.rig_prior)
         tab = table[test]
         frames.append(pd.DataFrame({
             "context_objects": k, "context": " + ".join(context) or "none",
@@ -124,7 +127,8 @@ def run_sim2real(model_pt, lab_shards, sim_shards, sim_test_shards, size, cfg: S
     t1 = time.perf_counter()
     heads0, cal0 = fit_rig(model, f_sim, ys, [object_folds(ts["object"].to_numpy(), cfg.sim_folds)],
                            cfg.heads, cfg.priors, cfg.sampler, log=log)
-    cal0.update(context_objects=0, context="none", fitted_on="simulated training frames, objects cross-fitted")
+    cal0.update(context_objects=0, context="none", fitted_on="simulated training frames, objects cross-fitted",
+                rig_prior=asdict(cfg.rig_prior))
     cals.append(cal0)
     record(0, (), np.ones(len(y), bool), heads0, cal0)
     p_test = head_forces(model, heads0, f_test)

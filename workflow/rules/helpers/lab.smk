@@ -22,3 +22,31 @@ def lab_polygon_input(wildcards):
 def lab_take_seed(wildcards):
     """The take's seed: lab.seed and its name (adding a take leaves the others alone)."""
     return config["lab"]["seed"] + zlib.crc32(f"{wildcards.object}_h{wildcards.height}".encode()) % 100000
+
+
+# ---- the drawn rigs (lab.rigs; rigs.smk): each a whole lab section of its own
+
+
+def rig_names():
+    """The drawn rigs: rig1 .. rig<lab.rigs.count>."""
+    return _rig_names(config["lab"]["rigs"])
+
+
+def rig_lab(rig):
+    """Rig ``rig``'s lab section (finray.lab.rigs.draw_rig)."""
+    return draw_rig(config["lab"], rig_index(rig))
+
+
+def rig_takes(rig):
+    lab = rig_lab(rig)
+    return [f"{o}_h{h:g}" for o in sorted(lab["objects"]) for h in lab["heights_mm"]]
+
+
+def rig_polygon_input(wildcards):
+    spec = rig_lab(wildcards.rig)["objects"][wildcards.object]
+    return [spec["path"]] if spec["type"] == "polygon_file" else []
+
+
+def rig_take_seed(wildcards):
+    """As lab_take_seed, from the rig's own lab.seed."""
+    return rig_lab(wildcards.rig)["seed"] + zlib.crc32(f"{wildcards.object}_h{wildcards.height}".encode()) % 100000

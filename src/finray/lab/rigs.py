@@ -1,0 +1,108 @@
+"""Emulated rigs drawn from ranges: a rig is one data point, a user's rig another.
+
+``lab.rigs`` names how many rigs to draw besides the configured one, from which seed,
+and the ranges: :func:`draw_rig` returns rig ``i``'s whole ``lab`` section, the
+configured one with these drawn (each from its own generator, ``seed + i``):
+
+- ``uniform``: ``{"<section>.<key>": [low, high]}``, a value uniform in the range (each
+  element of a list value drawn apart, e.g. the sensor's three biases);
+- ``choice``: ``{"<section>.<key>": [option, ...]}``, one option (e.g. the frame size);
+- ``colours``: the finger's hue (deg), the object's hue offset from it (deg, kept far
+  from the finger's, as a lab would paint it), saturation, value and the background's
+  grey, as ranges; colours are linear RGB;
+- ``object_scale``: each object's size scaled by one factor in the range;
+- ``height_jitter_mm``: each contact height moved by up to this much (whole mm).
+
+Every drawn rig is emulated: its ``camera.model`` says so and which draw it is.
+"""
+from __future__ import annotations
+
+import colorsys
+import copy
+
+import numpy as np
+
+
+def rig_names(rigs: dict) -> list[str]:
+    """``rig1`` .. ``rig<count>``."""
+    return [f"rig{i}" for i in range(1, int(rigs.get("count", 0)) + 1)]
+
+
+def rig_index(name: str) -> int:
+    """``rig3`` -> 3 (one line on anything else)."""
+    if not name.startswith("rig") or not name[3:].isdigit() or int(name[3:]) < 1:
+        raise ValueError(f"a drawn rig is named rig1, rig2, ..., not {name!r}")
+    return int(name[3:])
+
+
+def _parent(d: dict, path: str) -> tuple[dict, str]:
+    """The dict that holds ``path``'s last key, and that key (one line if lab has none)."""
+    *head, last = path.split(".")
+    for k in head:
+        d = d.get(k) if isinstance(d, dict) else None
+    if not isinstance(d, dict) or last not in d:
+        raise ValueError(f"lab.rigs draws {path!r}, which lab has no value for")
+    return d, last
+
+
+def _set(d: dict, path: str, value) -> None:
+    parent, key = _parent(d, path)
+    parent[key] = value
+
+
+def _get(d: dict, path: str):
+    parent, key = _parent(d, path)
+    return parent[key]
+
+
+def _hsv(h_deg: float, s: float, v: float) -> list[float]:
+    return [round(float(c), 4) for c in colorsys.hsv_to_rgb((h_deg % 360.0) / 360.0, s, v)]
+
+
+def _scale_object(spec: dict, s: float) -> dict:
+    out = copy.deepcopy(spec)
+    for key in ("diameter_mm", "side_mm", "width_mm", "height_mm", "wall_mm"):
+        if key in out:
+            out[key] = round(float(out[key]) * s, 2)
+    if "vertices_mm" in out:
+        out["vertices_mm"] = [[round(float(x) * s, 2), round(float(y) * s, 2)] for x, y in out["vertices_mm"]]
+    return out
+
+
+def draw_rig(lab: dict, index: int) -> dict:
+    """Rig ``index`` (1, 2, ...) of ``lab["rigs"]``: the ``lab`` section with its drawn
+    values (see the module's text); deterministic in ``lab["rigs"]["seed"]`` and
+    ``index``. The result has no ``rigs`` key."""
+    spec = lab.get("rigs") or {}
+    if not 1 <= index <= int(spec.get("count", 0)):
+        raise ValueError(f"lab.rigs draws {spec.get('count', 0)} rigs, not rig {index}")
+    rng = np.random.default_rng([int(spec.get("seed", 0)), index])
+    out = copy.deepcopy({k: v for k, v in lab.items() if k != "rigs"})
+    out["seed"] = int(lab.get("seed", 0)) + 1000 * index  # the takes' noise: the rig's own
+    for path, (lo, hi) in sorted(spec.get("uniform", {}).items()):
+        old = _get(out, path)
+        value = (rng.uniform(lo, hi, len(old)).round(4).tolist() if isinstance(old, list)
+                 else round(float(rng.uniform(lo, hi)), 4))
+        _set(out, path, value)
+    for path, options in sorted(spec.get("choice", {}).items()):
+        _set(out, path, copy.deepcopy(options[int(rng.integers(len(options)))]))
+    col = spec.get("colours")
+    if col:
+        hue = rng.uniform(*col["finger_hue_deg"])
+        sat, val = rng.uniform(*col["saturation"], 2), rng.uniform(*col["value"], 2)
+        scene = out["scene"]
+        scene["finger_rgb"] = _hsv(hue, sat[0], val[0])
+        scene["object_rgb"] = _hsv(hue + rng.uniform(*col["object_hue_offset_deg"]), sat[1], val[1])
+        grey = float(rng.uniform(*col["background_grey"]))
+        scene["background_rgb"] = [round(grey, 4)] * 3
+    if spec.get("object_scale"):
+        out["objects"] = {name: _scale_object(o, float(rng.uniform(*spec["object_scale"])))
+                          for name, o in sorted(out["objects"].items())}
+    jitter = int(spec.get("height_jitter_mm", 0))
+    if jitter:
+        heights = [float(h) + int(rng.integers(-jitter, jitter + 1)) for h in out["heights_mm"]]
+        if len(set(heights)) < len(heights):
+            raise ValueError(f"rig {index}: height_jitter_mm {jitter} made two heights equal")
+        out["heights_mm"] = heights
+    out["camera"]["model"] = f"emulated rig {index} of lab.rigs (seed {spec.get('seed', 0)})"
+    return out

@@ -1,0 +1,67 @@
+"""Drawn emulated rigs (finray.lab.rigs) and the summary over rigs (finray.evaluate.rigs)."""
+import colorsys
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from finray.config import load_config
+from finray.evaluate.rigs import rigs_summary, rigs_table
+from finray.lab.rigs import draw_rig, rig_index, rig_names
+
+
+@pytest.fixture(scope="module")
+def lab():
+    return load_config("config/config.yaml")["lab"]
+
+
+def test_rigs_are_drawn_within_their_ranges_and_replay(lab):
+    spec = lab["rigs"]
+    names = rig_names(spec)
+    assert names == [f"rig{i}" for i in range(1, spec["count"] + 1)]
+    rigs = [draw_rig(lab, rig_index(n)) for n in names]
+    assert draw_rig(lab, 1) == rigs[0]  # seeded: the same rig each time
+    assert rigs[0] != rigs[1]
+    for rig in rigs:
+        assert "rigs" not in rig and set(rig) == set(lab) - {"rigs"}
+        for path, (lo, hi) in spec["uniform"].items():
+            section, key = path.split(".")
+            assert np.all((lo <= np.asarray(rig[section][key])) & (np.asarray(rig[section][key]) <= hi)), path
+        assert rig["camera"]["size_px"] in spec["choice"]["camera.size_px"]
+        assert "emulated" in rig["camera"]["model"]
+        # the object's hue is at least 120 deg from the finger's
+        h = [colorsys.rgb_to_hsv(*rig["scene"][c])[0] * 360 for c in ("finger_rgb", "object_rgb")]
+        assert min(abs(h[0] - h[1]), 360 - abs(h[0] - h[1])) >= 119.9
+        for name, obj in rig["objects"].items():
+            base = lab["objects"][name]
+            key = next((k for k in ("diameter_mm", "side_mm") if k in base), None)
+            if key:
+                assert 0.8 * base[key] - 0.01 <= obj[key] <= 1.2 * base[key] + 0.01
+        jit = spec["height_jitter_mm"]
+        assert np.all(np.abs(np.subtract(rig["heights_mm"], lab["heights_mm"])) <= jit)
+        assert rig["seed"] != lab["seed"]  # its own noise
+
+
+def test_rig_errors(lab):
+    with pytest.raises(ValueError, match="rig1, rig2"):
+        rig_index("default")
+    with pytest.raises(ValueError, match="not rig 9"):
+        draw_rig(lab, 9)
+    bad = {**lab, "rigs": {**lab["rigs"], "uniform": {"camera.no_such_key": [0, 1]}}}
+    with pytest.raises(ValueError, match="camera.no_such_key"):
+        draw_rig(bad, 1)
+
+
+def test_summary_over_rigs():
+    def summ(errs, covs, n=100):
+        return {"by_context": {str(k): {"nrmse_pct": e, "mse_N2": e / 10, "coverage_pct": c, "n_frames": n}
+                               for k, (e, c) in enumerate(zip(errs, covs))}}
+    table = rigs_table({"default": summ([12, 3, 2], [90, 80, 100]),
+                        "rig1": summ([14, 6, 7], [70, 90, 90], n=300)})
+    s = rigs_summary(table, 0.9)
+    assert s["per_rig"]["default"] == {"error_falls": True, "nrmse_pct_most_context": 2, "within_target": True}
+    assert not s["per_rig"]["rig1"]["error_falls"] and not s["per_rig"]["rig1"]["within_target"]
+    assert not s["all_fall"] and not s["all_within_target"]
+    assert s["by_context"]["0"]["coverage_pct_pooled"] == pytest.approx((90 * 100 + 70 * 300) / 400)
+    assert (s["by_context"]["1"]["nrmse_pct_min"], s["by_context"]["1"]["nrmse_pct_max"]) == (3, 6)
+    assert isinstance(table, pd.DataFrame) and len(table) == 6

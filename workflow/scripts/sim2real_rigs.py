@@ -1,0 +1,11 @@
+import json
+from pathlib import Path
+
+from finray.evaluate.rigs import write_rigs
+from finray.logs import log_to
+
+inp = snakemake.input
+with log_to(snakemake.log[0]):
+    summaries = {"default": json.loads(Path(inp.default).read_text())}
+    summaries |= {Path(p).parent.name: json.loads(Path(p).read_text()) for p in inp.rigs}
+    print(json.dumps(write_rigs(summaries, snakemake.params.rigs, snakemake.output)["by_context"], indent=1))
