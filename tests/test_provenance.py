@@ -172,6 +172,15 @@ READERS: list[tuple[str, set[str]]] = [
     ("generated.count", {"geometry_object", "fea_scene", "render_scene", "geometry_gallery",
                          "evaluate_diversity", "evaluate_speed", "summary"} | _LISTS),
     # the emulated lab rig: read by the lab's rules only (never by training or predict)
+    # the drawn rigs (lab.rigs): one more rig is every rig rule's; the others change what
+    # is drawn (a height's jitter renames the takes: new jobs, not re-planned ones)
+    ("lab.rigs.count", {"rig_finger", "rig_object", "rig_fea", "rig_take", "rig_ingest",
+                        "rig_sim2real", "sim2real_rigs"}),
+    ("lab.rigs.colours.*", {"rig_take"}),
+    ("lab.rigs.object_scale", {"rig_object", "sim2real_rigs"}),
+    ("lab.rigs.height_jitter_mm", {"sim2real_rigs"}),
+    ("lab.rigs.*", {"rig_take", "sim2real_rigs"}),  # seed, uniform, choice: the camera's draws
+    ("lab.camera.model", {"lab_take", "summary"}),  # a drawn rig names its own
     ("lab.seed", {"lab_take"}),
     ("lab.objects.*", {"lab_object"}),  # the shape
     # (the annotated figure draws the first take: an evaluation, like sim2real)
@@ -277,6 +286,13 @@ NEW_VALUES = {
     "lab.scene.finger_colour": "orange",
     "lab.scene.lights": [{"position_mm": [-200.0, 300.0, 300.0], "intensity": 0.8}],
     "lab.camera.video_pix_fmt": "yuv420p",
+    "lab.rigs.uniform": {"camera.distance_mm": [180.0, 240.0]},
+    "lab.rigs.choice": {"camera.size_px": [[1280, 720], [848, 480]]},
+    "lab.rigs.object_scale": [0.9, 1.1],
+    **{f"lab.rigs.colours.{k}": lambda cfg: cfg["lab"].setdefault("rigs", {}).update(colours={
+        "finger_hue_deg": [0.0, 360.0], "object_hue_offset_deg": [120.0, 240.0],
+        "saturation": [0.6, 0.95], "value": [0.5, 0.95], "background_grey": [0.15, 0.5]})
+       for k in ("finger_hue_deg", "object_hue_offset_deg", "saturation", "value", "background_grey")},
 }
 
 
@@ -467,10 +483,28 @@ def _write(tmp_path: Path, name: str, cfg: dict) -> Path:
     return f
 
 
+#: what sim2real_rigs records of each drawn rig (its params): how the rig was emulated
+_RIG_RECORD = ("lab.objects.*", "lab.as_built.*", "lab.camera.*", "lab.heights_mm")
+
+
+def with_rigs(key: str, rules: set[str]) -> set[str]:
+    """The drawn rigs (lab.rigs; the smoke config draws one, with no ranges: a copy of
+    the lab) run the lab's rules and sim-to-real again: what one of those reads, the
+    rig's copy reads too."""
+    if key.startswith("lab.rigs.") or key == "lab.camera.model":
+        return set(rules)
+    out = set(rules) | {"rig_" + r[4:] for r in rules if r.startswith("lab_") and r != "lab_qa"}
+    if "sim2real" in rules:
+        out.add("rig_sim2real")
+    if any(fnmatch.fnmatchcase(key, p) for p in _RIG_RECORD):
+        out.add("sim2real_rigs")
+    return out
+
+
 def expected_readers(key: str) -> set[str]:
     for pattern, rules in READERS:
         if fnmatch.fnmatchcase(key, pattern):
-            return rules
+            return with_rigs(key, rules)
     raise AssertionError(f"{key}: no entry in READERS")
 
 

@@ -225,8 +225,13 @@ def test_smoke_evaluation_summary_and_paper(smoke_run):
     one = m[(m["context_objects"] == 1) & (m["context"] == "all") & (m["test"] == "all")].iloc[0]
     assert one["n"] == r["by_context"]["1"]["n_frames"] and 0 <= one["coverage_pct"] <= 100
     assert (smoke_run / "results" / "evaluate" / "sim2real" / "corner.pdf").stat().st_size > 1000
+    # sim-to-real on the smoke config's one drawn emulated rig, beside the configured one
+    rigs = json.loads((smoke_run / "results" / "evaluate" / "sim2real" / "rigs" / "summary.json").read_text())
+    assert rigs["emulated"] and rigs["rigs"] == ["default", "rig1"]
+    assert set(rigs["by_context"]) == set(r["by_context"])
+    assert "emulated" in rigs["settings"]["rig1"]["camera"]["model"]
     for name in ("shape_generalisation", "material_generalisation", "occlusion", "viewpoint", "speed",
-                 "sim2real"):
+                 "sim2real", "sim2real_rigs"):
         for ext in ("pdf", "png"):
             assert (smoke_run / "paper" / "figures" / f"{name}.{ext}").stat().st_size > 1000
     html = (smoke_run / "paper" / "manuscript.html").read_text()

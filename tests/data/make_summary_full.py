@@ -43,6 +43,8 @@ def main() -> None:
     s["lab"] = lab_summary(r / "lab" / "qa.json", r / "lab" / "qa.csv",
                            {k: cfg["lab"][k] for k in ("as_built", "motion", "camera", "sensor")})
     s["sim2real"] = json.loads((r / "evaluate" / "sim2real" / "summary.json").read_text())
+    if cfg["lab"]["rigs"]["count"]:  # sim-to-real on the drawn emulated rigs (rigs.smk)
+        s["sim2real_rigs"] = json.loads((r / "evaluate" / "sim2real" / "rigs" / "summary.json").read_text())
     a.out.write_text(json.dumps(s, indent=1) + "\n")
     print(f"wrote {a.out} ({a.out.stat().st_size} bytes)")
 
