@@ -64,7 +64,7 @@ def rigs_figure(table: pd.DataFrame, level: float, path) -> None:
         for ax, col in zip(axes, ("nrmse_pct", "coverage_pct")):
             ax.plot(g["context_objects"], g[col], "o-", label=rig, **style)
     axes[0].set_ylabel("force NRMSE (%)")
-    axes[0].set_yscale("log")
+    axes[0].set_ylim(bottom=0)
     axes[1].axhline(100 * level, color="grey", ls="--", lw=1)
     axes[1].set_ylabel(f"frames inside the {level:.0%} interval (%)")
     axes[1].set_ylim(0, 100)
