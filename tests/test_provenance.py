@@ -177,7 +177,7 @@ READERS: list[tuple[str, set[str]]] = [
     ("lab.rigs.count", {"rig_finger", "rig_object", "rig_fea", "rig_take", "rig_ingest",
                         "rig_sim2real", "sim2real_rigs"}),
     ("lab.rigs.colours.*", {"rig_take"}),
-    ("lab.rigs.object_scale", {"rig_object", "sim2real_rigs"}),
+    ("lab.rigs.object_scale", {"rig_object"}),
     ("lab.rigs.height_jitter_mm", {"sim2real_rigs"}),
     ("lab.rigs.*", {"rig_take", "sim2real_rigs"}),  # seed, uniform, choice: the camera's draws
     ("lab.camera.model", {"lab_take", "summary"}),  # a drawn rig names its own
@@ -484,7 +484,7 @@ def _write(tmp_path: Path, name: str, cfg: dict) -> Path:
 
 
 #: what sim2real_rigs records of each drawn rig (its params): how the rig was emulated
-_RIG_RECORD = ("lab.objects.*", "lab.as_built.*", "lab.camera.*", "lab.heights_mm")
+_RIG_RECORD = ("lab.as_built.*", "lab.camera.*", "lab.heights_mm")
 
 
 def with_rigs(key: str, rules: set[str]) -> set[str]:

@@ -138,7 +138,8 @@ rule sim2real_rigs:
         figure=report(f"{RIGS_EVAL}/rigs.png", caption="../report/sim2real_rigs.rst",
                       category="Sim-to-real"),
     params:
-        rigs=lambda w: canonical({r: {k: rig_lab(r)[k] for k in ("as_built", "camera", "heights_mm", "objects")}
+        # how each rig was emulated (its objects: in its takes' take.json)
+        rigs=lambda w: canonical({r: {k: rig_lab(r)[k] for k in ("as_built", "camera", "heights_mm")}
                                   for r in rig_names()}),
     log:
         f"{RESULTS}/logs/evaluate/sim2real_rigs.log",

@@ -280,6 +280,7 @@ NAMED = [("experiments", "*"), ("experiments", "*", "*", "*", "groups"),
          ("viewpoint", "fy_nrmse_pct", "*"),
          ("setup", "occlusion_levels"),
          ("sim2real", "by_context"), ("sim2real", "by_context", "*", "per_object"),
+         ("sim2real_rigs", "by_context"), ("sim2real_rigs", "per_rig"), ("sim2real_rigs", "settings"),
          ("diversity", "tests", "*", "groups")]
 
 
