@@ -64,7 +64,7 @@ class RigPrior:
     simulation (an as-built finger's stiffness; ``log g_rig ~ Normal(0, gain_log_sd)``)
     and its offset (N; ``b_rig ~ Normal(0, offset_sd_N)``). With no context frames the
     calibration is fitted on the simulation's own frames, which know neither: its
-    intervals then covered 4-6 % of a rig's frames (README, "Sim-to-real")."""
+    intervals then covered 3-6 % of the emulated rig's frames (README, "Sim-to-real")."""
 
     gain_log_sd: float = 0.0
     offset_sd_N: float = 0.0

@@ -19,9 +19,11 @@ def lab_polygon_input(wildcards):
     return [spec["path"]] if spec["type"] == "polygon_file" else []
 
 
-def lab_take_seed(wildcards):
-    """The take's seed: lab.seed and its name (adding a take leaves the others alone)."""
-    return config["lab"]["seed"] + zlib.crc32(f"{wildcards.object}_h{wildcards.height}".encode()) % 100000
+def lab_take_seed(wildcards, seed=None):
+    """The take's seed: lab.seed (or ``seed``) and its name (adding a take leaves the
+    others alone)."""
+    seed = config["lab"]["seed"] if seed is None else seed
+    return seed + zlib.crc32(f"{wildcards.object}_h{wildcards.height}".encode()) % 100000
 
 
 # ---- the drawn rigs (lab.rigs; rigs.smk): each a whole lab section of its own
@@ -38,6 +40,7 @@ def rig_lab(rig):
 
 
 def rig_takes(rig):
+    """Rig ``rig``'s takes: <object>_h<height>, as lab_takes."""
     lab = rig_lab(rig)
     return [f"{o}_h{h:g}" for o in sorted(lab["objects"]) for h in lab["heights_mm"]]
 
@@ -49,4 +52,4 @@ def rig_polygon_input(wildcards):
 
 def rig_take_seed(wildcards):
     """As lab_take_seed, from the rig's own lab.seed."""
-    return rig_lab(wildcards.rig)["seed"] + zlib.crc32(f"{wildcards.object}_h{wildcards.height}".encode()) % 100000
+    return lab_take_seed(wildcards, rig_lab(wildcards.rig)["seed"])

@@ -21,7 +21,8 @@ def all_targets():
         f"{RESULTS}/benchmarks/train_time.csv",
         f"{RESULTS}/lab/qa.json",  # the emulated lab rig's takes, ingested and checked
         f"{RESULTS}/lab/qa.png",
-    ] + ([f"{EVALUATE}/sim2real/rigs/summary.json"] if rig_names() else []) + expand("paper/figures/{name}.pdf", name=FIGURES) + expand(
+    ] + ([f"{EVALUATE}/sim2real/rigs/summary.json"] if rig_names() else []) + expand(
+        "paper/figures/{name}.pdf", name=FIGURES) + expand(
         f"{TRAIN}/{{model}}/model.ts", model=model_names()
     ) + object_geometry_files() + (
         [f"{RESULTS}/benchmarks/realtime.md"]
