@@ -2,7 +2,7 @@
 
 ``lab.rigs`` names how many rigs to draw besides the configured one, from which seed,
 and the ranges: :func:`draw_rig` returns rig ``i``'s whole ``lab`` section, the
-configured one with these drawn (each from its own generator, ``seed + i``):
+configured one with these drawn (from a generator seeded by ``seed`` and ``i``):
 
 - ``uniform``: ``{"<section>.<key>": [low, high]}``, a value uniform in the range (each
   element of a list value drawn apart, e.g. the sensor's three biases);
