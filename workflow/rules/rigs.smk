@@ -19,7 +19,7 @@ use rule lab_finger as rig_finger with:
         surface=f"{RIGS}/{{rig}}/geometry/finger_surface.ply",
         surface_npz=f"{RIGS}/{{rig}}/geometry/finger_surface.npz",
     params:
-        finger=lambda w: canonical(as_built_finger(config["finger"], rig_lab(w.rig)["as_built"])),
+        finger=lambda w: lab_finger(rig_lab(w.rig)),
         mesh=section("mesh"),
     log:
         f"{RESULTS}/logs/lab/rigs/{{rig}}/finger.log",
@@ -30,14 +30,14 @@ use rule lab_finger as rig_finger with:
 use rule lab_object as rig_object with:
     input:
         finger=f"{RIGS}/{{rig}}/geometry/finger.json",
-        polygon=rig_polygon_input,
+        polygon=lab_polygon_input,
     output:
         npz=f"{RIGS}/{{rig}}/geometry/objects/{{object}}_h{{height}}.npz",
         vtu=f"{RIGS}/{{rig}}/geometry/objects/{{object}}_h{{height}}.vtu",
     params:
         spec=lambda w: canonical(rig_lab(w.rig)["objects"][w.object]),
         deformable=False,
-        finger=lambda w: canonical(as_built_finger(config["finger"], rig_lab(w.rig)["as_built"])),
+        finger=lambda w: lab_finger(rig_lab(w.rig)),
         mesh=section("mesh", keys=("size_mm", "min_angle_deg")),
         placement=lambda w: canonical({"gap_mm": rig_lab(w.rig)["motion"]["gap_mm"]}),
     log:
@@ -110,7 +110,7 @@ use rule lab_ingest as rig_ingest with:
 
 use rule sim2real as rig_sim2real with:
     input:
-        lab=lambda w: [f"{RIGS}/{w.rig}/ingest/{t}/shard.npz" for t in rig_takes(w.rig)],
+        lab=lambda w: [f"{RIGS}/{w.rig}/ingest/{t}/shard.npz" for t in lab_takes(rig_lab(w.rig))],
         model=sim2real_model(),
         sim=shard_files(splits=["train"], pitch=0.0),
         sim_test=shard_files(splits=["shape"], pitch=0.0),

@@ -1,13 +1,17 @@
 # Helpers of the emulated lab rig's rules (lab.smk): its takes, as-built finger and objects.
+import functools
 
 
-def lab_takes():
-    """Every take's name: <object>_h<height>."""
-    return [f"{o}_h{h:g}" for o in sorted(config["lab"]["objects"]) for h in config["lab"]["heights_mm"]]
+def lab_takes(lab=None):
+    """Every take's name: <object>_h<height> (of ``lab``, a lab section; the config's)."""
+    lab = config["lab"] if lab is None else lab
+    return [f"{o}_h{h:g}" for o in sorted(lab["objects"]) for h in lab["heights_mm"]]
 
 
-def lab_finger():
-    return canonical(as_built_finger(config["finger"], config["lab"]["as_built"]))
+def lab_finger(lab=None):
+    """The as-built finger of ``lab`` (the config's lab section by default)."""
+    lab = config["lab"] if lab is None else lab
+    return canonical(as_built_finger(config["finger"], lab["as_built"]))
 
 
 def lab_object_spec(wildcards):
@@ -15,7 +19,8 @@ def lab_object_spec(wildcards):
 
 
 def lab_polygon_input(wildcards):
-    spec = config["lab"]["objects"][wildcards.object]
+    lab = rig_lab(wildcards.rig) if "rig" in wildcards.keys() else config["lab"]
+    spec = lab["objects"][wildcards.object]
     return [spec["path"]] if spec["type"] == "polygon_file" else []
 
 
@@ -34,20 +39,11 @@ def rig_names():
     return _rig_names(config["lab"]["rigs"])
 
 
+@functools.lru_cache(maxsize=None)
 def rig_lab(rig):
-    """Rig ``rig``'s lab section (finray.lab.rigs.draw_rig)."""
+    """Rig ``rig``'s lab section (finray.lab.rigs.draw_rig), drawn once per planning: the
+    config does not change while Snakemake plans. Read-only."""
     return draw_rig(config["lab"], rig_index(rig))
-
-
-def rig_takes(rig):
-    """Rig ``rig``'s takes: <object>_h<height>, as lab_takes."""
-    lab = rig_lab(rig)
-    return [f"{o}_h{h:g}" for o in sorted(lab["objects"]) for h in lab["heights_mm"]]
-
-
-def rig_polygon_input(wildcards):
-    spec = rig_lab(wildcards.rig)["objects"][wildcards.object]
-    return [spec["path"]] if spec["type"] == "polygon_file" else []
 
 
 def rig_take_seed(wildcards):
