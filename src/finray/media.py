@@ -250,9 +250,15 @@ class LiveFrames:
                 return
 
     def close(self) -> None:
+        """Stop the reader, then close the stream. Closing while the reader is inside
+        FFmpeg's decoder crashed the process (SIGSEGV on Ctrl-C), so the container is
+        closed only once the reader has left it; a reader stuck on a silent network
+        stream is left to the process's exit (it is a daemon)."""
         self._stop.set()
+        self._thread.join(timeout=5.0)
+        if self._thread.is_alive():
+            return
         try:
             self._container.close()
         except Exception:  # noqa: BLE001 - closing a broken stream: nothing left to save
             pass
-        self._thread.join(timeout=2.0)
