@@ -2,21 +2,14 @@
 # the scenes' views and shards. Each stage's own helpers are in helpers/<stage>.smk.
 import os
 import sys
-from dataclasses import fields
 from types import SimpleNamespace
-
-import zlib
 
 import yaml
 from snakemake.utils import update_config
 
-from finray.config import (ConfigError, diversity_models, generated_training_objects, merge_config,
-                           object_is_meshed, read_config_file, scenes, validate_config)
-from finray.dataset import pitch_object, scene_splits
+from finray.config import ConfigError, merge_config, read_config_file, scenes, validate_config
+from finray.dataset import pitch_object
 from finray.dataset.shards import SHARD_KEYS
-from finray.lab.as_built import as_built_fea, as_built_finger, as_built_material
-from finray.lab.rigs import draw_rig, rig_index, rig_names as _rig_names
-from finray.render import RenderParams
 
 DEFAULT_CONFIGFILE = os.path.join(workflow.basedir, "config", "config.yaml")
 if not workflow.config_settings.configfiles:
@@ -50,20 +43,10 @@ config.clear()
 config.update(_validated)
 
 RESULTS = "results"
-
-
 GEOMETRY = f"{RESULTS}/geometry"
-
-
 FEA = f"{RESULTS}/fea"
-
-
 RENDER = f"{RESULTS}/render"
-
-
 DATASET = f"{RESULTS}/dataset"
-
-
 TRAIN = f"{RESULTS}/train"
 LAB = f"{RESULTS}/lab"  # the emulated lab rig
 SPREAD = f"{RESULTS}/evaluate/spread"  # the spread and training-budget studies' variants

@@ -1,4 +1,5 @@
 # Helpers of the geometry rules (geometry.smk): the objects' files, shapes and splits.
+from finray.config import object_is_meshed
 
 
 def object_geometry_files():

@@ -1,5 +1,9 @@
 # Helpers of the emulated lab rig's rules (lab.smk): its takes, as-built finger and objects.
 import functools
+import zlib
+
+from finray.lab.as_built import as_built_fea, as_built_finger, as_built_material
+from finray.lab.rigs import draw_rig, rig_index, rig_names as _rig_names
 
 
 def lab_takes(lab=None):

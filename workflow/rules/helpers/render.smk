@@ -1,5 +1,9 @@
 # Helpers of the render rules (render.smk): the renderer's settings, the pitch series, each scene's
 # description and camera views.
+from dataclasses import fields
+
+from finray.dataset import scene_splits
+from finray.render import RenderParams
 
 
 def render_params():

@@ -1,5 +1,6 @@
 # Helpers of the train rules (train.smk): each model's training shards and augmentation; the
 # models an experiment compares.
+from finray.config import diversity_models, generated_training_objects
 
 
 # The diversity comparison (generated.compare_model): (paper-objects model, model), or None
