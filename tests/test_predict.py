@@ -576,6 +576,26 @@ def test_stream_benchmark_on_a_live_stream(exported, render_png, tmp_path):
         stream_benchmark(d / "model.ts", video, tmp_path / "x", "fast")
 
 
+def test_stream_force_error_matches_rows_to_the_frames_they_read(tmp_path):
+    """Rows of a stream's run matched by time stamp to the frames of the forth-and-back
+    cycle: rows that carry each frame's true force plus 0.1 N give an RMSE of 0.1 N."""
+    from finray.benchmarks.realtime import stream_force_error, write_stream_video
+    from finray.media import video_frames
+
+    frames = [np.full((40, 24, 3), 40 * k, np.uint8) for k in range(5)]
+    video = write_stream_video(frames, tmp_path / "s.ts", (40, 24), 20, 30.0)
+    truth = np.array([0.0, 1.0, 2.0, 3.0, 4.0])
+    order = [0, 1, 2, 3, 4, 3, 2, 1]
+    stamps = [f.t_s for f in video_frames(video)]
+    ks = [0, 3, 4, 5, 9, 17, 19]  # some dropped, as a live run drops them
+    with open(tmp_path / "forces.csv", "w") as f:
+        f.write("frame,t_s,fx_N\n")
+        f.writelines(f"live_{k},{stamps[k]:.6f},{truth[order[k % 8]] + 0.1}\n" for k in ks)
+    err = stream_force_error(tmp_path / "forces.csv", video, truth)
+    assert err["force_rmse_N"] == pytest.approx(0.1)
+    assert err["force_nrmse_pct"] == pytest.approx(100 * 0.1 / 4.0)
+
+
 def _serve(video, port):
     """The real-time benchmark's server (finray.benchmarks.realtime.SERVE): the video's
     own packets over TCP at their pace, in another process."""

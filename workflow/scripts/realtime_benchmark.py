@@ -14,6 +14,6 @@ with log_to(snakemake.log[0]):
                     key=lambda f: (f["distance_mm"], f["frame"]))
     out = realtime_report(snakemake.input.model, [folder / f["image"] for f in frames],
                           snakemake.params.work, sizes=[tuple(s) for s in b["realtime_sizes"]],
-                          seconds=b["realtime_seconds"])
+                          seconds=b["realtime_seconds"], forces_N=[f["fx_N"] for f in frames])
     Path(snakemake.output.json).write_text(json.dumps(out, indent=1))
     Path(snakemake.output.table).write_text(realtime_table(out))

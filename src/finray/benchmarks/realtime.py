@@ -305,13 +305,35 @@ WARMUP_FRAMES = 5
 
 
 
+def stream_force_error(forces_csv: str | Path, video: str | Path, truth_N) -> dict:
+    """How well a run on a stream of :func:`write_stream_video` predicted: each row of
+    its ``forces.csv`` (``t_s``, ``fx_N``) matched by time stamp to the stream's frame
+    ``k``, whose source image is ``k`` of the forth-and-back cycle and whose force is
+    ``truth_N`` of that image (the FEA's ``fx_N``, N). RMSE (N) and NRMSE (% of the
+    largest |force|) over the rows: a fast loop that misreads frames shows here."""
+    import pandas as pd
+
+    from ..media import video_frames
+
+    truth = np.asarray(truth_N, float)
+    n = len(truth)
+    order = np.r_[np.arange(n), np.arange(n - 2, 0, -1)] if n > 2 else np.arange(n)
+    stamps = np.array([f.t_s for f in video_frames(video)])
+    rows = pd.read_csv(forces_csv)
+    k = np.abs(rows["t_s"].to_numpy()[:, None] - stamps[None, :]).argmin(axis=1)
+    err = rows["fx_N"].to_numpy() - truth[order[k % len(order)]]
+    rmse = float(np.sqrt(np.mean(err ** 2)))
+    return {"force_rmse_N": rmse, "force_nrmse_pct": 100 * rmse / float(np.abs(truth).max())}
+
+
 def realtime_report(model_path: str | Path, images, work_dir: str | Path,
                     sizes=((480, 640), (720, 1280)), seconds: float = 20.0, fps: float = 30.0,
-                    modes=MODES, cores: tuple[int, int] | None = (0, 1)) -> dict:
+                    modes=MODES, cores: tuple[int, int] | None = (0, 1), forces_N=None) -> dict:
     """:func:`stream_benchmark` at each frame size (H, W) and mode, on a stream of
     ``seconds`` at ``fps`` made of ``images`` (paths, cycled forth and back): the figures
-    per run, the machine (CPU, cores) and whether each run kept up. ``work_dir`` holds
-    the streams and the runs' outputs."""
+    per run, the machine (CPU, cores) and whether each run kept up; with ``forces_N``
+    (each image's true force, N) also each predicting run's force error
+    (:func:`stream_force_error`). ``work_dir`` holds the streams and the runs' outputs."""
     import imageio.v3 as iio
 
     from ..precision import cpu_name
@@ -327,6 +349,8 @@ def realtime_report(model_path: str | Path, images, work_dir: str | Path,
         for mode in modes:
             r = stream_benchmark(model_path, video, work / f"out_{w}x{h}_{mode}", mode, cores)
             r["size"] = f"{w}x{h}"
+            if forces_N is not None and mode != "read":
+                r.update(stream_force_error(work / f"out_{w}x{h}_{mode}" / "forces.csv", video, forces_N))
             print(f"{w}x{h} {mode}: {r['fps']:.1f} fps, latency p50 {r['latency_p50_ms']:.1f} ms, "
                   f"p99 {r['latency_p99_ms']:.1f} ms, {r['dropped_steady']} dropped, "
                   f"{r['cpu_ms_per_frame']:.1f} ms CPU per frame", flush=True)
@@ -342,8 +366,10 @@ def realtime_table(report: dict) -> str:
 
     cols = {"size": "stream", "mode": "mode", "fps": "fps", "latency_p50_ms": "latency p50 (ms)",
             "latency_p99_ms": "p99 (ms)", "dropped_steady": "dropped", "received": "received",
-            "cpu_ms_per_frame": "CPU per frame (ms)", "keeps_up": "keeps up"}
-    df = pd.DataFrame(report["runs"])[list(cols)].rename(columns=cols)
+            "cpu_ms_per_frame": "CPU per frame (ms)", "keeps_up": "keeps up",
+            "force_nrmse_pct": "force NRMSE (%)"}
+    df = pd.DataFrame(report["runs"])
+    df = df[[c for c in cols if c in df]].rename(columns=cols)
     head = (f"# `finray predict` on a live {report['rate_hz']:g} FPS stream\n\n"
             f"{report['cpu']}, the predicting process pinned to one core, the server to the "
             f"other. Each stream {report['seconds']:g} s of pyvista renders of a held-out "
@@ -353,5 +379,6 @@ def realtime_table(report: dict) -> str:
             "(the stream's own delay: MPEG-TS completes a frame only when the next one "
             "starts), `force` is `--force-only`, `annotate` is `--annotate --no-maps` (the "
             "overlay drawn and the annotated video encoded). Dropped: frames that came "
-            "while the loop was busy.\n\n")
+            "while the loop was busy. Force NRMSE: the predicted force of each row "
+            "against the FEA's for the frame it read, in % of the largest force.\n\n")
     return head + df.to_markdown(index=False, floatfmt=".1f") + "\n"
