@@ -12,8 +12,9 @@ or lower. The top-level modules that are not stages get the rank of what they im
 - ``config``: validates every section, so it imports geometry (shapes), render and
   dataset (their parameters): above dataset, below train. No stage below it may
   import it (the FEA studies do, from ``benchmarks``).
-- ``model``, ``train``: the train stage; ``predict`` runs a trained model on camera
-  frames (dataset's image ops, render's image I/O) and is what evaluate scores.
+- ``model``, ``train``: the train stage; ``predictor`` runs a trained model on camera
+  frames (dataset's image ops) and is what evaluate scores; ``predict`` runs it over
+  files and live sources (render's image I/O).
   ``adapt`` fits a rig's force heads on a trained model, ``calibration`` the sensor model
   on them (from ingested takes: recording's level): both at train's rank, so that
   ``predict`` may apply a calibration.
@@ -39,7 +40,7 @@ RANK = {
     "lab": 35,
     "dataset": 40, "recording": 40,
     "config": 45,
-    "model": 50, "train": 50, "predict": 50, "adapt": 50, "calibration": 50,
+    "model": 50, "train": 50, "predictor": 50, "predict": 50, "adapt": 50, "calibration": 50,
     "evaluate": 60,
     "benchmarks": 70,
     "cli": 80,
@@ -106,9 +107,9 @@ def test_no_stage_imports_a_later_one():
 
 def test_ingest_never_sees_the_emulator():
     """A real rig's takes go through the same code: recording imports nothing of lab
-    (whose takes carry the truth beside them), nor does predict or train."""
+    (whose takes carry the truth beside them), nor does predict(or) or train."""
     bad = [f"{m}:{line}: {target}" for f, m in _modules()
-           if _unit(m.split(".")[1:]) in ("recording", "predict", "train", "model")
+           if _unit(m.split(".")[1:]) in ("recording", "predictor", "predict", "train", "model")
            for line, target in finray_imports(f.read_text(), m)
            if _unit(target.split(".")[1:]) == "lab"]
     assert bad == []

@@ -78,7 +78,7 @@ def time_inference(model, device: str = "auto", n_calls: int = 200, repeats: int
     ``device`` (exported to a temporary folder as training exports it): ``force_ms``
     (encoder and force head), ``full_ms`` (with the stress decoder), wall and the
     calling thread's CPU time, and the 90th percentile of the wall time."""
-    from ..predict import Predictor
+    from ..predictor import Predictor
     from ..train import export_onnx, export_torchscript
 
     c = model.cfg

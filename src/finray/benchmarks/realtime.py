@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..predict import Predictor
+from ..predictor import Predictor
 
 #: The paper's inference time (GPU), for comparison with :func:`latency`.
 PAPER_LATENCY_MS = 8.0

@@ -19,7 +19,8 @@ import pandas as pd
 
 from ..dataset import area_resample, scene_id
 from ..dataset.shards import HALF
-from ..predict import FrameError, Predictor
+from ..errors import FrameError
+from ..predictor import Predictor
 from ..render import load_render_index, read_render_frame
 
 def camera_test_set(index_paths, predictor: Predictor) -> tuple[dict, pd.DataFrame]:

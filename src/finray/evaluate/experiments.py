@@ -34,7 +34,8 @@ from .baseline import RidgeBaseline
 from .camera import camera_test_set, rendered_subset, shared_preprocessing
 from .metrics import force_metrics, force_vector_metrics, stress_metrics
 from ..dataset import scene_id
-from ..predict import FrameError, Predictor
+from ..errors import FrameError
+from ..predictor import Predictor
 from .predictions import load_test_set, occlude, predict_images
 from .tables import PATH_KEYS
 

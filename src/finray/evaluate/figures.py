@@ -230,7 +230,7 @@ def annotated_figure(model_path, render_index, lab_video, lab_ingest_json, out_p
 
     from ..annotate import annotate_frame
     from ..media import video_frames
-    from ..predict import Predictor
+    from ..predictor import Predictor
     from ..recording.colour import ColourRange, segment_finger
     from ..render.scene import load_render_index
 

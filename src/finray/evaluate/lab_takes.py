@@ -70,7 +70,7 @@ def model_forces(shards: dict, model_path, size) -> pd.DataFrame:
     """A model's force (N) on every frame of lab shards ``{take: shard}`` (shard path):
     take, frame, pred_N."""
     from ..dataset import load_frames
-    from ..predict import Predictor
+    from ..predictor import Predictor
     from .predictions import predict_images
 
     net = Predictor(model_path, threads=1, backend="torchscript", roi_stride=1)

@@ -1,0 +1,225 @@
+"""Force (N) and stress map from one camera frame: the API a control loop calls.
+
+    from finray.predict import Predictor        # (defined in finray.predictor)
+    predict = Predictor("results/train/plain/model.ts")
+    force_N, stress_log = predict(frame)        # frame: (H, W, 3) uint8 numpy array
+    force_N = predict.force(frame)              # force only: no stress decoder, faster
+
+Preprocessing is the dataset stage's: segment the finger (threshold + morphology),
+crop, area-resample to the network's input. The crop is anchored on the finger
+itself, so any image size and position works: the lowest row of the mask is the
+clamped base, its width is the finger's base width (``base_width_mm``), which fixes
+the scale (px/mm); the window ``crop_x_mm`` x ``crop_y_mm`` of the training data is
+then cut around it.
+
+The network runs in ONNX Runtime when ``model.onnx`` and ``model.force.onnx`` lie
+beside ``model.ts`` (faster than TorchScript at batch 1 on one thread: both are timed in
+``results/benchmarks/inference_latency.json``), else in TorchScript. On a CUDA GPU
+(``device="cuda"``, or ``"auto"`` where torch sees one) it runs in TorchScript, or in
+ONNX Runtime's CUDAExecutionProvider when ``backend="onnx"`` is asked for and the
+installed ONNX Runtime has it; preprocessing stays on the CPU.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from .dataset.imageops import EmptyMaskError, base_anchored_box, segment, silhouette_input
+from .errors import DeviceInputError, FrameError, InputError
+from .media import one_line
+from .precision import DeviceError, resolve_device
+
+BACKENDS = ("auto", "onnx", "torchscript")
+
+
+class Predictor:
+    """Load an exported model (``model.ts`` + ``model.ts.json``, and ``model.onnx`` +
+    ``model.force.onnx`` for ONNX Runtime) once; call per frame.
+
+    ``backend``: ``"onnx"`` (ONNX Runtime), ``"torchscript"``, or ``"auto"`` (ONNX
+    Runtime when its files and the package are there; TorchScript on a GPU).
+    ``device``: ``"auto"`` (a CUDA GPU when torch sees one, else the CPU), ``"cpu"`` or
+    ``"cuda"`` (:class:`DeviceInputError` without a GPU); ``backend="onnx"`` on
+    ``"auto"`` stays on the CPU unless ONNX Runtime has its CUDAExecutionProvider.
+    :attr:`device` is where the network runs. ``threads``: intra-op threads (CPU).
+    ``roi_stride``: the segmentation finds the finger on every ``roi_stride``-th row and
+    column first and works at full resolution around it only
+    (:func:`~finray.dataset.imageops.segment`; 4: a 1280x720 frame segments ~2x faster,
+    the threshold may move an edge pixel); 1 segments as the dataset stage does, pixel
+    for pixel (the experiments).
+    """
+
+    def __init__(self, model_path: str | Path, threads: int = 1, backend: str = "auto",
+                 device: str = "auto", roi_stride: int = 4):
+        model_path = Path(model_path)
+        meta_path = Path(str(model_path) + ".json")
+        if not model_path.is_file():
+            raise InputError(f"no model at {model_path}")
+        if not meta_path.is_file():
+            raise InputError(f"{meta_path} (the model's preprocessing settings) is missing")
+        if backend not in BACKENDS:
+            raise ValueError(f"backend must be one of {BACKENDS}, not {backend!r}")
+        if int(roi_stride) < 1:
+            raise ValueError(f"roi_stride must be >= 1, got {roi_stride}")
+        self.roi_stride = int(roi_stride)
+        try:
+            self.device = resolve_device(device, "device")
+        except DeviceError as exc:
+            raise DeviceInputError(str(exc)) from None
+        try:
+            self.meta = json.loads(meta_path.read_text())
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise InputError(f"{meta_path} is not the model's JSON settings ({one_line(exc)})"
+                             ) from None
+        self.size = (self.meta["height"], self.meta["width"])
+        #: Names of the force outputs, in order (``fx_N`` first; exports before the force
+        #: vector had ``fx_N`` only).
+        self.force_names = list(self.meta.get("forces") or ["fx_N"])
+        pre = self.meta.get("preprocess", {})
+        self.base_width_mm = pre.get("base_width_mm", 30.0)
+        self.crop_x_mm = tuple(pre.get("crop_x_mm", (-5.0, 35.0)))
+        self.crop_y_mm = tuple(pre.get("crop_y_mm", (0.0, 80.0)))
+        self.segment_kw = pre.get("segment", {})
+        #: the base is the widest row among the lowest base_band of the mask's height
+        #: (dataset.base_band; 0, the lowest row, for exports before it)
+        self.base_band = float(pre.get("base_band", 0.0))
+        #: Heads of an adapted ensemble (:mod:`finray.adapt`; 0: a single network).
+        self.ensemble = int(self.meta.get("ensemble", 0))
+        if self.ensemble and backend == "onnx":
+            raise InputError(f"{model_path} is a head ensemble: TorchScript only (backend "
+                             "torchscript or auto)")
+        onnx_full = model_path.with_suffix(".onnx")
+        onnx_force = model_path.with_suffix(".force.onnx")
+        cuda = self.device.type == "cuda"
+        if backend == "auto":
+            have = (onnx_full.is_file() and onnx_force.is_file() and not cuda
+                    and not self.ensemble)
+            try:
+                import onnxruntime  # noqa: F401
+            except ImportError:
+                have = False
+            backend = "onnx" if have else "torchscript"
+        self.backend = backend
+        if backend == "onnx":
+            import onnxruntime as ort
+
+            providers = ["CPUExecutionProvider"]
+            if cuda and "CUDAExecutionProvider" in ort.get_available_providers():
+                providers.insert(0, "CUDAExecutionProvider")
+            elif cuda and device == "cuda":
+                raise DeviceInputError(
+                    "backend onnx on cuda needs ONNX Runtime's CUDAExecutionProvider (the "
+                    "onnxruntime-gpu package); this one has "
+                    f"{', '.join(ort.get_available_providers())}: use backend torchscript")
+            elif cuda:  # device auto: ONNX Runtime without CUDA runs on the CPU
+                self.device = torch.device("cpu")
+            opts = ort.SessionOptions()
+            opts.intra_op_num_threads = threads
+            opts.inter_op_num_threads = 1
+            opts.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
+            for f in (onnx_full, onnx_force):
+                if not f.is_file():
+                    raise InputError(f"no ONNX model at {f}")
+            try:
+                self._full = ort.InferenceSession(str(onnx_full), opts, providers=providers)
+                self._force = ort.InferenceSession(str(onnx_force), opts, providers=providers)
+            except Exception as exc:  # onnxruntime's own error types
+                raise InputError(f"cannot load the ONNX model {onnx_full} ({one_line(exc)})"
+                                 ) from None
+        else:
+            torch.set_num_threads(threads)
+            try:
+                self.model = torch.jit.load(str(model_path), map_location=self.device).eval()
+            except (RuntimeError, ValueError) as exc:
+                raise InputError(f"{model_path} is not a TorchScript model ({one_line(exc)})"
+                                 ) from None
+            self._has_force = hasattr(self.model, "force")  # exports before the force path
+
+    def crop_box(self, mask: np.ndarray) -> tuple[float, float, float, float]:
+        """Training window in pixel edges ``(col0, row0, col1, row1)`` from the mask
+        (:func:`~finray.dataset.imageops.base_anchored_box`)."""
+        try:
+            return base_anchored_box(mask, self.base_width_mm, self.crop_x_mm, self.crop_y_mm,
+                                     base_band=self.base_band)
+        except EmptyMaskError as exc:
+            raise FrameError(str(exc)) from None
+
+    def segment(self, frame: np.ndarray) -> np.ndarray:
+        """Finger mask (H, W) bool, as in the dataset stage."""
+        frame = np.asarray(frame)
+        if frame.ndim not in (2, 3):
+            raise FrameError(f"expected an (H, W) or (H, W, 3) image, got shape {frame.shape}")
+        return segment(frame, **self.segment_kw, roi_stride=self.roi_stride)
+
+    def network_input(self, mask: np.ndarray) -> np.ndarray:
+        """Network input (1, 1, H, W) float32 in [0, 1] from the mask: the 8-bit soft
+        silhouette of the training window, as in the training data."""
+        x = silhouette_input(mask, self.crop_box(mask), self.size).astype(np.float32) / 255.0
+        return x[None, None]
+
+    def preprocess(self, frame: np.ndarray) -> tuple[torch.Tensor, np.ndarray]:
+        """Network input (1, 1, H, W) tensor in [0, 1] and the full-resolution mask."""
+        mask = self.segment(frame)
+        return torch.from_numpy(self.network_input(mask)), mask
+
+    def warm_up(self) -> None:
+        """Each path once on a synthetic frame (the segmentation's compiled kernels, ONNX
+        Runtime's first runs), so that a live source's first frame takes its usual time."""
+        frame = np.zeros((96, 48, 3), np.uint8)
+        frame[8:88, 8:40] = 255
+        x = self.network_input(self.segment(frame))
+        self.run(x)
+        self.run_force(x)
+
+    def run(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The network on inputs (B, 1, H, W) float32: log-stress maps (B, 1, H, W) and
+        forces (B, n_forces) in N."""
+        x = np.ascontiguousarray(x, dtype=np.float32)
+        if self.backend == "onnx":
+            stress, force = self._full.run(None, {"image": x})
+            return stress, force
+        with torch.inference_mode():
+            stress, force = self.model(torch.from_numpy(x).to(self.device))
+        return stress.cpu().numpy(), force.cpu().numpy()
+
+    def run_force(self, x: np.ndarray) -> np.ndarray:
+        """Forces (B, n_forces) in N of inputs (B, 1, H, W) float32, without the stress
+        decoder."""
+        x = np.ascontiguousarray(x, dtype=np.float32)
+        if self.backend == "onnx":
+            return self._force.run(None, {"image": x})[0]
+        with torch.inference_mode():
+            xt = torch.from_numpy(x).to(self.device)
+            f = self.model.force(xt) if self._has_force else self.model(xt)[1]
+        return f.cpu().numpy()
+
+    def run_members(self, x: np.ndarray) -> np.ndarray:
+        """Each head's force (B, M) in N of inputs (B, 1, H, W) float32 (an adapted
+        ensemble; a single network: (B, 1), its force along the push)."""
+        if not self.ensemble:
+            return self.run_force(x)[:, :1]
+        with torch.inference_mode():
+            xt = torch.from_numpy(np.ascontiguousarray(x, np.float32)).to(self.device)
+            return self.model.members(xt).cpu().numpy()
+
+    def force_members(self, frame: np.ndarray) -> np.ndarray:
+        """Each head's force (M,) in N of one frame (see :meth:`run_members`)."""
+        return self.run_members(self.network_input(self.segment(frame)))[0]
+
+    def __call__(self, frame: np.ndarray) -> tuple[float, np.ndarray]:
+        """Force (N, along the push) and the log-stress map (H, W) of one frame."""
+        stress, force = self.run(self.network_input(self.segment(frame)))
+        return float(force[0, 0]), stress[0, 0]
+
+    def forces(self, frame: np.ndarray) -> dict[str, float]:
+        """Every force output (N) of one frame by name (:attr:`force_names`, e.g.
+        ``fx_N``, ``fy_N``), without the stress map."""
+        f = self.run_force(self.network_input(self.segment(frame)))[0]
+        return {n: float(v) for n, v in zip(self.force_names, f)}
+
+    def force(self, frame: np.ndarray) -> float:
+        """Force (N, along the push) of one frame, without the stress map (faster)."""
+        return float(self.run_force(self.network_input(self.segment(frame)))[0, 0])
