@@ -1,9 +1,9 @@
-"""The convergence helpers of the FEA cost/accuracy study (finray.benchmarks.fea)."""
+"""The FEA studies' helpers: cost/accuracy (finray.benchmarks.fea_pareto) and robustness (fea_stability)."""
 import numpy as np
 import pandas as pd
 import pytest
 
-from finray.benchmarks.fea import converged_estimate, richardson, write_pareto
+from finray.benchmarks.fea_pareto import converged_estimate, richardson, write_pareto
 from finray.fea.simulate import SimulationError
 
 
@@ -70,7 +70,7 @@ INTERSECTS = "the object intersects the finger in the initial state"
 
 
 def test_stability_suite_accepts_the_expected_refusal(smoke_cfg, tmp_path):
-    from finray.benchmarks.fea import Refusal, stability_suite
+    from finray.benchmarks.fea_stability import Refusal, stability_suite
 
     cases = {"overlap": ({}, {}, Refusal(SimulationError, "intersects the finger"))}
     df = stability_suite(smoke_cfg, tmp_path / "s.csv", cases=cases, log=lambda *a: None,
@@ -83,7 +83,7 @@ def test_stability_suite_accepts_the_expected_refusal(smoke_cfg, tmp_path):
 def test_stability_suite_fails_on_a_wrong_refusal(smoke_cfg, tmp_path, exc):
     """A refused case that raises the wrong error type, or the right type with the
     wrong message, fails the suite (after writing the table)."""
-    from finray.benchmarks.fea import Refusal, StabilityFailure, stability_suite
+    from finray.benchmarks.fea_stability import Refusal, StabilityFailure, stability_suite
 
     if isinstance(exc, str):
         exc = SimulationError("load step 3 failed: line search failed", step=3, cause="ls")
@@ -98,7 +98,7 @@ def test_stability_suite_fails_on_a_wrong_refusal(smoke_cfg, tmp_path, exc):
 def test_stability_suite_converge_case(smoke_cfg, tmp_path):
     """A converge case stopping with a SimulationError is a finding (not ok, the suite
     goes on); any other exception there is a bug and fails the suite."""
-    from finray.benchmarks.fea import StabilityFailure, stability_suite
+    from finray.benchmarks.fea_stability import StabilityFailure, stability_suite
 
     cases = {"hard": ({}, {}, "converge")}
     df = stability_suite(smoke_cfg, tmp_path / "s.csv", cases=cases, log=lambda *a: None,
@@ -110,7 +110,7 @@ def test_stability_suite_converge_case(smoke_cfg, tmp_path):
 
 
 def test_stability_cases_name_their_refusals():
-    from finray.benchmarks.fea import STABILITY_CASES, Refusal
+    from finray.benchmarks.fea_stability import STABILITY_CASES, Refusal
 
     for case, (_, _, expected) in STABILITY_CASES.items():
         assert expected == "converge" or isinstance(expected, Refusal), case

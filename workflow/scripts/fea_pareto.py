@@ -1,4 +1,5 @@
-from finray.benchmarks.fea import run_time_vs_error, study_config
+from finray.benchmarks.fea import study_config
+from finray.benchmarks.fea_pareto import run_time_vs_error
 from finray.logs import log_to
 
 p = snakemake.params

@@ -1,4 +1,5 @@
-from finray.benchmarks.fea import stability_cases, stability_suite, study_config
+from finray.benchmarks.fea import study_config
+from finray.benchmarks.fea_stability import stability_cases, stability_suite
 from finray.logs import log_to
 
 p = snakemake.params
