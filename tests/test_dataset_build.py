@@ -8,7 +8,7 @@ import pytest
 from finray.dataset import (MANIFEST_COLUMNS, DatasetParams, FramePreparer, area_resample,
                             build_shard, example_figure, load_shard, pitch_object, render_shard,
                             scene_splits, segment, write_manifest)
-from finray.dataset.shards import SHARD_KEYS
+from finray.dataset.params import SHARD_KEYS
 from finray.render import RenderParams, load_render_index, read_render_frame, render_scene
 
 from test_render_fixture import write_synthetic_fea_result

@@ -157,3 +157,33 @@ def test_reading_shards_and_training_load_no_renderer_or_mesher():
             "             if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def _module_file(target: str) -> str | None:
+    """The module (``finray.a.b``) that an import target names: itself, or the module
+    holding the name it imports; None for a package (its ``__init__`` re-exports)."""
+    parts = target.split(".")
+    for n in (len(parts), len(parts) - 1):
+        path = SRC.parent.joinpath(*parts[:n])
+        if path.with_suffix(".py").is_file():
+            return ".".join(parts[:n])
+        if path.is_dir():
+            return None
+    return None
+
+
+def test_no_import_circle():
+    """No module reaches itself through the imports of others, late imports included
+    (a package's ``__init__``, which re-exports its modules, is left out)."""
+    from graphlib import CycleError, TopologicalSorter
+
+    graph = {}
+    for f, m in _modules():
+        if f.name == "__init__.py":
+            continue
+        targets = {_module_file(t) for _, t in finray_imports(f.read_text(), m)}
+        graph[m] = targets - {None, m}
+    try:
+        TopologicalSorter(graph).prepare()
+    except CycleError as exc:
+        pytest.fail(f"import circle: {' -> '.join(exc.args[1])}")

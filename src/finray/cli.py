@@ -424,7 +424,7 @@ def _ingest_parser(sub) -> None:
 def _ingest_params(raw: dict):
     """Ingest's settings from a config mapping: the dataset's sizes and crop, the
     finger's base width (never ``lab:``)."""
-    from .dataset.shards import DatasetParams
+    from .dataset.params import DatasetParams
     from .recording import IngestParams
 
     d = DatasetParams.from_config(raw.get("dataset"))

@@ -205,7 +205,7 @@ def _check_stage_sections(cfg: dict) -> None:
     """Cross-key checks of the render, dataset and train sections."""
     import re
 
-    from .dataset.shards import DatasetParams
+    from .dataset.params import DatasetParams
     from .dataset.splits import pitch_object
     from .render.params import RenderParams
 

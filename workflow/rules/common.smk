@@ -9,7 +9,7 @@ from snakemake.utils import update_config
 
 from finray.config import ConfigError, merge_config, read_config_file, scenes, validate_config
 from finray.dataset import pitch_object
-from finray.dataset.shards import SHARD_KEYS
+from finray.dataset.params import SHARD_KEYS
 
 DEFAULT_CONFIGFILE = os.path.join(workflow.basedir, "config", "config.yaml")
 if not workflow.config_settings.configfiles:

@@ -6,7 +6,8 @@ import os
 import tempfile
 from pathlib import Path
 
-from ..dataset.shards import DatasetParams, FramePreparer
+from ..dataset.params import DatasetParams
+from ..dataset.shards import FramePreparer
 from ..render.imageio import write_exr, write_png
 from ..render.params import RenderParams
 from ..render.raster import Rasterizer, composite

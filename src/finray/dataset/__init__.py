@@ -15,9 +15,9 @@ Public API:
 from .augment import (NOISE_LEVELS, OCCLUSION_LEVELS, AugmentParams, apply_augment, augment_seed,
                       disc_diameters, sample_augment)
 from .imageops import area_resample, segment, to_gray
-from .shards import (FRAME_COLUMNS, MANIFEST_COLUMNS, DatasetParams, FramePreparer, build_shard,
-                     load_frames, load_shard, prepare_frame, render_shard, scene_id, size_key,
-                     write_manifest)
+from .params import DatasetParams, scene_id, size_key
+from .shards import (FRAME_COLUMNS, MANIFEST_COLUMNS, FramePreparer, build_shard, load_frames,
+                     load_shard, prepare_frame, render_shard, write_manifest)
 from .splits import SPLITS, pitch_object, scene_splits
 
 

@@ -19,7 +19,7 @@ from ..geometry.mesh import TriMesh
 from ..render.camera_views import VIEW_COLUMNS, CameraViews
 from ..render.perspective import PerspectiveRaster
 from .imageops import EmptyMaskError, base_anchored_box, segment, silhouette_input
-from .shards import DatasetParams, size_key
+from .params import DatasetParams, size_key
 
 
 class CameraViewPreparer:

@@ -10,7 +10,8 @@ from ..render.params import RenderParams
 from ..render.scene import load_render_index, read_render_frame
 from .augment import apply_augment, augment_seed, sample_augment
 from .imageops import area_resample
-from .shards import DatasetParams, prepare_frame, size_key
+from .params import DatasetParams, size_key
+from .shards import prepare_frame
 
 
 def _crop_rgb(rgb, box):

@@ -28,7 +28,8 @@ from pathlib import Path
 import numpy as np
 
 from ..dataset.imageops import base_anchored_box, silhouette_input
-from ..dataset.shards import save_npz, scene_id, size_key
+from ..dataset.params import scene_id, size_key
+from ..dataset.shards import save_npz
 from .colour import ColourRange, learn_colour, segment_finger
 from .sync import align_clocks, force_at_frames
 from .take import MIN_SAMPLES, TakeError, open_frames, read_forces, read_take_json
