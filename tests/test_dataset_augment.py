@@ -100,3 +100,30 @@ def test_uint8_and_colour_images():
 def test_unknown_level_is_rejected():
     with pytest.raises(ValueError, match="occlusion level"):
         sample_augment(0, (64, 32), occlusion="extreme")
+
+
+def test_training_augmentation_replays_from_its_draw():
+    """The training augmentation draws a batch's parameters apart from applying them:
+    the same draw applied twice gives the same batch, the same generator state the same
+    draw, and a call is its draw applied; every part does something (jitter, camera
+    swap, occlusion discs, pitch, noise)."""
+    import torch
+
+    from finray.train.augment import TrainAugment
+    from finray.train.config import AugmentConfig
+
+    aug = TrainAugment(AugmentConfig(affine_p=0.5, perspective_p=0.5, salt_pepper_p=0.5,
+                                     occlusion_p=0.5, pitch_p=0.5, camera_p=0.5))
+    g = torch.Generator().manual_seed(0)
+    x, s, xc = torch.rand(12, 1, 64, 32, generator=g), torch.rand(12, 1, 64, 32, generator=g), \
+        torch.rand(12, 1, 64, 32, generator=g)
+    d = aug.draw(tuple(x.shape), 1, torch.Generator().manual_seed(3), camera=True)
+    assert d.camera.any() and d.occlusion and (d.pitch_deg > 0).any() and len(d.geometric) == 2
+    a, b = aug.apply(x, s, d, xc), aug.apply(x, s, d, xc)
+    assert torch.equal(a[0], b[0]) and torch.equal(a[1], b[1])
+    again = aug.draw(tuple(x.shape), 1, torch.Generator().manual_seed(3), camera=True)
+    c = aug.apply(x, s, again, xc)
+    assert torch.equal(a[0], c[0]) and torch.equal(a[1], c[1])
+    called = aug(x, s, torch.Generator().manual_seed(3), xc)
+    assert torch.equal(a[0], called[0]) and torch.equal(a[1], called[1])
+    assert not torch.equal(a[0], x)
