@@ -199,7 +199,8 @@ def manuscript_rows(spread: dict) -> list[dict]:
     """The headline figures over the variants, for the manuscript: per model its force
     NRMSE (%) and log-stress MSE on the held-out shapes, its NRMSE on the ring materials,
     its worst pitch of the viewpoint experiment (each variant's worst), the occlusion
-    model's worst level, the pitch model's worst pitch; sim-to-real per context count
+    model unoccluded and at its worst level, the pitch model at 0 deg and at its worst
+    pitch; sim-to-real per context count
     (NRMSE %, coverage %). Each row: ``label``, ``default`` (the default variant's
     value, None if it did not run), ``mean``, ``min``, ``max``, ``range``, ``n``."""
     figs, variants, default = spread["figures"], spread["variants"], spread["default"]
@@ -220,9 +221,12 @@ def manuscript_rows(spread: dict) -> list[dict]:
         add(f"{m}: ring materials, force NRMSE %", [f"material | all | {m} | force NRMSE %"])
         add(f"{m}: viewpoint, worst pitch, force NRMSE %",
             [n for n in figs if n.startswith("viewpoint | ") and n.endswith(f" | {m} | force NRMSE %")])
+    add("occlusion: held-out shapes unoccluded, force NRMSE %",
+        ["occlusion | none | occlusion | force NRMSE %"])
     add("occlusion: worst occlusion level, force NRMSE %",
         [n for n in figs if n.startswith("occlusion | ") and n.endswith(" | occlusion | force NRMSE %")
          and not n.startswith("occlusion | all |")])
+    add("pitch: the pitch scene at 0 deg (raster), force NRMSE %", ["pitch | 0 | pitch | force NRMSE %"])
     add("pitch: worst pitch (raster), force NRMSE %",
         [n for n in figs if n.startswith("pitch | ") and n.endswith(" | pitch | force NRMSE %")
          and not n.startswith("pitch | all |")])
