@@ -231,11 +231,12 @@ def stream_benchmark(model_path: str | Path, video: str | Path, out_dir: str | P
     --no-maps``: the stress overlay drawn and the annotated video encoded) or ``"read"``
     (the reader alone, :data:`READ_ONLY`: the stream's own delay). ``cores``: (the
     predicting process's core, the server's); None: unpinned. Returns frames sent,
-    received, predicted and dropped (``dropped_steady``: after the first
-    :data:`WARMUP_FRAMES`, from gaps in the time stamps), the predicted frame rate,
-    latency p50/p99 (ms, from the moment the server sent the frame to its row on stdout)
-    and CPU time per predicted frame (ms, the predicting process's threads together,
-    start-up excluded)."""
+    received, predicted and dropped (all, and ``dropped_steady``: in the steady state,
+    from gaps in the time stamps), the predicted frame rate, latency p50/p99 (ms, from
+    the moment the server sent the frame to its row on stdout) and CPU time per
+    predicted frame (ms, the predicting process's threads together, start-up excluded).
+    The steady state is the predicted frames from :data:`WARMUP_S` after the first one
+    to the last but one (the stream's end delivers its last two frames at once)."""
     from ..media import video_info
 
     if mode not in MODES:
@@ -273,18 +274,19 @@ def stream_benchmark(model_path: str | Path, video: str | Path, out_dir: str | P
     finally:
         if server.poll() is None:
             server.kill()
-    if rc != 0 or len(arrivals) < WARMUP_FRAMES + 2:
+    t = np.asarray(t_s)
+    steady = np.flatnonzero(t >= t[0] + WARMUP_S)[:-1] if len(t) else t
+    if rc != 0 or len(steady) < 3:
         raise RuntimeError(f"finray predict on the stream failed (exit code {rc}, "
                            f"{len(arrivals)} frames): {err.strip()[-500:]}")
     summary = err.strip().splitlines()[-1]
     received = int(summary.split(" received (")[0].rsplit(" ", 1)[1])
     dropped = int(summary.split(" received (")[1].split()[0])
-    t = np.asarray(t_s)
     lat = (np.asarray(arrivals) - (sent["t0"] + t - sent["pts0"])) * 1e3
-    steady = slice(WARMUP_FRAMES, None)
-    gaps = np.rint(np.diff(t[steady]) * info.rate_hz).astype(int) - 1
-    span = arrivals[-1] - arrivals[WARMUP_FRAMES]
-    n = len(arrivals) - 1 - WARMUP_FRAMES
+    s0, s1 = steady[0], steady[-1]
+    gaps = np.rint(np.diff(t[s0:s1 + 1]) * info.rate_hz).astype(int) - 1
+    span = arrivals[s1] - arrivals[s0]
+    n = s1 - s0
     out = {"video": str(video), "frames_sent": info.n_frames, "rate_hz": info.rate_hz,
            "mode": mode, "received": received, "predicted": len(arrivals),
            "dropped": dropped, "dropped_steady": int(gaps.clip(0).sum()),
@@ -299,9 +301,9 @@ def stream_benchmark(model_path: str | Path, video: str | Path, out_dir: str | P
     return out
 
 
-#: predicted frames left out of the steady-state figures (ONNX Runtime's first runs; the
-#: first frame also waited for the model to load while the stream ran)
-WARMUP_FRAMES = 5
+#: seconds of stream after the first predicted frame left out of the steady-state figures
+#: (ONNX Runtime's first runs, and the frames that queued while the model loaded)
+WARMUP_S = 1.0
 
 
 
@@ -357,7 +359,7 @@ def realtime_report(model_path: str | Path, images, work_dir: str | Path,
             runs.append(r)
     return {"model": str(model_path), "cpu": cpu_name(), "cpu_count": os.cpu_count(),
             "load_average": list(os.getloadavg()), "rate_hz": fps, "seconds": seconds,
-            "warmup_frames": WARMUP_FRAMES, "runs": runs}
+            "warmup_s": WARMUP_S, "runs": runs}
 
 
 def realtime_table(report: dict) -> str:
@@ -365,7 +367,8 @@ def realtime_table(report: dict) -> str:
     import pandas as pd
 
     cols = {"size": "stream", "mode": "mode", "fps": "fps", "latency_p50_ms": "latency p50 (ms)",
-            "latency_p99_ms": "p99 (ms)", "dropped_steady": "dropped", "received": "received",
+            "latency_p99_ms": "p99 (ms)", "dropped_steady": "dropped", "dropped": "dropped (all)",
+            "received": "received",
             "cpu_ms_per_frame": "CPU per frame (ms)", "keeps_up": "keeps up",
             "force_nrmse_pct": "force NRMSE (%)"}
     df = pd.DataFrame(report["runs"])
@@ -373,8 +376,10 @@ def realtime_table(report: dict) -> str:
     head = (f"# `finray predict` on a live {report['rate_hz']:g} FPS stream\n\n"
             f"{report['cpu']}, the predicting process pinned to one core, the server to the "
             f"other. Each stream {report['seconds']:g} s of pyvista renders of a held-out "
-            f"shape (H.264 over TCP, MPEG-TS); figures after the first "
-            f"{report['warmup_frames']} predicted frames. Latency: from the moment the "
+            f"shape (H.264 over TCP, MPEG-TS); figures from {report['warmup_s']:g} s after "
+            "the first predicted frame to the last but one (the stream's end delivers its "
+            "last two frames at once); `dropped` counts those in that window, `dropped "
+            "(all)` every frame dropped. Latency: from the moment the "
             "server sent a frame to its row on stdout; mode `read` is the reader alone "
             "(the stream's own delay: MPEG-TS completes a frame only when the next one "
             "starts), `force` is `--force-only`, `annotate` is `--annotate --no-maps` (the "
