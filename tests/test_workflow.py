@@ -188,7 +188,7 @@ def test_smoke_evaluation_summary_and_paper(smoke_run):
     assert shape["mse_N2"] == pytest.approx(shape["rmse_N"] ** 2, rel=1e-6)
     assert shape["nrmse_pct"] == pytest.approx(100 * shape["rmse_N"] / shape["max_true_N"], rel=1e-6)
     assert shape["r2"] <= 1 and np.isfinite(shape["stress_mse_log"]) and -1 <= shape["ssim"] <= 1
-    assert set(exps["shape"]["all"]) == {"plain", "camera", "baseline"}
+    assert set(exps["shape"]["all"]) == {"plain", "camera", "occlusion", "pitch", "baseline"}
     assert shape["fy_nrmse_pct"] > 0 and shape["mag_nrmse_pct"] > 0  # the force vector
     # the viewpoint experiment: perspective renders of the held-out shape, three models
     vp = s["viewpoint"]
@@ -208,7 +208,8 @@ def test_smoke_evaluation_summary_and_paper(smoke_run):
         cam = m[(m["path"] == "camera") & (m["group"] == "all")].set_index("predictor")
         same = m[(m["path"] == "shard") & (m["frames"] == "rendered") & (m["group"] == "all")
                  ].set_index("predictor")
-        assert set(cam.index) == {"plain", "camera", "baseline"} and (cam["n"] > 0).all()
+        models = {"plain", "camera", "occlusion", "pitch"} if exp == "shape" else {"plain", "camera"}
+        assert set(cam.index) == models | {"baseline"} and (cam["n"] > 0).all()
         assert (cam["n"] == same["n"]).all()
         assert exps[exp]["all"]["plain"]["camera"]["all"]["n"] == cam.loc["plain", "n"]
         assert s["camera_path"][exp]["all"]["plain"]["n_frames"] == cam.loc["plain", "n"]
@@ -275,14 +276,14 @@ def test_smoke_calibrate_and_predict_a_take(smoke_run, tmp_path, capsys):
 
 def test_one_figure_builds_only_what_it_needs(tmp_path):
     """`snakemake paper/figures/shape_generalisation.pdf` plans the models it compares
-    (plain and camera) and the shape evaluation, not the other models, experiments or
-    figures."""
+    (all four on the held-out shapes) and the shape evaluation, not the other
+    experiments or figures."""
     r = snakemake("-n", "--configfile", str(ROOT / "config" / "smoke.yaml"), "--directory",
                   str(tmp_path), "paper/figures/shape_generalisation.pdf", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     jobs = dict(line.split()[:2] for line in r.stdout.splitlines()
                 if len(line.split()) == 2 and line.split()[1].isdigit())
-    assert jobs["train_model"] == "2" and jobs["evaluate_experiment"] == "1"
+    assert jobs["train_model"] == "4" and jobs["evaluate_experiment"] == "1"
     assert jobs["figure_shape_generalisation"] == "1"
     assert not {"figure_speed", "summary", "manuscript", "fea_pareto"} & set(jobs)
 

@@ -14,6 +14,9 @@ COLOURS = {"fea": "black", "plain": "tab:blue", "occlusion": "tab:orange", "pitc
 LABELS = {"fea": "FEA", "plain": "CNN", "occlusion": "CNN, occlusion-trained",
           "pitch": "CNN, pitch-augmented", "camera": "CNN, camera views",
           "baseline": "ridge on front edge"}
+#: the models' names in a panel's title (one word each, so that several fit)
+SHORT = {"plain": "CNN", "occlusion": "occlusion", "pitch": "pitch", "camera": "camera",
+         "baseline": "ridge"}
 
 
 def _plt():
@@ -55,9 +58,10 @@ def _force_panel(ax, g: pd.DataFrame, predictors, metrics: pd.DataFrame | None =
     ax.set_xlabel("frame")
     if metrics is not None:
         sel = metrics[(metrics["condition"] == condition) & (metrics["group"] == group)]
-        txt = ", ".join(f"{LABELS.get(r.predictor, r.predictor).split(',')[0]} "
-                        f"{r.nrmse_pct:.1f}%" for r in sel.itertuples() if r.predictor in predictors)
-        ax.set_title(f"{group}\nNRMSE {txt}", fontsize=8)
+        parts = [f"{SHORT.get(r.predictor, r.predictor)} {r.nrmse_pct:.1f}%"
+                 for r in sel.itertuples() if r.predictor in predictors]
+        lines = [", ".join(parts[i:i + 3]) for i in range(0, len(parts), 3)]  # 3 a line
+        ax.set_title("\n".join([str(group), "NRMSE " + "\n".join(lines)]), fontsize=8)
 
 
 def _triptych(inp, true, pred, mask, vmax: float) -> np.ndarray:

@@ -18,8 +18,10 @@ def experiment_setup(wildcards):
     """Test shards, models and conditions of an experiment (see finray.evaluate)."""
     e, d = wildcards.experiment, train_dir(wildcards)
     if e in ("shape", "material"):  # also scored through the camera path on the renders
+        # every model on the held-out shapes (each one's generalisation and its spread)
+        names = ("plain", "camera", "occlusion", "pitch") if e == "shape" else ("plain", "camera")
         return {"shards": shard_files(splits=[e], pitch=0.0),
-                "models": eval_models("plain", "camera", train_dir=d),
+                "models": eval_models(*names, train_dir=d),
                 "group_col": "object" if e == "shape" else "material", "conditions": None,
                 "renders": render_index_files(pitch=0.0, splits=[e])}
     if e == "occlusion":
