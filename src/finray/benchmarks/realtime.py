@@ -306,7 +306,6 @@ def stream_benchmark(model_path: str | Path, video: str | Path, out_dir: str | P
 WARMUP_S = 1.0
 
 
-
 def stream_force_error(forces_csv: str | Path, video: str | Path, truth_N) -> dict:
     """How well a run on a stream of :func:`write_stream_video` predicted: each row of
     its ``forces.csv`` (``t_s``, ``fx_N``) matched by time stamp to the stream's frame

@@ -200,9 +200,9 @@ def manuscript_rows(spread: dict) -> list[dict]:
     NRMSE (%) and log-stress MSE on the held-out shapes, its NRMSE on the ring materials,
     its worst pitch of the viewpoint experiment (each variant's worst), the occlusion
     model unoccluded and at its worst level, the pitch model at 0 deg and at its worst
-    pitch; sim-to-real per context count
-    (NRMSE %, coverage %). Each row: ``label``, ``default`` (the default variant's
-    value, None if it did not run), ``mean``, ``min``, ``max``, ``range``, ``n``."""
+    pitch; sim-to-real per context count (NRMSE %, coverage %). Each row: ``label``,
+    ``default`` (the default variant's value, None if it did not run), ``mean``,
+    ``min``, ``max``, ``range``, ``n``."""
     figs, variants, default = spread["figures"], spread["variants"], spread["default"]
     rows = []
 
