@@ -14,6 +14,7 @@ machine (the Snakemake rule takes both cores).
 """
 from __future__ import annotations
 
+import functools
 import json
 import os
 import subprocess
@@ -306,6 +307,14 @@ def stream_benchmark(model_path: str | Path, video: str | Path, out_dir: str | P
 WARMUP_S = 1.0
 
 
+@functools.lru_cache(maxsize=4)
+def _frame_stamps(video: str) -> tuple[float, ...]:
+    """Every frame's time stamp (s) of a stream file, decoded once for all the runs on it."""
+    from ..media import video_frames
+
+    return tuple(f.t_s for f in video_frames(video))
+
+
 def stream_force_error(forces_csv: str | Path, video: str | Path, truth_N) -> dict:
     """How well a run on a stream of :func:`write_stream_video` predicted: each row of
     its ``forces.csv`` (``t_s``, ``fx_N``) matched by time stamp to the stream's frame
@@ -314,12 +323,10 @@ def stream_force_error(forces_csv: str | Path, video: str | Path, truth_N) -> di
     largest |force|) over the rows: a fast loop that misreads frames shows here."""
     import pandas as pd
 
-    from ..media import video_frames
-
     truth = np.asarray(truth_N, float)
     n = len(truth)
     order = np.r_[np.arange(n), np.arange(n - 2, 0, -1)] if n > 2 else np.arange(n)
-    stamps = np.array([f.t_s for f in video_frames(video)])
+    stamps = np.array(_frame_stamps(str(video)))
     rows = pd.read_csv(forces_csv)
     k = np.abs(rows["t_s"].to_numpy()[:, None] - stamps[None, :]).argmin(axis=1)
     err = rows["fx_N"].to_numpy() - truth[order[k % len(order)]]

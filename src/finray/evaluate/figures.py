@@ -14,9 +14,8 @@ COLOURS = {"fea": "black", "plain": "tab:blue", "occlusion": "tab:orange", "pitc
 LABELS = {"fea": "FEA", "plain": "CNN", "occlusion": "CNN, occlusion-trained",
           "pitch": "CNN, pitch-augmented", "camera": "CNN, camera views",
           "baseline": "ridge on front edge"}
-#: the models' names in a panel's title (one word each, so that several fit)
-SHORT = {"plain": "CNN", "occlusion": "occlusion", "pitch": "pitch", "camera": "camera",
-         "baseline": "ridge"}
+#: the names in a panel's title that are not the model's own (one word each, so that several fit)
+SHORT = {"plain": "CNN", "baseline": "ridge"}
 
 
 def _plt():

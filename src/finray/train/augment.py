@@ -20,7 +20,6 @@ class AugmentDraw:
     mask)``) and each sample's camera pitch (deg; 0 where none). A part that is off is
     None (or empty)."""
 
-    seed: int
     geometric: list[dict]
     camera: torch.Tensor | None
     occlusion: list[tuple[int, torch.Tensor]]
@@ -57,8 +56,8 @@ class TrainAugment:
         from ..dataset.augment import sample_augment
 
         n, c, h, w = x_shape
-        seed = int(torch.randint(0, 2**62, (1,), generator=gen))
-        torch.manual_seed(seed)  # kornia draws from torch's global generator
+        # kornia draws from torch's global generator: seeded from ours
+        torch.manual_seed(int(torch.randint(0, 2**62, (1,), generator=gen)))
         geometric = [aug.forward_parameters(torch.Size((n, c + s_channels, h, w)))
                      for aug in self.geometric]
         swap = None
@@ -78,7 +77,7 @@ class TrainAugment:
             tilt = torch.rand(n, generator=gen) < self.cfg.pitch_p
             pitch = torch.rand(n, generator=gen) * self.cfg.pitch_max_deg * tilt
         noise = self.noise.forward_parameters(torch.Size(x_shape)) if self.noise is not None else None
-        return AugmentDraw(seed, geometric, swap, occlusion, pitch, noise)
+        return AugmentDraw(geometric, swap, occlusion, pitch, noise)
 
     def apply(self, x: torch.Tensor, s: torch.Tensor, d: AugmentDraw,
               x_camera: torch.Tensor | None = None):
