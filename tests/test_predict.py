@@ -488,6 +488,27 @@ def test_overlay_colours_the_mask_inside_the_window_only():
     assert img.shape[:2] == (40, 30 + 96) and img.dtype == np.uint8
 
 
+def test_text_from_cached_glyphs_matches_pillows():
+    """The annotation's text, composed from cached glyphs, covers the pixels Pillow's
+    own outlined text covers (white fill, black outline), kerning aside."""
+    from PIL import Image, ImageDraw
+
+    from finray.annotate import TEXT_STROKE_PX, _font, draw_text
+
+    text, size = "frame 12, t = 0.400 s\n|F| 3.21 N  (fx 3.20 N, fy -0.25 N)", 24
+    ours = np.full((90, 520, 3), 128, np.uint8)
+    draw_text(ours, (8, 6), text, size)
+    img = Image.new("RGB", (520, 90), (128, 128, 128))
+    ImageDraw.Draw(img).multiline_text((8, 6), text, fill=(255, 255, 255), font=_font(size),
+                                       stroke_width=TEXT_STROKE_PX, stroke_fill=(0, 0, 0))
+    theirs = np.asarray(img)
+    for level in (lambda a: a[..., 0] > 200, lambda a: a[..., 0] < 50):  # fill, outline
+        a, b = level(ours), level(theirs)
+        assert (a & b).sum() / (a | b).sum() > 0.95
+        assert abs(int(a.sum()) - int(b.sum())) < 0.02 * b.sum()
+    assert (ours[80:] == 128).all()  # nothing below the text
+
+
 SERVE = """
 import sys, numpy as np, av
 from PIL import Image

@@ -68,10 +68,18 @@ def _overlay_into(rgb: np.ndarray, mask: np.ndarray, box, stress: np.ndarray, al
         return rgb
     sub = np.s_[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1]  # the window's part of the frame
     m = np.asarray(mask, bool)[sub]
-    v = stress[i[rows][:, None], j[cols][None, :]]
-    colour = _lut()[np.clip(np.rint(v / vmax * 255), 0, 255).astype(np.int64)]
+    # 8-bit fixed point (alpha in 256ths) on the whole window, kept where the mask is:
+    # the map's cells coloured once, then spread to the window's pixels row- and
+    # column-wise (a boolean gather and scatter of the finger's pixels cost 3x more)
+    a = int(round(alpha * 256))
+    cells = _lut()[np.clip(np.rint(stress / vmax * 255), 0, 255).astype(np.int64)]
+    cells = cells.astype(np.uint16) * a + 128
+    colour = np.take(np.take(cells, i[rows], axis=0), j[cols], axis=1)
     part = rgb[sub]
-    part[m] = np.rint((1 - alpha) * part[m] + alpha * colour[m]).astype(np.uint8)
+    blend = part.astype(np.uint16)
+    blend *= 256 - a
+    blend += colour
+    np.copyto(part, blend >> 8, casting="unsafe", where=m[..., None])
     return rgb
 
 
@@ -106,7 +114,6 @@ def annotate_frame(frame: np.ndarray, mask: np.ndarray, box, stress: np.ndarray,
     canvas[:, :W] = rgb[..., None] if rgb.ndim == 2 else rgb[..., :3]
     _overlay_into(canvas[:, :W], mask, box, stress, 0.65, STRESS_LOG_MAX)
     canvas[:, W:] = _bar_panel(H)
-    font = _font(max(12, H // 40))
     fx, fy = forces.get("fx_N", 0.0), forces.get("fy_N", 0.0)
     mag = math.hypot(fx, fy)
     tip = peak_front_point(np.asarray(mask, bool), box, stress)
@@ -132,18 +139,77 @@ def annotate_frame(frame: np.ndarray, mask: np.ndarray, box, stress: np.ndarray,
         text.append(f"calibrated {calibrated['force_N']:.2f} N, "
                     f"{100 * calibrated['level']:.0f} % [{calibrated['lo_N']:.2f}, "
                     f"{calibrated['hi_N']:.2f}] N")
-    text = "\n".join(text)
-    kw = {"font": font, "stroke_width": 2}
-    _draw_on(canvas, _text_box((8, 6), text, kw),
-             lambda draw, dx, dy: draw.multiline_text((8 - dx, 6 - dy), text, fill=(255, 255, 255),
-                                                      stroke_fill=(0, 0, 0), **kw))
+    draw_text(canvas, (8, 6), "\n".join(text), max(12, H // 40))
     return canvas
 
 
-def _text_box(xy, text: str, kw: dict) -> tuple[int, int, int, int]:
+TEXT_STROKE_PX = 2  # the black outline of the white text (readable on any frame)
+
+
+@functools.lru_cache(maxsize=512)
+def _glyph(ch: str, size: int, stroke: int) -> tuple[np.ndarray, np.ndarray, int, float]:
+    """One character as Pillow draws it with an outline: the outline's and the fill's
+    coverage (float32, 0-1) on one patch, the patch's margin left of and above the pen
+    (px), and the pen's advance (px). Cached: a frame's text is a few dozen of them."""
     from PIL import Image, ImageDraw
 
-    return ImageDraw.Draw(Image.new("L", (1, 1))).multiline_textbbox(xy, text, **kw)
+    font = _font(size)
+    pad = stroke + size // 4  # room for the outline and for glyphs that reach left
+    adv = font.getlength(ch)
+    img_w, img_h = int(math.ceil(adv)) + 2 * pad, _line_height(size, stroke) + 2 * pad
+    outer, inner = Image.new("L", (img_w, img_h)), Image.new("L", (img_w, img_h))
+    ImageDraw.Draw(outer).text((pad, pad), ch, fill=255, font=font, stroke_width=stroke,
+                               stroke_fill=255)
+    ImageDraw.Draw(inner).text((pad, pad), ch, fill=255, font=font)
+    return (np.asarray(outer, np.float32) / 255, np.asarray(inner, np.float32) / 255, pad, adv)
+
+
+@functools.lru_cache(maxsize=16)
+def _line_height(size: int, stroke: int) -> int:
+    """Pillow's multi-line spacing (its ``multiline_text`` with ``spacing=4``)."""
+    from PIL import Image, ImageDraw
+
+    box = ImageDraw.Draw(Image.new("L", (1, 1))).textbbox((0, 0), "A", font=_font(size),
+                                                           stroke_width=stroke)
+    return int(box[3]) + stroke + 4
+
+
+def draw_text(canvas: np.ndarray, xy: tuple[int, int], text: str, size: int,
+              stroke: int = TEXT_STROKE_PX) -> None:
+    """White text with a black outline on ``canvas`` (H, W, 3) uint8 in place, lines
+    down from the pen ``xy`` (x, y: px, the first line's top). Composed from cached
+    glyphs (:func:`_glyph`), not drawn anew: at 30 frames a second Pillow's rendering of
+    a frame's two lines cost more than the stress overlay. Kerning is left out."""
+    x0, y0 = xy
+    step = _line_height(size, stroke)
+    pieces, right, bottom = [], x0, y0
+    for k, line in enumerate(text.split("\n")):
+        pen = float(x0)
+        for ch in line:
+            outer, inner, pad, adv = _glyph(ch, size, stroke)
+            c, r = int(round(pen)) - pad, y0 + k * step - pad
+            pieces.append((r, c, outer, inner))
+            right, bottom = max(right, c + outer.shape[1]), max(bottom, r + outer.shape[0])
+            pen += adv
+    if not pieces:
+        return
+    top, left = min(p[0] for p in pieces), min(p[1] for p in pieces)
+    outer_all = np.zeros((bottom - top, right - left), np.float32)
+    inner_all = np.zeros_like(outer_all)
+    for r, c, outer, inner in pieces:
+        sub = np.s_[r - top:r - top + outer.shape[0], c - left:c - left + outer.shape[1]]
+        np.maximum(outer_all[sub], outer, out=outer_all[sub])
+        np.maximum(inner_all[sub], inner, out=inner_all[sub])
+    # clip the text's box to the canvas
+    H, W = canvas.shape[:2]
+    r0, c0, r1, c1 = max(top, 0), max(left, 0), min(bottom, H), min(right, W)
+    if r1 <= r0 or c1 <= c0:
+        return
+    sub = np.s_[r0 - top:r1 - top, c0 - left:c1 - left]
+    outer_all, inner_all = outer_all[sub][..., None], inner_all[sub][..., None]
+    part = canvas[r0:r1, c0:c1]
+    # black under the outline, then white under the fill
+    part[...] = np.rint(part * (1 - outer_all) * (1 - inner_all) + 255 * inner_all)
 
 
 def _draw_on(canvas: np.ndarray, box, draw_fn) -> None:
@@ -273,14 +339,18 @@ class VideoWriter:
             self._container = av.open(str(self.path), "w")
             codec = "libx264" if "libx264" in av.codecs_available else "mpeg4"
             # x264's fastest preset: the encoder shares the live loop's core (the default
-            # preset took most of a 1280x720 frame's time; results/benchmarks/realtime.md)
+            # preset took most of a 1280x720 frame's time; results/benchmarks/realtime.md),
+            # one encoder thread: on that one core, x264's own threads cost 1 ms a frame more
             self._stream = self._container.add_stream(
                 codec, rate=Fraction(self.fps).limit_denominator(1001),
-                options={"preset": "ultrafast", "tune": "zerolatency"} if codec == "libx264" else {})
+                options=({"preset": "ultrafast", "tune": "zerolatency", "threads": "1"}
+                         if codec == "libx264" else {}))
             self._stream.height, self._stream.width = (rgb.shape[0] // 2) * 2, (rgb.shape[1] // 2) * 2
             self._stream.pix_fmt = "yuv420p"
         rgb = np.ascontiguousarray(rgb[:self._stream.height, :self._stream.width])
-        for packet in self._stream.encode(av.VideoFrame.from_ndarray(rgb, format="rgb24")):
+        # the array's buffer as the frame's, not a copy (from_ndarray copied row by row:
+        # 3.5 ms of a 1280x816 frame); the encoder converts it to yuv420p before it returns
+        for packet in self._stream.encode(av.VideoFrame.from_numpy_buffer(rgb, format="rgb24")):
             self._container.mux(packet)
 
     def close(self) -> None:
