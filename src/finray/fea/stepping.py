@@ -50,7 +50,7 @@ def march(model: Model, q: np.ndarray, targets, frames: np.ndarray,
     ``model.load = s`` for external forces). ``on_frame(k, s, q, info)`` is called
     at every frame with the Newton iterations and wall time since the previous one
     and ``residual_rel``, the residual of the solve that reached the frame
-    (:meth:`Model.residual_norm`).
+    (:meth:`Model.residual_norm`); a q it returns replaces the frame's state.
     Raises :class:`SimulationError` naming the step and the cause on failure.
     Returns the final q.
     """
@@ -117,9 +117,12 @@ def march(model: Model, q: np.ndarray, targets, frames: np.ndarray,
             if iters <= so.easy_iterations:
                 ds = min(so.max_step, ds * so.grow)
         if on_frame is not None:
-            on_frame(k, s, q, {"newton_iterations": iters_frame,
-                               "wall_time_s": time.perf_counter() - t_frame, "steps": step,
-                               "residual_rel": residual})
+            q_frame = on_frame(k, s, q, {"newton_iterations": iters_frame,
+                                         "wall_time_s": time.perf_counter() - t_frame,
+                                         "steps": step, "residual_rel": residual})
+            if q_frame is not None:  # e.g. polished to a tighter tolerance by the caller
+                q = q_frame
+
         iters_frame = 0
         t_frame = time.perf_counter()
     return q
