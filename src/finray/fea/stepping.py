@@ -122,7 +122,6 @@ def march(model: Model, q: np.ndarray, targets, frames: np.ndarray,
                                          "steps": step, "residual_rel": residual})
             if q_frame is not None:  # e.g. polished to a tighter tolerance by the caller
                 q = q_frame
-
         iters_frame = 0
         t_frame = time.perf_counter()
     return q
