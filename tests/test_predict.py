@@ -524,6 +524,36 @@ with av.open(f"tcp://127.0.0.1:{port}?listen=1", "w", format="mpegts") as c:
 """
 
 
+@pytest.mark.parametrize("buffer", [1, 2, 3])
+def test_live_frames_keep_the_latest_frames_in_order(tmp_path, buffer):
+    """A live source's reader keeps the latest ``buffer`` frames for a consumer that
+    is behind: the rest are dropped and counted, and what is kept comes in order."""
+    import time
+
+    import av
+
+    from finray.media import LiveFrames
+
+    path = tmp_path / "v.mp4"
+    with av.open(str(path), "w") as c:
+        s = c.add_stream("mpeg4", rate=10)
+        s.width, s.height, s.pix_fmt = 32, 32, "yuv420p"
+        for k in range(12):
+            img = np.full((32, 32, 3), 20 * k, np.uint8)
+            c.mux(s.encode(av.VideoFrame.from_ndarray(img, format="rgb24")))
+        c.mux(s.encode())
+    live = LiveFrames(path, buffer=buffer)
+    t0 = time.monotonic()
+    while not live._done and time.monotonic() - t0 < 10:  # the consumer is far behind
+        time.sleep(0.01)
+    got = [f.index for f in live]
+    live.close()
+    assert live.received == 12 and live.dropped == 12 - buffer
+    assert got == list(range(12 - buffer, 12))
+    with pytest.raises(ValueError, match="at least one frame"):
+        LiveFrames(path, buffer=0)
+
+
 def test_cli_predict_on_a_live_network_stream(exported, render_png, tmp_path, capsys):
     """A TCP stream (MPEG-TS, served by PyAV in another process) read as a live source
     until it ends: a row per frame kept, each with its time; the summary line counts the

@@ -176,18 +176,24 @@ def is_live(source: str | Path) -> bool:
 
 
 class LiveFrames:
-    """The frames of a live source (:func:`is_live`), newest first: a reader thread
-    decodes as fast as the source sends, and keeps only the latest frame, so that a
-    consumer slower than the source drops frames instead of falling behind (``dropped``
-    counts them). Iterating yields :class:`Frame` (RGB, ``t_s`` from the stream's time
+    """The frames of a live source (:func:`is_live`), in order: a reader thread decodes
+    as fast as the source sends and keeps the latest ``buffer`` frames, so that a
+    consumer slower than the source drops the oldest instead of falling behind
+    (``dropped`` counts them). Two absorb a network's jitter (two frames that arrive
+    together, which a one-frame buffer dropped although the loop kept up on average) at
+    the cost of at most one frame's extra latency. Iterating yields :class:`Frame` (RGB, ``t_s`` from the stream's time
     stamps, else the wall clock since it opened) until the stream ends or
     :meth:`close`. Opening raises :class:`MediaError` (unreachable, no video)."""
 
-    def __init__(self, source: str | Path, open_timeout_s: float = 10.0):
+    def __init__(self, source: str | Path, open_timeout_s: float = 10.0, buffer: int = 2):
+        import collections
         import threading
         import time
 
         import av
+
+        if int(buffer) < 1:
+            raise ValueError(f"buffer must hold at least one frame, got {buffer}")
 
         s = str(source)
         device = f"/dev/video{s}" if s.isdigit() else s
@@ -204,7 +210,8 @@ class LiveFrames:
         self.source, self.dropped, self.received = s, 0, 0
         self.rate_hz = float(self._container.streams.video[0].average_rate or 0)
         self._t0 = time.perf_counter()
-        self._latest, self._done, self._error = None, False, None
+        self._frames = collections.deque(maxlen=int(buffer))
+        self._done, self._error = False, None
         self._cond = threading.Condition()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._read, daemon=True)
@@ -221,9 +228,9 @@ class LiveFrames:
                     time.perf_counter() - self._t0
                 frame = Frame(self.received, t, None, fr.to_ndarray(format="rgb24"))
                 with self._cond:
-                    if self._latest is not None:
-                        self.dropped += 1  # the consumer had not taken the last one
-                    self._latest = frame
+                    if len(self._frames) == self._frames.maxlen:
+                        self.dropped += 1  # the consumer had not taken the oldest: it goes
+                    self._frames.append(frame)
                     self.received += 1
                     self._cond.notify()
                 if self._stop.is_set():
@@ -238,9 +245,9 @@ class LiveFrames:
     def __iter__(self):
         while True:
             with self._cond:
-                while self._latest is None and not self._done:
+                while not self._frames and not self._done:
                     self._cond.wait()
-                frame, self._latest = self._latest, None
+                frame = self._frames.popleft() if self._frames else None
                 done, error = self._done, self._error
             if frame is not None:
                 yield frame

@@ -8,8 +8,8 @@ predict`` reads it as a live source in another process pinned to the other core
 (decode, segment, crop, network; with ``--annotate`` also the stress overlay and the
 annotated video's encoding). Its stdout lines (one per predicted frame, flushed) are
 time-stamped as they arrive: the latency of a frame is that time less the moment the
-server sent it. Frames that came while the loop was busy are dropped by the reader
-(:class:`finray.media.LiveFrames`) and counted. Timings, not correctness: run on a quiet
+server sent it. Frames that came while the loop was busy, beyond the reader's two, are
+dropped by it (:class:`finray.media.LiveFrames`) and counted. Timings, not correctness: run on a quiet
 machine (the Snakemake rule takes both cores).
 """
 from __future__ import annotations
