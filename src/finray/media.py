@@ -181,9 +181,10 @@ class LiveFrames:
     consumer slower than the source drops the oldest instead of falling behind
     (``dropped`` counts them). Two absorb a network's jitter (two frames that arrive
     together, which a one-frame buffer dropped although the loop kept up on average) at
-    the cost of at most one frame's extra latency. Iterating yields :class:`Frame` (RGB, ``t_s`` from the stream's time
-    stamps, else the wall clock since it opened) until the stream ends or
-    :meth:`close`. Opening raises :class:`MediaError` (unreachable, no video)."""
+    the cost of at most one frame's extra latency. Iterating yields :class:`Frame` (RGB,
+    ``t_s`` from the stream's time stamps, else the wall clock since it opened) until the
+    stream ends or :meth:`close`. Opening raises :class:`MediaError` (unreachable, no
+    video)."""
 
     def __init__(self, source: str | Path, open_timeout_s: float = 10.0, buffer: int = 2):
         import collections
@@ -194,7 +195,6 @@ class LiveFrames:
 
         if int(buffer) < 1:
             raise ValueError(f"buffer must hold at least one frame, got {buffer}")
-
         s = str(source)
         device = f"/dev/video{s}" if s.isdigit() else s
         fmt = "v4l2" if device.startswith("/dev/video") else None

@@ -9,8 +9,8 @@ predict`` reads it as a live source in another process pinned to the other core
 annotated video's encoding). Its stdout lines (one per predicted frame, flushed) are
 time-stamped as they arrive: the latency of a frame is that time less the moment the
 server sent it. Frames that came while the loop was busy, beyond the reader's two, are
-dropped by it (:class:`finray.media.LiveFrames`) and counted. Timings, not correctness: run on a quiet
-machine (the Snakemake rule takes both cores).
+dropped by it (:class:`finray.media.LiveFrames`) and counted. Timings, not correctness:
+run on a quiet machine (the Snakemake rule takes both cores).
 """
 from __future__ import annotations
 
@@ -389,8 +389,7 @@ def realtime_table(report: dict) -> str:
             f"shape (H.264 over TCP, MPEG-TS); figures from {report['warmup_s']:g} s after "
             f"the first predicted frame to {report['end_s']:g} s before the last (the "
             "stream's end delivers its last frames at once); `dropped` counts those in that "
-            "window, `dropped "
-            "(all)` every frame dropped. Latency: from the moment the "
+            "window, `dropped (all)` every frame dropped. Latency: from the moment the "
             "server sent a frame to its row on stdout; mode `read` is the reader alone "
             "(the stream's own delay: MPEG-TS completes a frame only when the next one "
             "starts), `force` is `--force-only`, `annotate` is `--annotate --no-maps` (the "
