@@ -9,6 +9,7 @@ import pytest
 from finray.calibration import (PARAMS, CalibrationError, Priors, RigPrior, coverage, fit_calibration,
                                 fold_units, log_posterior, predictive, read_calibration)
 
+FREE = Priors(gain_log_sd=0.5, offset_sd_N=1.0)  # gain and offset sampled
 TRUE = {"gain": 1.3, "offset_N": 0.2, "sigma_N": 0.08, "rho": 0.04, "kappa": 1.5}
 
 
@@ -27,7 +28,7 @@ def fitted():
     # one seeded draw: each 95 % interval misses its true value in 1 draw of 20 on average
     # (over seeds 10-29 the maximum-likelihood kappa averages 1.48 +- 0.08: unbiased)
     mu, s, y = synthetic(600, 4)
-    return fit_calibration(mu, s, y, log=lambda m: None)
+    return fit_calibration(mu, s, y, FREE, log=lambda m: None)
 
 
 def test_recovers_known_gain_offset_and_noise(fitted):
@@ -44,7 +45,7 @@ def test_heavy_tailed_noise_gives_few_degrees_of_freedom():
     rng = np.random.default_rng(7)
     mu, s = 4 * np.abs(rng.normal(0, 1, 600)), np.full(600, 1e-3)
     y = 1.1 * mu - 0.1 + 0.05 * rng.standard_t(3, 600)
-    q = fit_calibration(mu, s, y, Priors(rho=(1e-4, 1.0)), log=lambda m: None)["summary"]
+    q = fit_calibration(mu, s, y, Priors(gain_log_sd=0.5, offset_sd_N=1.0, rho=(1e-4, 1.0)), log=lambda m: None)["summary"]
     assert 2 <= q["nu"]["median"] < 6 and q["nu"]["q97.5"] < 20
     assert q["gain"]["q2.5"] < 1.1 < q["gain"]["q97.5"]
     assert q["sigma_N"]["q2.5"] < 0.05 < q["sigma_N"]["q97.5"]
@@ -89,7 +90,7 @@ def test_rig_prior_covers_rigs_of_unknown_gain(fitted):
 
 def test_log_posterior_is_minus_infinity_outside_the_priors():
     mu, s, y = synthetic(20, 3)
-    p = Priors()
+    p = FREE
     inside = [1.0, 0.0, np.log(0.1), np.log(0.05), 0.0, np.log(10.0)]
     rows = np.array([inside, [-1.0, *inside[1:]],                    # negative gain
                      [*inside[:2], np.log(p.sigma_N[1]) + 1, *inside[3:]],  # sigma above its bound
@@ -115,12 +116,13 @@ def test_fold_units():
         fold_units(t, "objects")
     with pytest.raises(ValueError, match="an 'object' column"):
         fold_units(t, "object")
-    # object folds: each object out with all its takes; one object: as "both"
+    # object folds: each object out with all its takes; one object: as "take"
     t = t.assign(object=["cyl"] * 4 + ["cube"] * 4)
     [obj] = fold_units(t, "object")
     assert list(obj) == list(t["object"])
     one = t.assign(object="cyl")
-    assert [list(u) for u in fold_units(one, "object")] == [list(u) for u in fold_units(one, "both")]
+    assert [list(u) for u in fold_units(one, "object")] == [list(t["take"])]
+    assert [list(u) for u in fold_units(one[one["take"] == "a"], "object")] == [list(half[:4])]
 
 
 def test_read_calibration_errors(tmp_path):
@@ -133,3 +135,29 @@ def test_read_calibration_errors(tmp_path):
     bad.write_text(json.dumps({"posterior": {"samples": [[1, 2]]}}))
     with pytest.raises(CalibrationError, match="no posterior samples"):
         read_calibration(bad)
+
+
+def test_gain_and_offset_of_prior_sd_zero_are_fixed():
+    """A model already fitted to the sensor: gain and offset held at 1 and 0 N, the noise
+    terms sampled alone (sigma inside its 95 % interval), their intervals covering ~90 %
+    of fresh frames; the corner plot shows the free parameters only."""
+    import matplotlib.pyplot as plt
+
+    from finray.calibration import corner_figure, fixed_params
+
+    rng = np.random.default_rng(11)
+    mu = 4 * np.abs(rng.normal(0, 1, 1600))
+    s = np.full(1600, 1e-3)
+    y = mu + 0.1 * rng.standard_normal(1600)
+    priors = Priors(rho=(1e-4, 1.0))  # by default gain and offset are fixed
+    assert fixed_params(priors) == {0: 1.0, 1: 0.0} and fixed_params(FREE) == {}
+    cal = fit_calibration(mu[:600], s[:600], y[:600], priors, log=lambda m: None)
+    samples = np.asarray(cal["posterior"]["samples"])
+    assert np.all(samples[:, 0] == 1.0) and np.all(samples[:, 1] == 0.0)
+    assert cal["fixed"] == {"gain": 1.0, "offset_N": 0.0}
+    assert set(cal["diagnostics"]["tau_steps"]) == set(PARAMS[2:]) and cal["diagnostics"]["ok"]
+    assert cal["summary"]["sigma_N"]["q2.5"] < 0.1 < cal["summary"]["sigma_N"]["q97.5"]
+    assert 0.87 <= coverage(y[600:], predictive(cal, mu[600:], s[600:], 0.9)) <= 0.93
+    fig = corner_figure(cal)
+    assert len(fig.axes) == 4 * 4
+    plt.close(fig)

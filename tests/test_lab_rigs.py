@@ -7,7 +7,7 @@ import pytest
 
 from finray.config import load_config
 from finray.evaluate.rigs import rigs_summary, rigs_table
-from finray.lab.rigs import draw_rig, rig_index, rig_names
+from finray.lab.rigs import draw_rig, rig_index, rig_names, selection_rig_names
 
 
 @pytest.fixture(scope="module")
@@ -21,6 +21,12 @@ def test_rigs_are_drawn_within_their_ranges_and_replay(lab):
     assert names == [f"rig{i}" for i in range(1, spec["count"] + 1)]
     rigs = [draw_rig(lab, rig_index(n)) for n in names]
     assert draw_rig(lab, 1) == rigs[0]  # seeded: the same rig each time
+    # the selection rigs come after the reported ones, which stay as they are without them
+    sel = selection_rig_names(spec)
+    assert sel == [f"rig{i}" for i in range(spec["count"] + 1, spec["count"] + spec["selection"] + 1)]
+    alone = {**lab, "rigs": {**spec, "selection": 0}}
+    assert [draw_rig(alone, rig_index(n)) for n in names] == rigs
+    rigs = rigs + [draw_rig(lab, rig_index(n)) for n in sel]
     assert rigs[0] != rigs[1]
     for rig in rigs:
         assert "rigs" not in rig and set(rig) == set(lab) - {"rigs"}

@@ -206,6 +206,7 @@ UNREAD = {
     "evaluate.spread.seeds": "read by the spread study only (results/evaluate/spread/)",
     "evaluate.spread.types": "read by the spread study only (results/evaluate/spread/)",
     "evaluate.spread.models": "read by the spread and training-budget studies only",
+    "lab.rigs.selection": "read by the selection rigs' target only (results/evaluate/sim2real/rigs/selection/)",
     "benchmarks.training_budget.seeds": "read by the training-budget study only (its own target)",
     "benchmarks.training_budget.points": "read by the training-budget study only (its own target)",
     # (tests/test_config.py::test_generated_keys_are_in_every_blob_spec: each reaches the

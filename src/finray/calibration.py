@@ -12,7 +12,7 @@ a relative, not an absolute, measure of its error), ``nu`` the degrees of freedo
 network's errors on a new scene are heavy-tailed (most frames close, a few far off, e.g.
 at contact onset), which a normal law can only meet with a scale that makes most
 frames' intervals too wide. Priors (:class:`Priors`): ``log g ~ Normal(0, gain_log_sd)``,
-``b ~ Normal(0, offset_sd_N)``; ``log sigma``, ``log rho`` and ``log kappa`` uniform
+``b ~ Normal(0, offset_sd_N)`` (each fixed, at 1 and 0 N, where its sd is 0); ``log sigma``, ``log rho`` and ``log kappa`` uniform
 (scale-free) within bounds; ``nu ~ Gamma(2, rate 0.1)`` within bounds (Juárez & Steel
 2010: mean 20, from near-Cauchy to near-normal). The chain runs until it is at least ``min_tau_multiple`` autocorrelation
 times long for every parameter (emcee's integrated time); the diagnostics are kept
@@ -35,8 +35,9 @@ LABELS = ("g", "b (N)", r"log $\sigma$ (N)", r"log $\rho$", r"log $\kappa$", r"l
 
 @dataclass(frozen=True)
 class Priors:
-    gain_log_sd: float = 0.5
-    offset_sd_N: float = 1.0
+    #: 0: fixed at 1 and 0 N (:func:`fixed_params`)
+    gain_log_sd: float = 0.0
+    offset_sd_N: float = 0.0
     #: bounds: sigma from a tenth of a force sensor's resolution (~0.01 N) up
     sigma_N: tuple[float, float] = (1e-3, 10.0)
     rho: tuple[float, float] = (1e-3, 1.0)
@@ -100,28 +101,60 @@ def log_posterior(theta: np.ndarray, mu, s, y, priors: Priors, weight: float = 1
     z2 = (y - g * mu - b) ** 2 / var
     ll = (len(y) * (gammaln((nu[:, 0] + 1) / 2) - gammaln(nu[:, 0] / 2) - 0.5 * np.log(np.pi * nu[:, 0]))
           - 0.5 * np.sum(np.log(var) + (nu + 1) * np.log1p(z2 / nu), axis=1))
-    lg = np.log(g[:, 0])
     shape, rate = priors.nu_gamma
-    # the Gamma prior on nu, sampled as log nu (Jacobian nu)
-    lp = (-0.5 * (lg / priors.gain_log_sd) ** 2 - lg - 0.5 * (b[:, 0] / priors.offset_sd_N) ** 2
-          + shape * ln[:, 0] - rate * nu[:, 0])
+    # the Gamma prior on nu, sampled as log nu (Jacobian nu); a gain or offset of prior
+    # sd 0 is fixed (:func:`fixed_params`) and has no prior term
+    lp = shape * ln[:, 0] - rate * nu[:, 0]
+    if priors.gain_log_sd > 0:
+        lg = np.log(g[:, 0])
+        lp = lp - 0.5 * (lg / priors.gain_log_sd) ** 2 - lg
+    if priors.offset_sd_N > 0:
+        lp = lp - 0.5 * (b[:, 0] / priors.offset_sd_N) ** 2
     out[ok] = weight * ll + lp
     return out
 
 
+def fixed_params(priors: Priors) -> dict[int, float]:
+    """The parameters held fixed, by their index in :data:`PARAMS`: the gain at 1 where
+    ``gain_log_sd`` is 0, the offset at 0 N where ``offset_sd_N`` is 0 (a model already
+    fitted to the sensor's frames, whose residuals are left to the noise terms)."""
+    return {i: v for i, v, sd in ((0, 1.0, priors.gain_log_sd), (1, 0.0, priors.offset_sd_N))
+            if sd == 0}
+
+
+def _full(free: np.ndarray, fixed: dict[int, float]) -> np.ndarray:
+    """Parameter rows (W, 6) from rows of the free parameters, the fixed ones inserted."""
+    free = np.atleast_2d(free)
+    out = np.empty((len(free), len(PARAMS)))
+    out[:, [i for i in range(len(PARAMS)) if i not in fixed]] = free
+    for i, v in fixed.items():
+        out[:, i] = v
+    return out
+
+
 def _start(mu, s, y, priors: Priors, weight: float = 1.0) -> np.ndarray:
-    """The posterior's mode (Nelder-Mead from a least-squares line), to start the walkers."""
+    """The posterior's mode (Nelder-Mead from a least-squares line), to start the walkers:
+    a full parameter row, the fixed ones at their values."""
     from scipy.optimize import minimize
 
-    A = np.column_stack([mu, np.ones_like(mu)])
-    (g, b), *_ = np.linalg.lstsq(A, y, rcond=None)
-    g = g if g > 0 else 1.0
+    fixed = fixed_params(priors)
+    if fixed:
+        g, b = fixed.get(0, 1.0), fixed.get(1, 0.0)
+        if 0 not in fixed:
+            g = max(float(np.sum((y - b) * mu) / max(np.sum(mu * mu), 1e-12)), 1e-3)
+        elif 1 not in fixed:
+            b = float(np.mean(y - g * mu))
+    else:
+        A = np.column_stack([mu, np.ones_like(mu)])
+        (g, b), *_ = np.linalg.lstsq(A, y, rcond=None)
+        g = g if g > 0 else 1.0
     r = y - g * mu - b
     x0 = np.array([g, b, np.log(max(np.std(r), 2 * priors.sigma_N[0])), np.log(0.05), 0.0,
                    np.log(np.clip(20.0, *priors.nu))])
-    best = minimize(lambda t: -log_posterior(t, mu, s, y, priors, weight)[0], x0, method="Nelder-Mead",
-                    options={"maxiter": 4000, "xatol": 1e-6, "fatol": 1e-6})
-    x = best.x if np.isfinite(best.fun) else x0
+    free = [i for i in range(len(PARAMS)) if i not in fixed]
+    best = minimize(lambda t: -log_posterior(_full(t, fixed), mu, s, y, priors, weight)[0], x0[free],
+                    method="Nelder-Mead", options={"maxiter": 4000, "xatol": 1e-6, "fatol": 1e-6})
+    x = _full(best.x if np.isfinite(best.fun) else x0[free], fixed)[0]
     # inside the bounds, so that every walker of the ball around it starts finite
     for i, (lo, hi) in zip((2, 3, 4, 5), (priors.sigma_N, priors.rho, priors.kappa, priors.nu)):
         x[i] = np.clip(x[i], np.log(lo) + 0.05, np.log(hi) - 0.05)
@@ -144,14 +177,16 @@ def fit_calibration(mu, s, y, priors: Priors | None = None, sampler: Sampler | N
     if len(y) < 10:
         raise CalibrationError(f"too few frames to calibrate ({len(y)}; at least 10)")
     rng = np.random.default_rng(sampler.seed)
-    x0 = _start(mu, s, y, priors, weight)
-    p0 = x0 + 1e-3 * rng.standard_normal((sampler.walkers, len(PARAMS))) * np.maximum(np.abs(x0), 0.1)
+    fixed = fixed_params(priors)
+    free = [i for i in range(len(PARAMS)) if i not in fixed]
+    x0 = _start(mu, s, y, priors, weight)[free]
+    p0 = x0 + 1e-3 * rng.standard_normal((sampler.walkers, len(free))) * np.maximum(np.abs(x0), 0.1)
     # differential-evolution moves shorten the autocorrelation; mixed with the stretch
     # move (acceptance ~0.6 here) for an acceptance fraction within 0.2-0.5
     moves = [(emcee.moves.DEMove(), 0.6), (emcee.moves.DESnookerMove(), 0.1),
              (emcee.moves.StretchMove(), 0.3)]
-    ens = emcee.EnsembleSampler(sampler.walkers, len(PARAMS), log_posterior,
-                                args=(mu, s, y, priors, weight),
+    ens = emcee.EnsembleSampler(sampler.walkers, len(free),
+                                lambda t: log_posterior(_full(t, fixed), mu, s, y, priors, weight),
                                 vectorize=True, moves=moves)
     ens.random_state = np.random.RandomState(sampler.seed).get_state()  # replayable moves
     state, tau, n = p0, None, 0
@@ -166,10 +201,10 @@ def fit_calibration(mu, s, y, priors: Priors | None = None, sampler: Sampler | N
     acc = ens.acceptance_fraction
     burn = int(np.ceil(5 * np.max(tau)))
     thin = max(1, int(np.max(tau) / 2))
-    flat = ens.get_chain(discard=burn, thin=thin, flat=True)
+    flat = _full(ens.get_chain(discard=burn, thin=thin, flat=True), fixed)
     if len(flat) > 4000:
         flat = flat[rng.choice(len(flat), 4000, replace=False)]
-    diag = {"tau_steps": dict(zip(PARAMS, map(float, tau))), "steps": int(n),
+    diag = {"tau_steps": dict(zip([PARAMS[i] for i in free], map(float, tau))), "steps": int(n),
             "walkers": sampler.walkers, "steps_over_tau_min": float(n / np.max(tau)),
             "acceptance_fraction": {"mean": float(acc.mean()), "min": float(acc.min()),
                                     "max": float(acc.max())},
@@ -178,7 +213,7 @@ def fit_calibration(mu, s, y, priors: Priors | None = None, sampler: Sampler | N
                       and 0.2 <= acc.mean() <= 0.5)
     return {"posterior": {"names": list(PARAMS), "samples": flat.tolist()},
             "summary": summarise(flat), "diagnostics": diag, "n_frames": int(len(y)),
-            "likelihood_weight": weight,
+            "likelihood_weight": weight, "fixed": {PARAMS[i]: v for i, v in fixed.items()},
             "priors": asdict(priors), "sampler": asdict(sampler)}
 
 
@@ -249,7 +284,8 @@ def corner_figure(calibration: dict, title: str = ""):
     import corner
 
     samples = np.asarray(calibration["posterior"]["samples"])
-    fig = corner.corner(samples, labels=list(LABELS), quantiles=[0.05, 0.5, 0.95],
+    keep = [i for i, p in enumerate(PARAMS) if p not in calibration.get("fixed", {})]
+    fig = corner.corner(samples[:, keep], labels=[LABELS[i] for i in keep], quantiles=[0.05, 0.5, 0.95],
                         show_titles=True, title_fmt=".3f", title_kwargs={"fontsize": 8},
                         label_kwargs={"fontsize": 9})
     d = calibration["diagnostics"]
@@ -278,7 +314,8 @@ def fold_units(table, folds: str) -> list[np.ndarray]:
     without it: a new scene), ``half`` (each take's second half by heads fitted on the
     first halves, and back: a new moment of a seen scene), ``both``, or ``object`` (each
     object predicted by heads fitted without any of its takes: a new object, as the test
-    objects are; with a single object, as ``both``). A single take has halves only."""
+    objects are; with a single object, as ``take``: a new height is nearer a new object
+    than a seen take's other half is). A single take has halves only."""
     if folds not in FOLDS:
         raise ValueError(f"the folds must be one of {', '.join(FOLDS)}, not {folds!r}")
     if folds == "object":
@@ -286,7 +323,7 @@ def fold_units(table, folds: str) -> list[np.ndarray]:
             raise ValueError("object folds need the frames' objects (an 'object' column)")
         if table["object"].nunique() >= 2:
             return [table["object"].to_numpy()]
-        folds = "both"
+        folds = "take"
     late = table.groupby("take")["t_s"].transform(lambda s: s > s.median()).to_numpy()
     sets = []
     if folds in ("take", "both") and table["take"].nunique() >= 2:

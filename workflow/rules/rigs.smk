@@ -153,6 +153,31 @@ rule sim2real_rigs:
         "../scripts/sim2real_rigs.py"
 
 
+rule sim2real_selection_rigs:
+    # sim-to-real on the rigs settings are chosen on (lab.rigs.selection), apart from the
+    # reported ones; a target of its own, not in the default run
+    input:
+        rigs=expand(f"{RIGS_EVAL}/{{rig}}/summary.json", rig=selection_rig_names()),
+    output:
+        json=f"{RIGS_EVAL}/selection/summary.json",
+        table=f"{RIGS_EVAL}/selection/rigs.md",
+        csv=f"{RIGS_EVAL}/selection/rigs.csv",
+        figure=f"{RIGS_EVAL}/selection/rigs.png",
+    params:
+        rigs=lambda w: canonical({r: {k: rig_lab(r)[k] for k in ("as_built", "camera", "heights_mm")}
+                                  for r in selection_rig_names()}),
+    log:
+        f"{RESULTS}/logs/evaluate/sim2real_selection_rigs.log",
+    threads: 1
+    resources:
+        mem_mb=600,
+        runtime=2,
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/sim2real_rigs.py"
+
+
 rule figure_sim2real_rigs:
     input:
         csv=f"{RIGS_EVAL}/rigs.csv",

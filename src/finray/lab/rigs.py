@@ -1,7 +1,8 @@
 """Emulated rigs drawn from ranges: a rig is one data point, a user's rig another.
 
-``lab.rigs`` names how many rigs to draw besides the configured one, from which seed,
-and the ranges: :func:`draw_rig` returns rig ``i``'s whole ``lab`` section, the
+``lab.rigs`` names how many rigs to draw besides the configured one (``count``, the
+reported rigs, and ``selection`` more after them, on which settings are chosen), from
+which seed, and the ranges: :func:`draw_rig` returns rig ``i``'s whole ``lab`` section, the
 configured one with these drawn (from a generator seeded by ``seed`` and ``i``):
 
 - ``uniform``: ``{"<section>.<key>": [low, high]}``, a value uniform in the range (each
@@ -24,8 +25,15 @@ import numpy as np
 
 
 def rig_names(rigs: dict) -> list[str]:
-    """``rig1`` .. ``rig<count>``."""
+    """The reported rigs: ``rig1`` .. ``rig<count>``."""
     return [f"rig{i}" for i in range(1, int(rigs.get("count", 0)) + 1)]
+
+
+def selection_rig_names(rigs: dict) -> list[str]:
+    """The rigs drawn after the reported ones, ``rig<count + 1>`` .. ``rig<count +
+    selection>``: settings are chosen on these, so that the reported rigs stay unseen."""
+    n = int(rigs.get("count", 0))
+    return [f"rig{i}" for i in range(n + 1, n + int(rigs.get("selection", 0)) + 1)]
 
 
 def rig_index(name: str) -> int:
@@ -74,8 +82,9 @@ def draw_rig(lab: dict, index: int) -> dict:
     values (see the module's text); deterministic in ``lab["rigs"]["seed"]`` and
     ``index``. The result has no ``rigs`` key."""
     spec = lab.get("rigs") or {}
-    if not 1 <= index <= int(spec.get("count", 0)):
-        raise ValueError(f"lab.rigs draws {spec.get('count', 0)} rigs, not rig {index}")
+    n = int(spec.get("count", 0)) + int(spec.get("selection", 0))
+    if not 1 <= index <= n:
+        raise ValueError(f"lab.rigs draws {n} rigs (count and selection), not rig {index}")
     rng = np.random.default_rng([int(spec.get("seed", 0)), index])
     out = copy.deepcopy({k: v for k, v in lab.items() if k != "rigs"})
     out["seed"] = int(lab.get("seed", 0)) + 1000 * index  # the takes' noise: the rig's own

@@ -3,7 +3,7 @@ import functools
 import zlib
 
 from finray.lab.as_built import as_built_fea, as_built_finger, as_built_material
-from finray.lab.rigs import draw_rig, rig_index, rig_names as _rig_names
+from finray.lab.rigs import draw_rig, rig_index, rig_names as _rig_names, selection_rig_names as _selection
 
 
 def lab_takes(lab=None):
@@ -39,8 +39,13 @@ def lab_take_seed(wildcards, seed=None):
 
 
 def rig_names():
-    """The drawn rigs: rig1 .. rig<lab.rigs.count>."""
+    """The drawn rigs reported: rig1 .. rig<lab.rigs.count>."""
     return _rig_names(config["lab"]["rigs"])
+
+
+def selection_rig_names():
+    """The drawn rigs settings are chosen on: after the reported ones (lab.rigs.selection)."""
+    return _selection(config["lab"]["rigs"])
 
 
 @functools.lru_cache(maxsize=None)
