@@ -31,6 +31,7 @@ include: "workflow/rules/paper.smk"
 include: "workflow/rules/train_benchmarks.smk"
 include: "workflow/rules/lab.smk"
 include: "workflow/rules/rigs.smk"
+include: "workflow/rules/rig_prior.smk"
 include: "workflow/rules/spread.smk"
 
 

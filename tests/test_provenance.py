@@ -58,7 +58,8 @@ MAPS = {("objects",), ("materials",), ("train", "models"), ("lab", "objects")}
 #: that rule. Downstream rules that merely get updated input files are not listed.
 _STUDIES = {"fea_pareto", "fea_stability"}
 _LAB_GEOMETRY = {"lab_finger", "lab_object"}  # the emulated rig's as-built finger
-_GEOMETRY = {"geometry_finger", "geometry_object"} | _STUDIES | _LAB_GEOMETRY  # the finger's shape
+_PRIOR_GEOMETRY = {"rig_prior_finger", "rig_prior_object"}  # the rig prior's thicker walls
+_GEOMETRY = {"geometry_finger", "geometry_object"} | _STUDIES | _LAB_GEOMETRY | _PRIOR_GEOMETRY
 _RENDER = {"render_scene", "render_benchmark"}
 _SEGMENT = _RENDER | {"dataset_examples", "train_model"}  # crop and segmentation
 #: what renders with the render settings: also the viewpoint experiment's perspective renders
@@ -67,24 +68,25 @@ _RENDERS = _RENDER | {"viewpoint_render"}
 _LISTS = {"fea_figures", "dataset_manifest", "evaluate_baseline", "train_model", "train_pareto",
           "inference_latency", "sim2real"}
 READERS: list[tuple[str, set[str]]] = [
-    ("finger.material", _GEOMETRY | {"fea_scene", "summary", "lab_fea"}),
+    ("finger.material", _GEOMETRY | {"fea_scene", "summary", "lab_fea", "rig_prior_fea"}),
     ("finger.extrusion_mm", _GEOMETRY | _RENDERS | {"fea_scene", "train_model",
                                                    "evaluate_experiment", "summary",
-                                                   "lab_fea", "lab_take"}),
+                                                   "lab_fea", "lab_take", "rig_prior_fea"}),
     ("finger.base_width_mm", _GEOMETRY | {"train_model", "lab_ingest", "render_scene"}),
     ("finger.ribs.count", _GEOMETRY | {"summary"}),
     ("finger.ribs.angle_step_deg", _GEOMETRY | {"summary"}),
     ("finger.*", _GEOMETRY),
     ("mesh.size_mm", _GEOMETRY | {"summary"}),
     ("mesh.min_angle_deg", _GEOMETRY),
-    ("mesh.*", {"geometry_finger", "lab_finger"} | _STUDIES),  # order, arc chords: the finger only
-    ("placement.gap_mm", {"geometry_object"} | _STUDIES),
+    ("mesh.*", {"geometry_finger", "lab_finger", "rig_prior_finger"} | _STUDIES),  # order, arc chords: the finger only
+    ("placement.gap_mm", {"geometry_object", "rig_prior_object"} | _STUDIES),
     ("heights_mm", {"geometry_object", "fea_scene", "render_scene", "geometry_gallery", "viewpoint_render",
                     "dataset_examples", "evaluate_experiment", "figure_material_generalisation",
                     "render_benchmark", "summary"} | _LISTS),
-    ("fea.friction", {"fea_scene", "summary"} | _STUDIES),
-    ("fea.push_mm", {"fea_scene", "summary"} | _STUDIES),
-    ("fea.*", {"fea_scene", "lab_fea"} | _STUDIES),  # (friction and push: the lab's own)
+    # (the rig prior: its wall variants' friction, and the nominal its gains are against)
+    ("fea.friction", {"fea_scene", "summary", "rig_prior_fea", "rig_prior"} | _STUDIES),
+    ("fea.push_mm", {"fea_scene", "summary", "rig_prior_fea"} | _STUDIES),
+    ("fea.*", {"fea_scene", "lab_fea", "rig_prior_fea"} | _STUDIES),  # (friction and push: the lab's own)
     ("render.pitches_deg", {"render_scene", "dataset_manifest", "dataset_examples",
                             "evaluate_experiment", "viewpoint_render"}),  # the new pitch's views
     ("render.window_y_mm", _RENDERS | {"train_model", "evaluate_experiment"}),  # pitch axis
@@ -119,6 +121,14 @@ READERS: list[tuple[str, set[str]]] = [
     ("evaluate.seed", {"evaluate_baseline", "evaluate_experiment"}),
     ("evaluate.usable_nrmse_pct", {"figure_viewpoint", "summary"}),
     ("evaluate.viewpoint.*", {"viewpoint_render", "summary"}),
+    # the rig prior's FEA: its variants (new jobs), the prior's draws
+    ("evaluate.sim2real.rig_prior.gain.thickness_delta_mm", {"rig_prior", "rig_prior_finger", "rig_prior_object",
+                                                            "rig_prior_fea"}),
+    ("evaluate.sim2real.rig_prior.gain.friction", {"rig_prior", "rig_prior_fea"}),
+    # (a scene the training lacks: its nominal FEA too)
+    ("evaluate.sim2real.rig_prior.gain.scenes", {"rig_prior", "rig_prior_object", "rig_prior_fea",
+                                                 "geometry_object", "fea_scene"}),
+    ("evaluate.sim2real.rig_prior.gain.*", {"rig_prior"}),
     ("evaluate.sim2real.*", {"sim2real"}),
     # the manuscript quotes the spread study: the summary waits for it, so its jobs join the DAG
     ("evaluate.spread.manuscript", {"summary", "spread_train", "spread_experiment", "spread_sim2real",
@@ -133,8 +143,8 @@ READERS: list[tuple[str, set[str]]] = [
     ("benchmarks.latency_repeats", {"inference_latency"}),
     ("benchmarks.train_*", {"train_pareto"}),
     # the finger's material: every scene (and the studies, which use it too)
-    ("materials.ninjaflex.youngs_modulus_MPa", {"fea_scene", "summary", "lab_fea"} | _STUDIES),
-    ("materials.ninjaflex.*", {"fea_scene", "lab_fea"} | _STUDIES),
+    ("materials.ninjaflex.youngs_modulus_MPa", {"fea_scene", "summary", "lab_fea", "rig_prior_fea"} | _STUDIES),
+    ("materials.ninjaflex.*", {"fea_scene", "lab_fea", "rig_prior_fea"} | _STUDIES),
     ("materials.neoprene.rigid", {"geometry_object", "fea_scene", "fea_stability"}),
     ("materials.neoprene.*", {"fea_scene", "fea_stability"}),
     ("materials.steel.rigid", {"geometry_object", "fea_scene"} | _STUDIES),
@@ -165,6 +175,7 @@ READERS: list[tuple[str, set[str]]] = [
                                         "fea_figures", "inference_latency", "viewpoint_render",
                                         "sim2real", "realtime_benchmark", "figure_annotated"}),
     ("objects.*.materials", {"geometry_object", "fea_scene", "render_scene"} | _LISTS),
+    ("objects.circle_d10.*", {"geometry_object", "rig_prior_object"}),  # the rig prior's scene (smoke)
     ("objects.*", {"geometry_object"}),  # the shape
     # one generated object more: its scenes, and what lists the training scenes
     # (and, as a generated object now trains, the diversity comparison: the paper-objects

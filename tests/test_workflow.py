@@ -220,8 +220,16 @@ def test_smoke_evaluation_summary_and_paper(smoke_run):
     assert [f["context_objects"] for f in r["fits"]] == [0, 1, 1]
     for f in r["fits"]:
         d = f["diagnostics"]
-        assert d["steps"] >= d["walkers"] and set(d["tau_steps"]) == {"gain", "offset_N", "log_sigma_N",
-                                                                      "log_rho", "log_kappa", "log_nu"}
+        # gain and offset held at 1 and 0 (their prior sd 0): the noise terms are sampled
+        assert d["steps"] >= d["walkers"] and set(d["tau_steps"]) == {"log_sigma_N", "log_rho",
+                                                                      "log_kappa", "log_nu"}
+    # the no-context intervals' rig gain: the rig prior's FEA (one scene in the smoke config)
+    prior = json.loads((smoke_run / "results" / "evaluate" / "sim2real" / "rig_prior" / "rig_prior.json")
+                       .read_text())
+    assert set(prior["gains"]) == {"circle_d10_h20"} and len(prior["gains"]["circle_d10_h20"]) == 5
+    assert prior["gains"]["circle_d10_h20"]["t0.15"] > prior["gains"]["circle_d10_h20"]["t0.075"] > 1
+    assert prior["gains"]["circle_d10_h20"]["mu0.6"] > 1 and prior["gain_log_sd"] > 0
+    assert r["config"]["rig_prior"]["gain_log_mean"] == prior["gain_log_mean"]
     m = pd.read_csv(smoke_run / "results" / "evaluate" / "sim2real" / "metrics.csv")
     one = m[(m["context_objects"] == 1) & (m["context"] == "all") & (m["test"] == "all")].iloc[0]
     assert one["n"] == r["by_context"]["1"]["n_frames"] and 0 <= one["coverage_pct"] <= 100

@@ -62,13 +62,15 @@ class Sampler:
 @dataclass(frozen=True)
 class RigPrior:
     """What a rig leaves unknown until its frames are seen: its gain against the
-    simulation (an as-built finger's stiffness; ``log g_rig ~ Normal(0, gain_log_sd)``)
-    and its offset (N; ``b_rig ~ Normal(0, offset_sd_N)``). With no context frames the
+    simulation (an as-built finger's stiffness and grip; ``log g_rig ~
+    Normal(gain_log_mean, gain_log_sd)``, :mod:`finray.evaluate.rig_prior`) and its
+    offset (N; ``b_rig ~ Normal(0, offset_sd_N)``). With no context frames the
     calibration is fitted on the simulation's own frames, which know neither: its
     intervals then covered 3-6 % of the emulated rig's frames (README, "Sim-to-real")."""
 
     gain_log_sd: float = 0.0
     offset_sd_N: float = 0.0
+    gain_log_mean: float = 0.0
 
 
 def spread(members) -> np.ndarray:
@@ -236,9 +238,9 @@ def predictive(calibration: dict, mu, s, level: float = 0.9, seed: int = 0,
     new rig's unknown gain and offset drawn on top of each sample (:class:`RigPrior`)."""
     theta = np.asarray(calibration["posterior"]["samples"], dtype=np.float64)
     g, b = theta[:, :1], theta[:, 1:2]
-    if rig is not None and (rig.gain_log_sd > 0 or rig.offset_sd_N > 0):
+    if rig is not None and (rig.gain_log_sd > 0 or rig.offset_sd_N > 0 or rig.gain_log_mean != 0):
         draw = np.random.default_rng([seed, 1]).standard_normal((len(theta), 2))
-        g = g * np.exp(rig.gain_log_sd * draw[:, :1])
+        g = g * np.exp(rig.gain_log_mean + rig.gain_log_sd * draw[:, :1])
         b = b + rig.offset_sd_N * draw[:, 1:2]
     sig, rho, kap, nu = (np.exp(theta[:, i:i + 1]) for i in (2, 3, 4, 5))
     mu, s = np.asarray(mu, dtype=np.float64).ravel(), np.asarray(s, dtype=np.float64).ravel()

@@ -1,5 +1,6 @@
 # What every stage shares: the config (validated), the results' folders, canonical params,
 # the scenes' views and shards. Each stage's own helpers are in helpers/<stage>.smk.
+import copy
 import os
 import sys
 from types import SimpleNamespace

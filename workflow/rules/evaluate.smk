@@ -73,6 +73,7 @@ rule sim2real:
         model=sim2real_model(),
         sim=shard_files(splits=["train"], pitch=0.0),
         sim_test=shard_files(splits=["shape"], pitch=0.0),
+        rig_prior=rig_prior_input(),
     output:
         metrics=f"{EVALUATE}/sim2real/metrics.csv",
         frames=f"{EVALUATE}/sim2real/frames.csv",
@@ -82,7 +83,7 @@ rule sim2real:
                       category="Sim-to-real"),
     params:
         size=config["train"]["input_size"],
-        sim2real=section("evaluate", keys=("sim2real",))["sim2real"],
+        sim2real=sim2real_params(),
     log:
         f"{RESULTS}/logs/evaluate/sim2real.log",
     benchmark:

@@ -114,6 +114,7 @@ use rule sim2real as rig_sim2real with:
         model=sim2real_model(),
         sim=shard_files(splits=["train"], pitch=0.0),
         sim_test=shard_files(splits=["shape"], pitch=0.0),
+        rig_prior=rig_prior_input(),
     output:
         metrics=f"{RIGS_EVAL}/{{rig}}/metrics.csv",
         frames=f"{RIGS_EVAL}/{{rig}}/frames.csv",

@@ -64,6 +64,7 @@ use rule sim2real as spread_sim2real with:
         model=lambda w: sim2real_model(train_dir(w)),
         sim=shard_files(splits=["train"], pitch=0.0),
         sim_test=shard_files(splits=["shape"], pitch=0.0),
+        rig_prior=rig_prior_input(),
     output:
         metrics=f"{SPREAD}/{{variant}}/sim2real/metrics.csv",
         frames=f"{SPREAD}/{{variant}}/sim2real/frames.csv",

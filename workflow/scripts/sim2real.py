@@ -6,7 +6,11 @@ from finray.logs import log_to
 inp, out = snakemake.input, snakemake.output
 with log_to(snakemake.log[0]):
     torch.set_num_threads(snakemake.threads)
+    cfg = Sim2RealConfig.from_params(snakemake.params.sim2real)
+    prior = [inp.rig_prior] if isinstance(inp.rig_prior, str) else list(inp.rig_prior)
+    if prior:  # the rig prior's gain from the FEA (finray.evaluate.rig_prior)
+        cfg = cfg.with_rig_prior(prior[0])
     result = run_sim2real(inp.model, list(inp.lab), list(inp.sim), list(inp.sim_test),
-                          snakemake.params.size, Sim2RealConfig.from_params(snakemake.params.sim2real))
+                          snakemake.params.size, cfg)
     write_outputs(result, out)
     print(result["metrics"].to_string())

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 from .wording import jinja_globals, number_word
@@ -25,6 +26,7 @@ def render_text(template, summary: dict, extra: dict | None = None) -> str:
     env.filters["g"] = lambda v, d=2: "n/a" if v is None else f"{v:.{d}g}"  # 0.001, 3.4e-07
     env.filters["degs"] = lambda v: ", ".join(f"{x:g}°" for x in v) if v else "no pitch"
     env.filters["nword"] = number_word
+    env.filters["exp"] = math.exp
     env.globals.update(jinja_globals())
     return env.from_string(Path(template).read_text()).render(s=summary, **(extra or {}))
 

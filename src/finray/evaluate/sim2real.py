@@ -60,7 +60,14 @@ class Sim2RealConfig:
                    sim_every=int(p.get("sim_every", 4)), sim_folds=int(p.get("sim_folds", 5)),
                    priors=Priors(**{k: tuple(v) if isinstance(v, list) else v for k, v in pr.items()}),
                    sampler=Sampler(**p.get("sampler", {})),
-                   rig_prior=RigPrior(**p.get("rig_prior", {})))
+                   rig_prior=RigPrior(**{k: v for k, v in p.get("rig_prior", {}).items() if k != "gain"}))
+
+    def with_rig_prior(self, path) -> "Sim2RealConfig":
+        """This config with the rig prior's gain of a ``rig_prior.json``
+        (:mod:`finray.evaluate.rig_prior`)."""
+        prior = json.loads(Path(path).read_text())
+        return replace(self, rig_prior=replace(self.rig_prior, gain_log_mean=float(prior["gain_log_mean"]),
+                                               gain_log_sd=float(prior["gain_log_sd"])))
 
 
 def _frames(shards, size, every=1):

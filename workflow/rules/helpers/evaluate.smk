@@ -101,3 +101,53 @@ def diversity_params(wildcards):
         "setup": {"model": model, "models": {"paper_objects": paper, "with_generated": model},
                   "n_generated": n_gen,
                   "train_objects": {"paper_objects": len(train) - n_gen, "with_generated": len(train)}}})
+
+
+# The rig prior's FEA (rig_prior.smk): evaluate.sim2real.rig_prior.gain
+def rig_prior_dir():
+    return f"{EVALUATE}/sim2real/rig_prior"
+
+
+def rig_prior_spec():
+    """evaluate.sim2real.rig_prior.gain (the ranges and scenes), or None."""
+    return (config["evaluate"]["sim2real"].get("rig_prior") or {}).get("gain")
+
+
+def rig_prior_input():
+    """The rig prior a sim-to-real job reads: rig_prior.json where the FEA makes it."""
+    return [f"{rig_prior_dir()}/rig_prior.json"] if rig_prior_spec() else []
+
+
+def sim2real_params():
+    """evaluate.sim2real without what only the rig prior's FEA reads (rig_prior.gain)."""
+    s = copy.deepcopy(config["evaluate"]["sim2real"])
+    (s.get("rig_prior") or {}).pop("gain", None)
+    return canonical(s)
+
+
+def rig_prior_variant(variant):
+    """A variant's as-built changes (finray.evaluate.rig_prior.variants), one line if unknown."""
+    from finray.evaluate.rig_prior import variants
+
+    v = variants(rig_prior_spec()).get(variant)
+    if v is None:
+        raise ValueError(f"no rig-prior variant {variant!r}")
+    return v
+
+
+def rig_prior_scenes():
+    """(variant, object, height) of every FEA run of the rig prior."""
+    from finray.evaluate.rig_prior import variants
+
+    spec = rig_prior_spec()
+    return [(v, o, f"{float(h):g}") for v in variants(spec) for o, h in spec["scenes"]]
+
+
+def rig_prior_geometry(wildcards):
+    """Thicker walls: the variant's own finger and object; more friction: the training's."""
+    if "thickness_delta_mm" in rig_prior_variant(wildcards.variant):
+        base = f"{rig_prior_dir()}/{wildcards.variant}/geometry"
+    else:
+        base = GEOMETRY
+    return {"finger": f"{base}/finger.npz",
+            "object": f"{base}/objects/{wildcards.object}_h{wildcards.height}.npz"}
