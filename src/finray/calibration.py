@@ -12,8 +12,8 @@ a relative, not an absolute, measure of its error), ``nu`` the degrees of freedo
 network's errors on a new scene are heavy-tailed (most frames close, a few far off, e.g.
 at contact onset), which a normal law can only meet with a scale that makes most
 frames' intervals too wide. Priors (:class:`Priors`): ``log g ~ Normal(0, gain_log_sd)``,
-``b ~ Normal(0, offset_sd_N)`` (each fixed, at 1 and 0 N, where its sd is 0); ``log sigma``, ``log rho`` and ``log kappa`` uniform
-(scale-free) within bounds; ``nu ~ Gamma(2, rate 0.1)`` within bounds (Juárez & Steel
+``b ~ Normal(0, offset_sd_N)`` (each fixed, at 1 and 0 N, where its sd is 0); ``log
+sigma``, ``log rho`` and ``log kappa`` uniform (scale-free) within bounds; ``nu ~ Gamma(2, rate 0.1)`` within bounds (Juárez & Steel
 2010: mean 20, from near-Cauchy to near-normal). The chain runs until it is at least ``min_tau_multiple`` autocorrelation
 times long for every parameter (emcee's integrated time); the diagnostics are kept
 with the posterior (:func:`fit_calibration`). :func:`predictive` gives each frame's

@@ -105,6 +105,7 @@ def diversity_params(wildcards):
 
 # The rig prior's FEA (rig_prior.smk): evaluate.sim2real.rig_prior.gain
 def rig_prior_dir():
+    """Where the rig prior's FEA and rig_prior.json go."""
     return f"{EVALUATE}/sim2real/rig_prior"
 
 
