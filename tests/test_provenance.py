@@ -66,7 +66,7 @@ _SEGMENT = _RENDER | {"dataset_examples", "train_model"}  # crop and segmentatio
 _RENDERS = _RENDER | {"viewpoint_render"}
 #: what lists every scene or every training shard (a new or moved scene changes its input)
 _LISTS = {"fea_figures", "dataset_manifest", "evaluate_baseline", "train_model", "train_pareto",
-          "inference_latency", "sim2real"}
+          "inference_latency", "sim2real_no_context"}
 READERS: list[tuple[str, set[str]]] = [
     ("finger.material", _GEOMETRY | {"fea_scene", "summary", "lab_fea", "rig_prior_fea"}),
     ("finger.extrusion_mm", _GEOMETRY | _RENDERS | {"fea_scene", "train_model",
@@ -105,7 +105,8 @@ READERS: list[tuple[str, set[str]]] = [
     ("dataset.base_band", _RENDER | {"train_model"}),  # camera views' crop, the predictor's
     ("dataset.*", _SEGMENT),
     ("train.input_size", {"train_model", "train_pareto", "evaluate_baseline",
-                          "evaluate_experiment", "summary", "lab_qa", "sim2real"}),
+                          "evaluate_experiment", "summary", "lab_qa", "sim2real",
+                          "sim2real_no_context"}),
     ("train.base_channels", {"train_model", "train_pareto", "summary"}),
     ("train.models.*", {"train_model"}),
     ("train.epochs", {"train_model"}),
@@ -129,10 +130,17 @@ READERS: list[tuple[str, set[str]]] = [
     ("evaluate.sim2real.rig_prior.gain.scenes", {"rig_prior", "rig_prior_object", "rig_prior_fea",
                                                  "geometry_object", "fea_scene"}),
     ("evaluate.sim2real.rig_prior.gain.*", {"rig_prior"}),
+    # the no-context fit (the simulation's, every rig's) and the context fits
+    ("evaluate.sim2real.sim_every", {"sim2real_no_context"}),
+    ("evaluate.sim2real.sim_folds", {"sim2real_no_context"}),
+    ("evaluate.sim2real.heads.*", {"sim2real_no_context", "sim2real"}),
+    ("evaluate.sim2real.priors.*", {"sim2real_no_context", "sim2real"}),
+    ("evaluate.sim2real.sampler.*", {"sim2real_no_context", "sim2real"}),
+    ("evaluate.sim2real.level", {"sim2real_no_context", "sim2real"}),
     ("evaluate.sim2real.*", {"sim2real"}),
     # the manuscript quotes the spread study: the summary waits for it, so its jobs join the DAG
     ("evaluate.spread.manuscript", {"summary", "spread_train", "spread_experiment", "spread_sim2real",
-                                    "spread_summary"}),
+                                    "spread_sim2real_no_context", "spread_summary"}),
     ("benchmarks.fea_*", _STUDIES),
     ("benchmarks.latency_model", {"inference_latency"}),
     # the live-stream benchmark's model also draws the annotated figure, at its pitch
@@ -158,13 +166,13 @@ READERS: list[tuple[str, set[str]]] = [
                                   "realtime_benchmark", "figure_annotated"}),  # it becomes the pitch object
     ("objects.square_s10_a30.split", {"fea_scene", "render_scene", "geometry_gallery",
                                       "evaluate_baseline", "evaluate_experiment", "train_model",
-                                      "train_pareto", "figure_material_generalisation", "sim2real"}),
+                                      "train_pareto", "figure_material_generalisation", "sim2real_no_context"}),
     ("objects.ring_d15.split", {"fea_scene", "render_scene", "geometry_gallery",
                                 "evaluate_baseline", "evaluate_experiment", "train_model",
-                                "train_pareto", "figure_material_generalisation", "sim2real"}),
+                                "train_pareto", "figure_material_generalisation", "sim2real_no_context"}),
     ("objects.ellipse_16x9.split", {"fea_scene", "render_scene", "geometry_gallery",
                                     "evaluate_experiment", "figure_material_generalisation",
-                                    "sim2real", "realtime_benchmark", "figure_annotated"}),
+                                    "sim2real_no_context", "realtime_benchmark", "figure_annotated"}),
     # its materials: a deformable one meshes the object; new scenes (train objects: in
     # the training lists), removed ones (the lists lose them)
     ("objects.ring_d15.materials", {"geometry_object", "dataset_manifest", "evaluate_experiment",
@@ -173,7 +181,7 @@ READERS: list[tuple[str, set[str]]] = [
     ("objects.ellipse_16x9.materials", {"geometry_object", "fea_scene", "render_scene",
                                         "dataset_manifest", "evaluate_experiment",
                                         "fea_figures", "inference_latency", "viewpoint_render",
-                                        "sim2real", "realtime_benchmark", "figure_annotated"}),
+                                        "sim2real_no_context", "realtime_benchmark", "figure_annotated"}),
     ("objects.*.materials", {"geometry_object", "fea_scene", "render_scene"} | _LISTS),
     ("objects.circle_d10.*", {"geometry_object", "rig_prior_object"}),  # the rig prior's scene (smoke)
     ("objects.*", {"geometry_object"}),  # the shape

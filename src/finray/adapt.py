@@ -10,7 +10,8 @@ seconds, as the encoder's features are computed once. The members' spread is the
 per-frame uncertainty of the network (:mod:`finray.calibration` adds the sensor's).
 
 - :func:`encoder_features` -- the frozen encoder's latent per frame
-- :func:`fit_heads` -- the head ensemble on features and forces (N)
+- :func:`fit_heads` -- the head ensemble on features and forces (N); :func:`head_from_state`
+  one of its heads again from its weights
 - :class:`HeadEnsemble` -- the network with the heads: ``force`` (mean, N),
   ``members`` (each head's, N); :func:`export_ensemble` writes it for
   :class:`finray.predict.Predictor`
@@ -119,6 +120,13 @@ def fit_heads(model: FinRayNet, features: torch.Tensor, force_N, fit: HeadFit,
         head.requires_grad_(False)
         heads.append(head)
     return heads
+
+
+def head_from_state(model: FinRayNet, state: dict, component: int = 0) -> nn.Module:
+    """A head :func:`fit_heads` fitted on ``model``, from its ``state_dict``."""
+    head = _single_output(model.force_head, component).eval()
+    head.load_state_dict(state)
+    return head.requires_grad_(False)
 
 
 def _single_output(head: nn.Sequential, component: int) -> nn.Sequential:

@@ -66,13 +66,37 @@ rule evaluate_experiment:
         "../scripts/evaluate_experiment.py"
 
 
+rule sim2real_no_context:
+    # the no-context heads and calibration: from the simulation alone, every rig's the same
+    input:
+        model=sim2real_model(),
+        sim=shard_files(splits=["train"], pitch=0.0),
+        sim_test=shard_files(splits=["shape"], pitch=0.0),
+    output:
+        no_context=f"{EVALUATE}/sim2real/no_context.pt",
+    params:
+        size=config["train"]["input_size"],
+        sim2real=no_context_params(),
+    log:
+        f"{RESULTS}/logs/evaluate/sim2real_no_context.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/evaluate/sim2real_no_context.tsv"
+    threads: 1
+    resources:
+        mem_mb=1100,
+        runtime=3,
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/sim2real_no_context.py"
+
+
 rule sim2real:
     # Reads the ingested takes (the recording format's shards), never lab: settings.
     input:
         lab=[f"{LAB}/ingest/{t}/shard.npz" for t in lab_takes()],
         model=sim2real_model(),
-        sim=shard_files(splits=["train"], pitch=0.0),
-        sim_test=shard_files(splits=["shape"], pitch=0.0),
+        no_context=f"{EVALUATE}/sim2real/no_context.pt",
         rig_prior=rig_prior_input(),
     output:
         metrics=f"{EVALUATE}/sim2real/metrics.csv",

@@ -58,12 +58,24 @@ use rule evaluate_experiment as spread_experiment with:
         f"{RESULTS}/benchmarks/studies/spread/{{variant}}_experiment_{{experiment}}.tsv"
 
 
+use rule sim2real_no_context as spread_sim2real_no_context with:
+    input:
+        model=lambda w: sim2real_model(train_dir(w)),
+        sim=shard_files(splits=["train"], pitch=0.0),
+        sim_test=shard_files(splits=["shape"], pitch=0.0),
+    output:
+        no_context=f"{SPREAD}/{{variant}}/sim2real/no_context.pt",
+    log:
+        f"{RESULTS}/logs/spread/{{variant}}/sim2real_no_context.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/studies/spread/{{variant}}_sim2real_no_context.tsv"
+
+
 use rule sim2real as spread_sim2real with:
     input:
         lab=[f"{LAB}/ingest/{t}/shard.npz" for t in lab_takes()],
         model=lambda w: sim2real_model(train_dir(w)),
-        sim=shard_files(splits=["train"], pitch=0.0),
-        sim_test=shard_files(splits=["shape"], pitch=0.0),
+        no_context=f"{SPREAD}/{{variant}}/sim2real/no_context.pt",
         rig_prior=rig_prior_input(),
     output:
         metrics=f"{SPREAD}/{{variant}}/sim2real/metrics.csv",

@@ -10,7 +10,6 @@ with log_to(snakemake.log[0]):
     prior = [inp.rig_prior] if isinstance(inp.rig_prior, str) else list(inp.rig_prior)
     if prior:  # the rig prior's gain from the FEA (finray.evaluate.rig_prior)
         cfg = cfg.with_rig_prior(prior[0])
-    result = run_sim2real(inp.model, list(inp.lab), list(inp.sim), list(inp.sim_test),
-                          snakemake.params.size, cfg)
+    result = run_sim2real(inp.model, list(inp.lab), inp.no_context, snakemake.params.size, cfg)
     write_outputs(result, out)
     print(result["metrics"].to_string())

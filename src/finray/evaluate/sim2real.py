@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..adapt import HeadFit, encoder_features, head_forces
+from ..adapt import HeadFit, encoder_features, head_forces, head_from_state
 from ..calibration import (Priors, RigPrior, Sampler, coverage, fit_rig, fold_units, predictive,
                            shard_times, spread)
 from ..paper_reference import paper_value
@@ -95,10 +95,59 @@ def object_folds(objects, n: int) -> np.ndarray:
     return np.array([fold[o] for o in objects])
 
 
-def run_sim2real(model_pt, lab_shards, sim_shards, sim_test_shards, size, cfg: Sim2RealConfig,
-                 log=print) -> dict:
-    """Every context combination; returns ``{"metrics", "frames"}`` (DataFrames),
-    ``"calibrations"`` (one per fit) and ``"summary"``."""
+def fit_no_context(model_pt, sim_shards, sim_test_shards, size, cfg: Sim2RealConfig, log=print) -> dict:
+    """The no-context heads and calibration, from the simulation alone and so the same for
+    every rig: heads on the training frames (every ``cfg.sim_every``-th), calibrated on
+    predictions of training objects by heads fitted without them (``cfg.sim_folds``
+    folds, as a test object is new to them), checked on the simulated test frames.
+    Returns ``{"heads": [state dicts], "calibration", "simulated_test"}``
+    (:func:`save_no_context`)."""
+    from ..train import load_checkpoint
+
+    t0 = time.perf_counter()
+    model, _ = load_checkpoint(model_pt)
+    xs, ys, ts = _frames(sim_shards, size, cfg.sim_every)
+    f_sim = encoder_features(model, xs)
+    xt, yt, _ = _frames(sim_test_shards, size, cfg.sim_every)
+    f_test = encoder_features(model, xt)
+    log(f"features: {len(xs)} simulated, {len(xt)} simulated test frames ({time.perf_counter() - t0:.1f} s)")
+    heads0, cal0 = fit_rig(model, f_sim, ys, [object_folds(ts["object"].to_numpy(), cfg.sim_folds)],
+                           cfg.heads, cfg.priors, cfg.sampler, log=log)
+    cal0.update(context_objects=0, context="none", fitted_on="simulated training frames, objects cross-fitted")
+    p_test = head_forces(model, heads0, f_test)
+    sim_band = predictive(cal0, p_test.mean(0), spread(p_test), cfg.level)
+    own = head_forces(model, [model.force_head], f_test)[0]  # the simulation's own head
+    sim = {"n_frames": int(len(yt)), "coverage_pct": 100 * coverage(yt, sim_band),
+           "metrics": force_metrics(yt, sim_band["median"]),
+           "raw_metrics": force_metrics(yt, p_test.mean(0)), "own_head": force_metrics(yt, own),
+           "shards": len(sim_test_shards), "every": cfg.sim_every}
+    log(f"no context: {time.perf_counter() - t0:.1f} s; simulated test frames inside the "
+        f"{cfg.level:.0%} interval: {sim['coverage_pct']:.1f} %")
+    return {"heads": [h.state_dict() for h in heads0], "calibration": cal0, "simulated_test": sim}
+
+
+def save_no_context(result: dict, path) -> None:
+    """:func:`fit_no_context`'s result as one file: the heads' weights and the rest as JSON."""
+    import torch
+
+    torch.save({"heads": result["heads"], "info": json.dumps(
+        {k: result[k] for k in ("calibration", "simulated_test")})}, path)
+
+
+def load_no_context(model, path) -> tuple[list, dict, dict]:
+    """The no-context heads on ``model`` (as :func:`finray.adapt.fit_heads` returns them),
+    their calibration and the simulated test's check, from :func:`save_no_context`'s file."""
+    import torch
+
+    saved = torch.load(path, weights_only=True)
+    info = json.loads(saved["info"])
+    return [head_from_state(model, state) for state in saved["heads"]], info["calibration"], info["simulated_test"]
+
+
+def run_sim2real(model_pt, lab_shards, no_context, size, cfg: Sim2RealConfig, log=print) -> dict:
+    """Every context combination; ``no_context``: :func:`save_no_context`'s file of the
+    same model. Returns ``{"metrics", "frames"}`` (DataFrames), ``"calibrations"`` (one per
+    fit) and ``"summary"``."""
     from ..train import load_checkpoint
 
     t0, c0 = time.perf_counter(), time.process_time()
@@ -106,12 +155,7 @@ def run_sim2real(model_pt, lab_shards, sim_shards, sim_test_shards, size, cfg: S
     x, y, table = _frames(lab_shards, size)
     table = lab_table(lab_shards, table)
     f_lab = encoder_features(model, x)
-    xs, ys, ts = _frames(sim_shards, size, cfg.sim_every)
-    f_sim = encoder_features(model, xs)
-    xt, yt, _ = _frames(sim_test_shards, size, cfg.sim_every)
-    f_test = encoder_features(model, xt)
-    log(f"features: {len(x)} lab frames, {len(xs)} simulated, "
-        f"{len(xt)} simulated test frames ({time.perf_counter() - t0:.1f} s)")
+    log(f"features: {len(x)} lab frames ({time.perf_counter() - t0:.1f} s)")
 
     groups = sorted(table["group"].unique())
     frames, cals = [], []
@@ -129,24 +173,11 @@ def run_sim2real(model_pt, lab_shards, sim_shards, sim_test_shards, size, cfg: S
             "sensor_N": y[test], "net_mean_N": mu, "net_spread_N": sd,
             "pred_N": band["median"], "lo_N": band["lo"], "hi_N": band["hi"]}))
 
-    # no context: the simulation's heads, calibrated on predictions of objects they were
-    # not fitted on (the training objects in folds): as a test object is new to them
-    t1 = time.perf_counter()
-    heads0, cal0 = fit_rig(model, f_sim, ys, [object_folds(ts["object"].to_numpy(), cfg.sim_folds)],
-                           cfg.heads, cfg.priors, cfg.sampler, log=log)
-    cal0.update(context_objects=0, context="none", fitted_on="simulated training frames, objects cross-fitted",
-                rig_prior=asdict(cfg.rig_prior))
+    # no context: the simulation's heads and calibration (fit_no_context), the rig prior on top
+    heads0, cal0, sim = load_no_context(model, no_context)
+    cal0.update(rig_prior=asdict(cfg.rig_prior))
     cals.append(cal0)
     record(0, (), np.ones(len(y), bool), heads0, cal0)
-    p_test = head_forces(model, heads0, f_test)
-    sim_band = predictive(cal0, p_test.mean(0), spread(p_test), cfg.level)
-    own = head_forces(model, [model.force_head], f_test)[0]  # the simulation's own head
-    sim = {"n_frames": int(len(yt)), "coverage_pct": 100 * coverage(yt, sim_band),
-           "metrics": force_metrics(yt, sim_band["median"]),
-           "raw_metrics": force_metrics(yt, p_test.mean(0)), "own_head": force_metrics(yt, own),
-           "shards": len(sim_test_shards), "every": cfg.sim_every}
-    log(f"no context: {time.perf_counter() - t1:.1f} s; simulated test frames inside the "
-        f"{cfg.level:.0%} interval: {sim['coverage_pct']:.1f} %")
 
     for k in range(1, min(cfg.max_context, len(groups) - 1) + 1):
         for context in itertools.combinations(groups, k):

@@ -119,11 +119,22 @@ def rig_prior_input():
     return [f"{rig_prior_dir()}/rig_prior.json"] if rig_prior_spec() else []
 
 
+#: what the no-context fit reads of evaluate.sim2real (the rest is the context fits')
+NO_CONTEXT_KEYS = ("heads", "priors", "sampler", "level", "sim_every", "sim_folds")
+
+
 def sim2real_params():
-    """evaluate.sim2real without what only the rig prior's FEA reads (rig_prior.gain)."""
+    """evaluate.sim2real as the context fits read it: without the no-context fit's own
+    keys (sim_every, sim_folds) and what only the rig prior's FEA reads (rig_prior.gain)."""
     s = copy.deepcopy(config["evaluate"]["sim2real"])
     (s.get("rig_prior") or {}).pop("gain", None)
-    return canonical(s)
+    return canonical({k: v for k, v in s.items() if k not in ("sim_every", "sim_folds")})
+
+
+def no_context_params():
+    """evaluate.sim2real as the no-context fit reads it (NO_CONTEXT_KEYS)."""
+    s = config["evaluate"]["sim2real"]
+    return canonical({k: s[k] for k in NO_CONTEXT_KEYS if k in s})
 
 
 def rig_prior_variant(variant):
