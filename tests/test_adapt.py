@@ -177,3 +177,17 @@ def test_epochs_give_the_same_passes_over_any_number_of_frames():
     assert fit.n_steps(900) == 844 and fit.n_steps(1800) == 1688
     assert fit.n_steps(1) == 1
     assert HeadFit(steps=400).n_steps(1800) == 400
+
+
+def test_heads_come_back_from_their_weights(net, tmp_path):
+    """A fitted head saved as its state dict (as the no-context fit's file holds it) and
+    rebuilt on the model gives the same forces, bit for bit."""
+    from finray.adapt import head_from_state
+
+    x = torch.rand(32, 1, 64, 32, generator=torch.Generator().manual_seed(3))
+    f = encoder_features(net, x)
+    heads = fit_heads(net, f, np.linspace(0, 4, 32), HeadFit(members=2, steps=20))
+    torch.save([h.state_dict() for h in heads], tmp_path / "heads.pt")
+    again = [head_from_state(net, s) for s in torch.load(tmp_path / "heads.pt", weights_only=True)]
+    np.testing.assert_array_equal(head_forces(net, again, f), head_forces(net, heads, f))
+    assert not any(p.requires_grad for h in again for p in h.parameters())
