@@ -484,7 +484,10 @@ def _run_calibrate(args) -> int:
                           log=lambda m: print(m, flush=True))
     sm, dg = cal["summary"], cal["diagnostics"]
     for k in ("gain", "offset_N", "sigma_N", "rho", "kappa", "nu"):
-        print(f"{k}: {sm[k]['median']:.4g} (95 % {sm[k]['q2.5']:.4g} to {sm[k]['q97.5']:.4g})")
+        if k in cal.get("fixed", {}):  # held (prior sd 0): the heads are fitted to the sensor
+            print(f"{k}: {cal['fixed'][k]:.4g} (fixed)")
+        else:
+            print(f"{k}: {sm[k]['median']:.4g} (95 % {sm[k]['q2.5']:.4g} to {sm[k]['q97.5']:.4g})")
     print(f"chain: {dg['steps']} steps x {dg['walkers']} walkers, {dg['steps_over_tau_min']:.0f} "
           f"autocorrelation times, acceptance {dg['acceptance_fraction']['mean']:.2f}"
           f"{'' if dg['ok'] else ' -- NOT CONVERGED: see diagnostics'}")
