@@ -1,5 +1,6 @@
 # Helpers of the evaluation rules (evaluate.smk): each experiment's test shards, models and
-# conditions; sim-to-real's model; the diversity comparison.
+# conditions; sim-to-real's model; the diversity comparison; the rig prior's FEA.
+from finray.evaluate.rig_prior import variants as rig_prior_variants
 
 
 def pitch_series_shards():
@@ -139,9 +140,7 @@ def no_context_params():
 
 def rig_prior_variant(variant):
     """A variant's as-built changes (finray.evaluate.rig_prior.variants), one line if unknown."""
-    from finray.evaluate.rig_prior import variants
-
-    v = variants(rig_prior_spec()).get(variant)
+    v = rig_prior_variants(rig_prior_spec()).get(variant)
     if v is None:
         raise ValueError(f"no rig-prior variant {variant!r}")
     return v
@@ -149,10 +148,8 @@ def rig_prior_variant(variant):
 
 def rig_prior_scenes():
     """(variant, object, height) of every FEA run of the rig prior."""
-    from finray.evaluate.rig_prior import variants
-
     spec = rig_prior_spec()
-    return [(v, o, f"{float(h):g}") for v in variants(spec) for o, h in spec["scenes"]]
+    return [(v, o, f"{float(h):g}") for v in rig_prior_variants(spec) for o, h in spec["scenes"]]
 
 
 def rig_prior_geometry(wildcards):
