@@ -51,6 +51,20 @@ def test_geometry_object_file(tmp_path):
     assert len(obj.triangles) > 0 and np.isfinite(obj.points).all()
 
 
+def test_geometry_fractional_size_and_odd_file_name(tmp_path):
+    """A size in tenths of a mm and a file name with a space and dots make valid names."""
+    r = run("geometry", "--object", "square", "--size-mm", "16.5", "--angle-deg", "-7.5",
+            "--height-mm", "30", "--out", str(tmp_path / "s"), "--mesh-size-mm", "1.0")
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "s" / "objects" / "square_16p5mm_a-7p5_h30.npz").is_file()
+    f = tmp_path / "my part.v2.json"
+    f.write_text("[[-4, -4], [5, -3], [1, 6]]")
+    r = run("geometry", "--object-file", str(f), "--height-mm", "20", "--out", str(tmp_path / "o"),
+            "--mesh-size-mm", "1.0")
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "o" / "objects" / "my_part_v2_h20.npz").is_file()
+
+
 def one_line_error(r, prefix):
     """Exit code 2, nothing on stdout, one line on stderr that starts with ``prefix``."""
     assert r.returncode == 2, (r.returncode, r.stderr)

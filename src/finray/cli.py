@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 from pathlib import Path
 
@@ -113,15 +114,21 @@ def _object_spec(args) -> tuple[str, dict] | None:
         if kind == "ellipse":
             spec["width_mm"] = args.size_mm
             spec["height_mm"] = args.minor_mm if args.minor_mm is not None else args.size_mm / 2
-        name = f"{kind}_{args.size_mm:g}mm"
+        name = f"{kind}_{_word(args.size_mm)}mm"
     else:
         return None
     if args.angle_deg:
         spec["angle_deg"] = args.angle_deg
-        name += f"_a{args.angle_deg:g}"
+        name += f"_a{_word(args.angle_deg)}"
     if args.fillet_mm is not None and spec["type"] in ("square", "polygon_file"):
         spec["fillet_mm"] = args.fillet_mm
-    return name, spec
+    # an object's name is a word of letters, digits, _ and - (a config key, a file name)
+    return re.sub(r"[^A-Za-z0-9_-]", "_", name), spec
+
+
+def _word(value: float) -> str:
+    """A number as a name's word: 16.5 -> 16p5."""
+    return f"{value:g}".replace(".", "p")
 
 
 def _run_geometry(args) -> int:
