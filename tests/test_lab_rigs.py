@@ -65,7 +65,9 @@ def test_summary_over_rigs():
     table = rigs_table({"default": summ([12, 3, 2], [90, 80, 100]),
                         "rig1": summ([14, 6, 7], [70, 90, 90], n=300)})
     s = rigs_summary(table, 0.9)
-    assert s["per_rig"]["default"] == {"error_falls": True, "nrmse_pct_most_context": 2, "within_target": True}
+    assert s["per_rig"]["default"] == {"error_falls": True, "nrmse_pct_most_context": 2, "within_target": True,
+                                       "nrmse_pct": [12, 3, 2], "coverage_pct": [90, 80, 100],
+                                       "n_frames": [100, 100, 100]}
     assert not s["per_rig"]["rig1"]["error_falls"] and not s["per_rig"]["rig1"]["within_target"]
     assert not s["all_fall"] and not s["all_within_target"]
     assert s["by_context"]["0"]["coverage_pct_pooled"] == pytest.approx((90 * 100 + 70 * 300) / 400)

@@ -5,7 +5,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from finray.evaluate.spread import manuscript_rows, run_figures, spread_table, write_spread
+from finray.evaluate.rigs import rigs_summary, rigs_table
+from finray.evaluate.spread import (manuscript_rows, rig_figures, run_figures, spread_table, write_spread,
+                                   write_spread_rigs)
 
 
 FIGURES = {"s0_auto": {"shape | none | camera | force NRMSE %": 1.5, "sim2real | 2 context | coverage %": 90.0},
@@ -68,3 +70,45 @@ def test_manuscript_rows_take_each_variants_worst_pitch_before_the_range(tmp_pat
     assert rows["camera: held-out shapes, force NRMSE %"]["range"] == pytest.approx(1.0)
     assert rows["sim-to-real, 2 context objects, coverage %"]["mean"] == pytest.approx(88.0)
     assert not any(r.startswith("plain") for r in rows)
+
+
+def _rigs(per_rig: dict[str, tuple[list, list, int]]) -> dict:
+    """A rigs summary (finray.evaluate.rigs) from rig -> (NRMSE per context count, coverage, frames)."""
+    table = rigs_table({r: {"by_context": {str(k): {"nrmse_pct": e, "mse_N2": 0.0, "coverage_pct": c,
+                                                    "n_frames": n}
+                                           for k, (e, c) in enumerate(zip(errs, covs))}}
+                        for r, (errs, covs, n) in per_rig.items()})
+    return rigs_summary(table, 0.9)
+
+
+def test_rig_figures_name_each_rig_and_context_count():
+    f = rig_figures(_rigs({"default": ([9, 4, 2], [95, 90, 85], 100), "rig1": ([8, 6, 5.5], [99, 80, 70], 300)}))
+    assert f["sim2real rigs | rig1 | 2 context | NRMSE %"] == 5.5
+    assert f["sim2real rigs | default | 0 context | coverage %"] == 95
+    assert f["sim2real rigs | pooled | 1 context | coverage %"] == pytest.approx((90 * 100 + 80 * 300) / 400)
+
+
+def test_spread_over_rigs_judges_each_rig_on_the_mean_and_counts_the_variants(tmp_path):
+    """rig1 rises from 1 to 2 objects in s0 (5 -> 6) but falls in s1 (7 -> 3): on the mean
+    (6 -> 4.5) it falls, in 1 of 2 variants; its mean with 2 objects (4.5) is within 5 %,
+    as s1's is and s0's is not."""
+    by_variant = {"s0_auto": _rigs({"default": ([9, 4, 2], [95, 90, 85], 100), "rig1": ([8, 5, 6], [99, 80, 70], 100)}),
+                  "s1_auto": _rigs({"default": ([7, 3, 2.5], [85, 80, 95], 100), "rig1": ([9, 7, 3], [91, 90, 90], 100)})}
+    out = {k: tmp_path / f"rigs.{e}" for k, e in
+           (("json", "json"), ("csv", "csv"), ("table", "md"), ("figure", "png"))}
+    write_spread_rigs(by_variant, "s0_auto", out)
+    s = json.loads(out["json"].read_text())
+    assert s["emulated"] and s["variants"] == ["s0_auto", "s1_auto"]
+    a = s["acceptance"]
+    assert a["rigs"] == ["default", "rig1"]
+    r = a["per_rig"]["rig1"]
+    assert r["nrmse_pct_mean"] == [8.5, 6.0, 4.5] and (r["nrmse_pct_min"], r["nrmse_pct_max"]) == ([8, 5, 3], [9, 7, 6])
+    assert (r["falls_on_mean"], r["falls_in"], r["within_target_on_mean"], r["within_target_in"], r["n"]) == \
+        (True, 1, True, 1, 2)
+    assert a["per_rig"]["default"]["falls_in"] == 2
+    c = a["coverage_pct_pooled"]["0"]  # s0: (95 + 99) / 2, s1: (85 + 91) / 2
+    assert (c["mean"], c["min"], c["max"]) == (92.5, 88.0, 97.0)
+    md = out["table"].read_text()
+    assert "EMULATED" not in md and "emulated" in md
+    assert "| rig1 | 8.50 (8.00-9.00) | 6.00 (5.00-7.00) | 4.50 (3.00-6.00) | yes / 1 of 2 | yes / 1 of 2 |" in md
+    assert out["figure"].stat().st_size > 0

@@ -110,7 +110,8 @@ def test_smoke_spread(smoke_run):
     every other frame."""
     r = snakemake("--cores", "2", "--configfile", str(ROOT / "config" / "smoke.yaml"),
                   "--directory", str(smoke_run), "results/evaluate/spread/summary.json",
-                  "results/benchmarks/training_budget.md", cwd=smoke_run)
+                  "results/benchmarks/training_budget.md", "results/evaluate/spread/rigs/summary.json",
+                  cwd=smoke_run)
     assert r.returncode == 0, r.stderr[-3000:]
     spread = smoke_run / "results" / "evaluate" / "spread"
     s = json.loads((spread / "summary.json").read_text())
@@ -144,6 +145,15 @@ def test_smoke_spread(smoke_run):
     assert 0 < cpu["f2"]["mean"] and 0 < cpu["default"]["mean"]
     assert "worst" in "".join(b["figures"])  # the worst pitch and occlusion level
     assert (smoke_run / "results" / "benchmarks" / "training_budget.png").stat().st_size > 1000
+    # the rigs over the variants: seed 0's are the run's own rigs' figures
+    rigs = json.loads((spread / "rigs" / "summary.json").read_text())
+    own = json.loads((smoke_run / "results" / "evaluate" / "sim2real" / "rigs" / "summary.json").read_text())
+    assert rigs["emulated"] and rigs["acceptance"]["rigs"] == own["rigs"] == ["default", "rig1"]
+    for k, e in enumerate(own["per_rig"]["rig1"]["nrmse_pct"]):
+        got = rigs["figures"][f"sim2real rigs | rig1 | {k} context | NRMSE %"]
+        assert got["s0_auto"] == pytest.approx(e) and got["min"] <= got["mean"] <= got["max"]
+    assert rigs["acceptance"]["per_rig"]["rig1"]["n"] == 2
+    assert "| rig1 |" in (spread / "rigs" / "rigs.md").read_text()
 
 
 def test_smoke_renders_are_pixel_aligned(smoke_run):

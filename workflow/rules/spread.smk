@@ -89,6 +89,67 @@ use rule sim2real as spread_sim2real with:
         f"{RESULTS}/benchmarks/studies/spread/{{variant}}_sim2real.tsv"
 
 
+use rule rig_sim2real as spread_rig_sim2real with:
+    # the variant's heads and calibration on each drawn rig's takes (lab.rigs)
+    input:
+        lab=lambda w: [f"{RIGS}/{w.rig}/ingest/{t}/shard.npz" for t in lab_takes(rig_lab(w.rig))],
+        model=lambda w: sim2real_model(train_dir(w)),
+        no_context=f"{SPREAD}/{{variant}}/sim2real/no_context.pt",
+        rig_prior=rig_prior_input(),
+    output:
+        metrics=f"{SPREAD}/{{variant}}/sim2real/rigs/{{rig}}/metrics.csv",
+        frames=f"{SPREAD}/{{variant}}/sim2real/rigs/{{rig}}/frames.csv",
+        summary=f"{SPREAD}/{{variant}}/sim2real/rigs/{{rig}}/summary.json",
+        calibrations=f"{SPREAD}/{{variant}}/sim2real/rigs/{{rig}}/calibrations.json",
+        corner=f"{SPREAD}/{{variant}}/sim2real/rigs/{{rig}}/corner.pdf",
+    log:
+        f"{RESULTS}/logs/spread/{{variant}}/sim2real_{{rig}}.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/studies/spread/{{variant}}_sim2real_{{rig}}.tsv"
+
+
+use rule sim2real_rigs as spread_sim2real_rigs with:
+    # the variant's figures on every rig: the configured one and the drawn ones
+    input:
+        default=f"{SPREAD}/{{variant}}/sim2real/summary.json",
+        rigs=expand(f"{SPREAD}/{{{{variant}}}}/sim2real/rigs/{{rig}}/summary.json", rig=rig_names()),
+    output:
+        json=f"{SPREAD}/{{variant}}/sim2real/rigs/summary.json",
+        table=f"{SPREAD}/{{variant}}/sim2real/rigs/rigs.md",
+        csv=f"{SPREAD}/{{variant}}/sim2real/rigs/rigs.csv",
+        figure=f"{SPREAD}/{{variant}}/sim2real/rigs/rigs.png",
+    log:
+        f"{RESULTS}/logs/spread/{{variant}}/sim2real_rigs.log",
+
+
+rule spread_rigs:
+    # sim-to-real on every emulated rig over the variants: the camera model's spread
+    # there (a target of its own: it needs no other model, so that the rigs' spread can
+    # be measured without retraining every model of the study)
+    input:
+        rigs=expand(f"{SPREAD}/{{variant}}/sim2real/rigs/summary.json", variant=spread_variants()),
+    output:
+        json=f"{SPREAD}/rigs/summary.json",
+        table=f"{SPREAD}/rigs/rigs.md",
+        csv=f"{SPREAD}/rigs/rigs.csv",
+        figure=report(f"{SPREAD}/rigs/rigs.png", caption="../report/spread_rigs.rst",
+                      category="Sim-to-real"),
+    params:
+        variants=spread_variants(),
+        default=spread_variant(config["train"]["seed"], config["train"]["bf16"]),
+        max_nrmse_pct=5.0,  # the rigs' target with the most context objects (as sim2real_rigs)
+    log:
+        f"{RESULTS}/logs/spread/rigs.log",
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=2,
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/spread_rigs.py"
+
+
 rule spread_summary:
     input:
         experiments=expand(f"{SPREAD}/{{variant}}/{{experiment}}/metrics.json",

@@ -41,10 +41,15 @@ def rigs_summary(table: pd.DataFrame, level: float, max_nrmse_pct: float = 5.0) 
                         "coverage_pct_max": float(g["coverage_pct"].max())}
     per_rig = {}
     for rig, g in table.groupby("rig", sort=False):
-        e = g.sort_values("context_objects")["nrmse_pct"].to_numpy()
+        g = g.sort_values("context_objects")
+        e = g["nrmse_pct"].to_numpy()
         per_rig[rig] = {"error_falls": bool(np.all(np.diff(e) < 0)),
                         "nrmse_pct_most_context": float(e[-1]),
-                        "within_target": bool(e[-1] <= max_nrmse_pct)}
+                        "within_target": bool(e[-1] <= max_nrmse_pct),
+                        # per context count (0, 1, ...), and the frames behind each coverage
+                        "nrmse_pct": [float(v) for v in e],
+                        "coverage_pct": [float(v) for v in g["coverage_pct"]],
+                        "n_frames": [int(v) for v in g["n_frames"]]}
     return {"emulated": True, "rigs": list(per_rig), "level": level, "by_context": by_k,
             "per_rig": per_rig, "max_nrmse_pct": max_nrmse_pct,
             "all_fall": all(r["error_falls"] for r in per_rig.values()),

@@ -48,6 +48,55 @@ def variant_figures(variant: str, experiments, sim2real, histories) -> tuple[dic
     return headline_figures(exps, s2r, hist), hist
 
 
+def rig_figures(rigs: dict) -> dict[str, float]:
+    """A variant's figures on every emulated rig (a ``summary.json`` of
+    :func:`finray.evaluate.rigs.write_rigs`): ``sim2real rigs | <rig> | <k> context |
+    NRMSE %`` and ``coverage %``, and per context count the coverage pooled over the
+    rigs' frames (``sim2real rigs | pooled | <k> context | coverage %``)."""
+    out = {}
+    for rig, r in rigs["per_rig"].items():
+        for k, (e, c) in enumerate(zip(r["nrmse_pct"], r["coverage_pct"])):
+            out[f"sim2real rigs | {rig} | {k} context | NRMSE %"] = e
+            out[f"sim2real rigs | {rig} | {k} context | coverage %"] = c
+    for k, m in rigs["by_context"].items():
+        out[f"sim2real rigs | pooled | {k} context | coverage %"] = m["coverage_pct_pooled"]
+    return {k: float(v) for k, v in out.items()}
+
+
+def rig_acceptance(spread: dict, max_nrmse_pct: float = 5.0) -> dict | None:
+    """Sim-to-real on the emulated rigs over the variants (a spread ``summary.json``):
+    per rig its NRMSE per context count (mean over the variants), whether that mean falls
+    with each context object and is within ``max_nrmse_pct`` with the most, and in how
+    many variants each holds; per context count the pooled coverage's mean and range.
+    None where the study ran no rigs."""
+    figs, variants = spread["figures"], spread["variants"]
+    rigs = sorted({n.split(" | ")[1] for n in figs if n.startswith("sim2real rigs | ")} - {"pooled"},
+                  key=lambda r: (r != "default", r))
+    if not rigs:
+        return None
+    per_rig = {}
+    for rig in rigs:
+        ks = sorted({int(n.split(" | ")[2].split()[0]) for n in figs
+                     if n.startswith(f"sim2real rigs | {rig} | ")})
+        e = np.array([[figs[f"sim2real rigs | {rig} | {k} context | NRMSE %"][v] for k in ks]
+                      for v in variants if figs[f"sim2real rigs | {rig} | {ks[0]} context | NRMSE %"].get(v)
+                      is not None], dtype=float)
+        mean = e.mean(axis=0)
+        per_rig[rig] = {"nrmse_pct_mean": mean.tolist(), "nrmse_pct_min": e.min(axis=0).tolist(),
+                        "nrmse_pct_max": e.max(axis=0).tolist(), "n": len(e),
+                        "falls_on_mean": bool(np.all(np.diff(mean) < 0)),
+                        "within_target_on_mean": bool(mean[-1] <= max_nrmse_pct),
+                        "falls_in": int(np.all(np.diff(e, axis=1) < 0, axis=1).sum()),
+                        "within_target_in": int((e[:, -1] <= max_nrmse_pct).sum())}
+    pooled = {}
+    for n, f in sorted(figs.items()):
+        if n.startswith("sim2real rigs | pooled | "):
+            k = n.split(" | ")[2].split()[0]
+            pooled[k] = {c: f[c] for c in ("mean", "min", "max")}
+    return {"rigs": rigs, "variants": variants, "max_nrmse_pct": max_nrmse_pct,
+            "per_rig": per_rig, "coverage_pct_pooled": pooled}
+
+
 def run_figures(summary: dict) -> dict[str, float]:
     """The same figures (the experiments' and sim-to-real's) from a run's
     ``results/summary.json``: a finished run beside the study's variants."""
@@ -88,6 +137,31 @@ def _figures(experiments: dict[str, dict], sim2real: dict, histories: dict[str, 
         if h.get("train_seconds") is not None:
             out[f"train | {model} | training s"] = h["train_seconds"]
     return {k: float(v) for k, v in out.items() if v is not None and np.isfinite(v)}
+
+
+def rigs_markdown(acc: dict) -> str:
+    """:func:`rig_acceptance` as Markdown: per rig the mean NRMSE (min-max) per context
+    count and in how many variants the error falls and is within target."""
+    n = len(acc["variants"])
+    ks = len(next(iter(acc["per_rig"].values()))["nrmse_pct_mean"])
+    lines = [f"## Sim-to-real on the emulated rigs over the {n} variants",
+             "", "force NRMSE %, mean (min-max) over the variants; falls: from each context "
+             f"count to the next; within: <= {acc['max_nrmse_pct']:g} % with {ks - 1} context "
+             "objects", "",
+             "| rig | " + " | ".join(f"{k} context" for k in range(ks))
+             + " | falls (mean / variants) | within (mean / variants) |",
+             "|---" + "|--:" * (ks + 2) + "|"]
+    for rig, r in acc["per_rig"].items():
+        cells = [f"{m:.2f} ({lo:.2f}-{hi:.2f})" for m, lo, hi in
+                 zip(r["nrmse_pct_mean"], r["nrmse_pct_min"], r["nrmse_pct_max"])]
+        lines.append(f"| {rig} | " + " | ".join(cells)
+                     + f" | {'yes' if r['falls_on_mean'] else 'no'} / {r['falls_in']} of {r['n']}"
+                     + f" | {'yes' if r['within_target_on_mean'] else 'no'} / {r['within_target_in']} of {r['n']} |")
+    lines += ["", "coverage of the intervals pooled over the rigs' frames, mean (min-max) over "
+              "the variants: " + "; ".join(f"{k} context {c['mean']:.1f} ({c['min']:.1f}-{c['max']:.1f}) %"
+                                            for k, c in sorted(acc["coverage_pct_pooled"].items(),
+                                                               key=lambda kv: int(kv[0])))]
+    return "\n".join(lines) + "\n"
 
 
 def spread_table(figures: dict[str, dict[str, float]], default: str | None = None) -> pd.DataFrame:
@@ -173,6 +247,67 @@ def write_spread(figures: dict[str, dict[str, float]], default: str, out: dict,
     Path(out["json"]).write_text(json.dumps(summary, indent=1))
     spread_figure(table, variants, out["figure"])
     return table
+
+
+def write_spread_rigs(summaries: dict[str, dict], default: str, out: dict,
+                      max_nrmse_pct: float = 5.0) -> dict:
+    """Sim-to-real on the emulated rigs over the variants (``summaries``: variant -> its
+    rigs' ``summary.json``): ``out`` paths ``json`` (the figures as in ``write_spread``
+    and :func:`rig_acceptance`), ``csv``, ``table`` (Markdown) and ``figure``."""
+    figures = {v: rig_figures(s) for v, s in summaries.items()}
+    variants = list(figures)
+    table = spread_table(figures, default)
+    table.to_csv(out["csv"], float_format="%.6g")
+    summary = {"emulated": True, "variants": variants, "default": default,
+               "figures": {name: {c: (None if not np.isfinite(r[c]) else float(r[c]))
+                                  for c in ["default", "mean", "min", "max", "range"] + variants}
+                           for name, r in table.iterrows()}}
+    summary["acceptance"] = rig_acceptance(summary, max_nrmse_pct)
+    Path(out["table"]).write_text(
+        "# Sim-to-real on the emulated rigs, over training seeds and numeric types\n\n"
+        "Every rig is emulated (finray.lab.rigs): `default` is config `lab:`, the others are "
+        "drawn from `lab.rigs`; each variant is the camera model trained again "
+        "(evaluate.spread).\n\n" + rigs_markdown(summary["acceptance"]) + "\n"
+        + _markdown(table, variants, default))
+    Path(out["json"]).write_text(json.dumps(summary, indent=1))
+    rigs_spread_figure(summary["acceptance"], path=out["figure"])
+    return summary
+
+
+def rigs_spread_figure(acc: dict, path) -> None:
+    """Per rig the NRMSE against the context count: the mean over the variants as a line,
+    their range as a band; the pooled coverage's mean and range beside it."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(8, 3.2))
+    for j, (rig, r) in enumerate(acc["per_rig"].items()):
+        k = np.arange(len(r["nrmse_pct_mean"]))
+        style = {"lw": 2.2, "color": "k"} if rig == "default" else {"lw": 1.2, "color": f"C{j}"}
+        axes[0].fill_between(k, r["nrmse_pct_min"], r["nrmse_pct_max"], color=style["color"], alpha=0.15)
+        axes[0].plot(k, r["nrmse_pct_mean"], "o-", label=rig, **style)
+    axes[0].axhline(acc["max_nrmse_pct"], color="grey", ls=":", lw=1)
+    axes[0].set_ylabel("force NRMSE (%)")
+    axes[0].set_ylim(bottom=0)
+    cov = sorted(acc["coverage_pct_pooled"].items(), key=lambda kv: int(kv[0]))
+    k = np.array([int(c) for c, _ in cov])
+    mean = np.array([c["mean"] for _, c in cov])
+    axes[1].errorbar(k, mean, yerr=[mean - [c["min"] for _, c in cov], [c["max"] for _, c in cov] - mean],
+                     fmt="o-", color="k", capsize=3, label="pooled over the rigs")
+    axes[1].axhspan(85, 95, color="grey", alpha=0.15)
+    axes[1].set_ylabel("frames inside the 90 % interval (%)")
+    axes[1].set_ylim(50, 100)
+    for ax in axes:
+        ax.set_xlabel("context objects")
+        ax.set_xticks(k)
+    axes[0].legend(fontsize=7, title="emulated rig", title_fontsize=7)
+    fig.suptitle(f"Sim-to-real on EMULATED rigs over {len(acc['variants'])} trainings of the camera "
+                 "model (line: mean, band: range)", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=150)
+    plt.close(fig)
 
 
 #: The rows the manuscript quotes (:func:`manuscript_rows`): (label, figure names; one
