@@ -232,6 +232,14 @@ def variant_runs(histories: dict[str, dict]) -> dict[str, dict]:
     return {m: {k: h.get(k) for k in ("precision", "device", "cpu")} for m, h in sorted(histories.items())}
 
 
+def _figures_json(table: pd.DataFrame, variants: list[str]) -> dict:
+    """:func:`spread_table`'s rows as JSON: figure -> default, mean, min, max, range and
+    each variant's value (None where missing)."""
+    return {name: {c: (None if not np.isfinite(r[c]) else float(r[c]))
+                   for c in ["default", "mean", "min", "max", "range"] + variants}
+            for name, r in table.iterrows()}
+
+
 def write_spread(figures: dict[str, dict[str, float]], default: str, out: dict,
                  runs: dict[str, dict] | None = None) -> pd.DataFrame:
     """``out``: paths ``json``, ``csv``, ``table`` (Markdown) and ``figure``; ``runs``:
@@ -241,9 +249,7 @@ def write_spread(figures: dict[str, dict[str, float]], default: str, out: dict,
     table.to_csv(out["csv"], float_format="%.6g")
     Path(out["table"]).write_text(_markdown(table, variants, default))
     summary = {"variants": variants, "default": default, "runs": runs or {},
-               "figures": {name: {c: (None if not np.isfinite(r[c]) else float(r[c]))
-                                  for c in ["default", "mean", "min", "max", "range"] + variants}
-                           for name, r in table.iterrows()}}
+               "figures": _figures_json(table, variants)}
     Path(out["json"]).write_text(json.dumps(summary, indent=1))
     spread_figure(table, variants, out["figure"])
     return table
@@ -259,9 +265,7 @@ def write_spread_rigs(summaries: dict[str, dict], default: str, out: dict,
     table = spread_table(figures, default)
     table.to_csv(out["csv"], float_format="%.6g")
     summary = {"emulated": True, "variants": variants, "default": default,
-               "figures": {name: {c: (None if not np.isfinite(r[c]) else float(r[c]))
-                                  for c in ["default", "mean", "min", "max", "range"] + variants}
-                           for name, r in table.iterrows()}}
+               "figures": _figures_json(table, variants)}
     summary["acceptance"] = rig_acceptance(summary, max_nrmse_pct)
     Path(out["table"]).write_text(
         "# Sim-to-real on the emulated rigs, over training seeds and numeric types\n\n"
