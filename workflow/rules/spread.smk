@@ -137,7 +137,6 @@ rule spread_rigs:
     params:
         variants=spread_variants(),
         default=spread_variant(config["train"]["seed"], config["train"]["bf16"]),
-        max_nrmse_pct=5.0,  # the rigs' target with the most context objects (as sim2real_rigs)
     log:
         f"{RESULTS}/logs/spread/rigs.log",
     threads: 1

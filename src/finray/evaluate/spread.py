@@ -255,11 +255,15 @@ def write_spread(figures: dict[str, dict[str, float]], default: str, out: dict,
     return table
 
 
-def write_spread_rigs(summaries: dict[str, dict], default: str, out: dict,
-                      max_nrmse_pct: float = 5.0) -> dict:
+def write_spread_rigs(summaries: dict[str, dict], default: str, out: dict) -> dict:
     """Sim-to-real on the emulated rigs over the variants (``summaries``: variant -> its
-    rigs' ``summary.json``): ``out`` paths ``json`` (the figures as in ``write_spread``
-    and :func:`rig_acceptance`), ``csv``, ``table`` (Markdown) and ``figure``."""
+    rigs' ``summary.json``, whose ``max_nrmse_pct`` is the target): ``out`` paths
+    ``json`` (the figures as in ``write_spread`` and :func:`rig_acceptance`), ``csv``,
+    ``table`` (Markdown) and ``figure``."""
+    targets = {float(s["max_nrmse_pct"]) for s in summaries.values()}
+    if len(targets) != 1:
+        raise ValueError(f"the variants' rigs were judged against different targets: {sorted(targets)}")
+    max_nrmse_pct = targets.pop()
     figures = {v: rig_figures(s) for v, s in summaries.items()}
     variants = list(figures)
     table = spread_table(figures, default)
