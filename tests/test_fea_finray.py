@@ -172,6 +172,35 @@ def test_equilibrium_check_fails_the_scene_and_leaves_a_report(scene_inputs, tmp
     assert r["converged"] is False and r["error"] == msg and r["cause"] == "equilibrium"
 
 
+
+def test_scene_job_ends_a_failed_scene_with_one_line_and_logs_both_outcomes(scene_inputs, tmp_path):
+    """The workflow scripts' job wrapper: a failure is returned as the job's one line
+    (naming the report that outlives the job), a success returns None; both are logged."""
+    import json
+
+    from finray.benchmarks.fea import with_overrides
+    from finray.fea.scene import rigid_object_cfg, scene_job
+
+    cfg, finger, obj = scene_inputs
+    finger.save(tmp_path / "finger.npz")
+    obj.save(tmp_path / "object.npz")
+    args = (tmp_path / "finger.npz", tmp_path / "object.npz", "steel")
+    report = tmp_path / "failed" / "c20.json"
+    bad = with_overrides(cfg, {"fea.equilibrium_tol": 1e-300})
+    failed = scene_job(bad, *args, tmp_path / "bad", {"scene": "c20"}, tmp_path / "bad.log",
+                       vtu=False, failure_report=report)
+    assert failed is not None and "\n" not in failed
+    assert failed.startswith("scene c20: frame ") and failed.endswith(f"(report: {report})")
+    assert json.loads(report.read_text())["converged"] is False
+    assert failed in (tmp_path / "bad.log").read_text()
+    assert scene_job(cfg, *args, tmp_path / "ok", {"scene": "c20"}, tmp_path / "ok.log",
+                     vtu=False, failure_report=report) is None
+    assert not report.exists()
+    assert "'converged': True" in (tmp_path / "ok.log").read_text()
+    rigid = rigid_object_cfg(cfg["fea"], cfg["finger"], cfg["materials"][cfg["finger"]["material"]])
+    assert rigid["materials"]["rigid"] == {"rigid": True}
+    assert rigid["materials"][cfg["finger"]["material"]] == cfg["materials"][cfg["finger"]["material"]]
+
 SCENE = """
 import sys, numpy as np
 from finray.config import default_config_path, load_config

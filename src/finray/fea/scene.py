@@ -262,3 +262,30 @@ def run_scene(cfg: dict, finger: TriMesh, obj_mesh: TriMesh, material: str, outd
     out = summary(res, wall, scene)
     (outdir / "summary.json").write_text(json.dumps(out, indent=2))
     return out
+
+
+def scene_job(cfg: dict, finger_npz, object_npz, material: str, outdir: str | Path,
+              scene: dict, log: str | Path, vtu: bool = True,
+              failure_report: str | Path | None = None) -> str | None:
+    """A workflow job's scene (:func:`run_scene` on the meshes' files), its output sent to
+    ``log``. Returns None, or the one line a failed scene ends the job with (the report
+    at ``failure_report`` outlives the job: Snakemake deletes a failed job's outputs)."""
+    from ..logs import log_to
+
+    with log_to(log):
+        try:
+            out = run_scene(cfg, TriMesh.load(finger_npz), TriMesh.load(object_npz), material,
+                            outdir, scene=scene, vtu=vtu, failure_report=failure_report)
+            print({k: v for k, v in out.items() if k != "solver"})
+        except SimulationError as e:
+            failed = f"{e} (report: {failure_report})"
+            print(failed)
+            return failed
+    return None
+
+
+def rigid_object_cfg(fea: dict, finger: dict, finger_material: dict) -> dict:
+    """A scene config whose object is rigid (material ``"rigid"``): a printed PLA object
+    or a steel one against the TPU finger."""
+    return {"fea": fea, "finger": finger,
+            "materials": {"rigid": {"rigid": True}, finger["material"]: finger_material}}
