@@ -149,7 +149,7 @@ TEXT_STROKE_PX = 2  # the black outline of the white text (readable on any frame
 @functools.lru_cache(maxsize=512)
 def _glyph(ch: str, size: int, stroke: int) -> tuple[np.ndarray, np.ndarray, int, float]:
     """One character as Pillow draws it with an outline: the outline's and the fill's
-    coverage (float32, 0-1) on one patch, the patch's margin left of and above the pen
+    coverage (uint8, 0-255) on one patch, the patch's margin left of and above the pen
     (px), and the pen's advance (px). Cached: a frame's text is a few dozen of them."""
     from PIL import Image, ImageDraw
 
@@ -161,7 +161,7 @@ def _glyph(ch: str, size: int, stroke: int) -> tuple[np.ndarray, np.ndarray, int
     ImageDraw.Draw(outer).text((pad, pad), ch, fill=255, font=font, stroke_width=stroke,
                                stroke_fill=255)
     ImageDraw.Draw(inner).text((pad, pad), ch, fill=255, font=font)
-    return (np.asarray(outer, np.float32) / 255, np.asarray(inner, np.float32) / 255, pad, adv)
+    return np.asarray(outer, np.uint8), np.asarray(inner, np.uint8), pad, adv
 
 
 @functools.lru_cache(maxsize=16)
@@ -194,7 +194,7 @@ def draw_text(canvas: np.ndarray, xy: tuple[int, int], text: str, size: int,
     if not pieces:
         return
     top, left = min(p[0] for p in pieces), min(p[1] for p in pieces)
-    outer_all = np.zeros((bottom - top, right - left), np.float32)
+    outer_all = np.zeros((bottom - top, right - left), np.uint8)
     inner_all = np.zeros_like(outer_all)
     for r, c, outer, inner in pieces:
         sub = np.s_[r - top:r - top + outer.shape[0], c - left:c - left + outer.shape[1]]
@@ -206,10 +206,12 @@ def draw_text(canvas: np.ndarray, xy: tuple[int, int], text: str, size: int,
     if r1 <= r0 or c1 <= c0:
         return
     sub = np.s_[r0 - top:r1 - top, c0 - left:c1 - left]
-    outer_all, inner_all = outer_all[sub][..., None], inner_all[sub][..., None]
+    outer_all, inner_all = outer_all[sub], inner_all[sub]
     part = canvas[r0:r1, c0:c1]
-    # black under the outline, then white under the fill
-    part[...] = np.rint(part * (1 - outer_all) * (1 - inner_all) + 255 * inner_all)
+    # black under the outline, then white under the fill: part (1 - o)(1 - i) + 255 i,
+    # in integers of 255^2 (rounded; a third less time than in float32)
+    keep = ((255 - outer_all).astype(np.uint32) * (255 - inner_all))[..., None]
+    part[...] = (part * keep + inner_all[..., None].astype(np.uint32) * 65025 + 32512) // 65025
 
 
 def _draw_on(canvas: np.ndarray, box, draw_fn) -> None:
@@ -349,8 +351,12 @@ class VideoWriter:
             self._stream.pix_fmt = "yuv420p"
         rgb = np.ascontiguousarray(rgb[:self._stream.height, :self._stream.width])
         # the array's buffer as the frame's, not a copy (from_ndarray copied row by row:
-        # 3.5 ms of a 1280x816 frame); the encoder converts it to yuv420p before it returns
-        for packet in self._stream.encode(av.VideoFrame.from_numpy_buffer(rgb, format="rgb24")):
+        # 3.5 ms of a 1280x816 frame); to yuv420p with each 2x2 block's chroma taken from
+        # one pixel (swscale's point sampling: a third less time than its default
+        # bilinear; the text is black and white, the overlay's cells are many px wide)
+        frame = av.VideoFrame.from_numpy_buffer(rgb, format="rgb24").reformat(
+            format="yuv420p", interpolation="POINT")
+        for packet in self._stream.encode(frame):
             self._container.mux(packet)
 
     def close(self) -> None:
