@@ -147,10 +147,11 @@ TEXT_STROKE_PX = 2  # the black outline of the white text (readable on any frame
 
 
 @functools.lru_cache(maxsize=512)
-def _glyph(ch: str, size: int, stroke: int) -> tuple[np.ndarray, np.ndarray, int, float]:
+def _glyph(ch: str, size: int, stroke: int) -> tuple[np.ndarray, np.ndarray, int, int, float]:
     """One character as Pillow draws it with an outline: the outline's and the fill's
-    coverage (uint8, 0-255) on one patch, the patch's margin left of and above the pen
-    (px), and the pen's advance (px). Cached: a frame's text is a few dozen of them."""
+    coverage (uint8, 0-255) on the patch that the outline covers (empty for a space),
+    the patch's offset from the pen (x, y: px) and the pen's advance (px). Cached: a
+    frame's text is a few dozen of them."""
     from PIL import Image, ImageDraw
 
     font = _font(size)
@@ -161,7 +162,13 @@ def _glyph(ch: str, size: int, stroke: int) -> tuple[np.ndarray, np.ndarray, int
     ImageDraw.Draw(outer).text((pad, pad), ch, fill=255, font=font, stroke_width=stroke,
                                stroke_fill=255)
     ImageDraw.Draw(inner).text((pad, pad), ch, fill=255, font=font)
-    return np.asarray(outer, np.uint8), np.asarray(inner, np.uint8), pad, adv
+    outer, inner = np.asarray(outer, np.uint8), np.asarray(inner, np.uint8)
+    rows, cols = np.flatnonzero(outer.any(axis=1)), np.flatnonzero(outer.any(axis=0))
+    if not len(rows):
+        return outer[:0, :0], inner[:0, :0], 0, 0, adv
+    # trimmed to the ink: the padding was most of each patch
+    sub = np.s_[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1]
+    return outer[sub].copy(), inner[sub].copy(), int(cols[0]) - pad, int(rows[0]) - pad, adv
 
 
 @functools.lru_cache(maxsize=16)
@@ -186,10 +193,11 @@ def draw_text(canvas: np.ndarray, xy: tuple[int, int], text: str, size: int,
     for k, line in enumerate(text.split("\n")):
         pen = float(x0)
         for ch in line:
-            outer, inner, pad, adv = _glyph(ch, size, stroke)
-            c, r = int(round(pen)) - pad, y0 + k * step - pad
-            pieces.append((r, c, outer, inner))
-            right, bottom = max(right, c + outer.shape[1]), max(bottom, r + outer.shape[0])
+            outer, inner, dx, dy, adv = _glyph(ch, size, stroke)
+            if outer.size:
+                c, r = int(round(pen)) + dx, y0 + k * step + dy
+                pieces.append((r, c, outer, inner))
+                right, bottom = max(right, c + outer.shape[1]), max(bottom, r + outer.shape[0])
             pen += adv
     if not pieces:
         return
