@@ -172,7 +172,6 @@ def test_equilibrium_check_fails_the_scene_and_leaves_a_report(scene_inputs, tmp
     assert r["converged"] is False and r["error"] == msg and r["cause"] == "equilibrium"
 
 
-
 def test_scene_job_ends_a_failed_scene_with_one_line_and_logs_both_outcomes(scene_inputs, tmp_path):
     """The workflow scripts' job wrapper: a failure is returned as the job's one line
     (naming the report that outlives the job), a success returns None; both are logged."""
@@ -200,6 +199,7 @@ def test_scene_job_ends_a_failed_scene_with_one_line_and_logs_both_outcomes(scen
     rigid = rigid_object_cfg(cfg["fea"], cfg["finger"], cfg["materials"][cfg["finger"]["material"]])
     assert rigid["materials"]["rigid"] == {"rigid": True}
     assert rigid["materials"][cfg["finger"]["material"]] == cfg["materials"][cfg["finger"]["material"]]
+
 
 SCENE = """
 import sys, numpy as np
