@@ -63,7 +63,7 @@ def rig_figures(rigs: dict) -> dict[str, float]:
     return {k: float(v) for k, v in out.items()}
 
 
-def rig_acceptance(spread: dict, max_nrmse_pct: float = 5.0) -> dict | None:
+def rig_acceptance(spread: dict, max_nrmse_pct: float) -> dict | None:
     """Sim-to-real on the emulated rigs over the variants (a spread ``summary.json``):
     per rig its NRMSE per context count (mean over the variants), whether that mean falls
     with each context object and is within ``max_nrmse_pct`` with the most, and in how
