@@ -483,6 +483,15 @@ def test_overlay_colours_the_mask_inside_the_window_only():
     assert (out[10, 8] == lut[0]).all() and (out[10, 12] == lut[255]).all()  # top cells
     assert (out[30, 8] == lut[128]).all() and (out[30, 12] == lut[0]).all()  # bottom cells
     assert (out[2, 2] == 100).all() and (out[10, 22] == 100).all()  # off the mask; off the window
+    # a partial alpha blends each pixel with its cell: (1 - alpha) frame + alpha colour,
+    # to within the 8-bit fixed point's rounding
+    rgb = np.random.default_rng(0).integers(0, 256, (40, 30, 3), dtype=np.uint8)
+    out = overlay_stress(rgb, mask, box, stress, alpha=0.65)
+    cell = lut[np.clip(np.rint(stress / STRESS_LOG_MAX * 255), 0, 255).astype(int)]
+    rows, cols = np.nonzero(mask[:, :20])
+    want = 0.35 * rgb[rows, cols] + 0.65 * cell[rows * 2 // 40, cols * 2 // 20]
+    assert np.abs(out[rows, cols] - want).max() <= 1.0
+    assert (out[~mask] == rgb[~mask]).all() and (out[:, 20:] == rgb[:, 20:]).all()
     img = annotate_frame(frame, mask, box, stress, {"fx_N": 2.0, "fy_N": 0.5},
                          {"force_N": 2.1, "lo_N": 1.9, "hi_N": 2.3, "level": 0.9}, "f0")
     assert img.shape[:2] == (40, 30 + 96) and img.dtype == np.uint8
@@ -621,7 +630,9 @@ def test_stream_benchmark_on_a_live_stream(exported, render_png, tmp_path):
         assert r["predicted"] + r["dropped"] == r["received"] and r["predicted"] > 3
         assert 0 <= r["dropped_steady"] <= r["dropped"]
         assert 0 < r["latency_p50_ms"] <= r["latency_p99_ms"] <= r["latency_max_ms"]
-        assert r["cpu_ms_per_frame"] > 0 and r["mode"] == mode
+        # the steady window of a 2 s stream of small frames may fall within one 10 ms tick
+        assert r["cpu_ms_per_frame_run"] > 0 and r["cpu_ms_per_frame"] >= 0
+        assert r["mode"] == mode
     rows = list(csv.DictReader(open(tmp_path / "force" / "forces.csv")))
     assert len(rows) == r["predicted"]
     with pytest.raises(ValueError, match="mode"):
