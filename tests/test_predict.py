@@ -713,7 +713,6 @@ def test_sigint_ends_a_live_run_with_a_complete_table(exported, render_png, tmp_
     import signal
     import subprocess
     import sys
-    import time
 
     from finray.benchmarks.realtime import _free_port, write_stream_video
 
