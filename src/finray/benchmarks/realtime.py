@@ -300,8 +300,7 @@ def stream_benchmark(model_path: str | Path, video: str | Path, out_dir: str | P
            "first_frame_latency_ms": float(lat[0]),
            # the steady state's frames, as the other figures; and from the first frame to
            # the end of the process, which adds the run's closing work (the annotated
-           # video's last packets, the force-against-time figure: ~1.5 s of CPU after the
-           # last frame, spread over the frames)
+           # video's last packets, the force-against-time figure) spread over the frames
            "cpu_ms_per_frame": (cpu_at[s1] - cpu_at[s0]) / n * 1e3,
            "cpu_ms_per_frame_run": (cpu_total - cpu_at[0]) / (len(arrivals) - 1) * 1e3,
            "pinned_cores": list(cores) if cores else None}
