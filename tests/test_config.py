@@ -203,3 +203,15 @@ def test_spread_config_is_the_paper_config_with_the_spread_in_the_manuscript():
                                          "models": [], "manuscript": True}
     cfg["evaluate"]["spread"] = paper["evaluate"]["spread"]
     assert cfg == paper
+
+
+def test_fast_config_is_the_paper_config_at_the_budget_point_w8x2():
+    """config/fast.yaml: config/config.yaml with the train keys of the training-budget
+    point w8x2 (whose measured errors the README gives) and nothing else changed."""
+    cfg = load_config(ROOT / "config" / "fast.yaml")
+    paper = validate_config(FULL)
+    point = paper["benchmarks"]["training_budget"]["points"]["w8x2"]
+    assert point == {"base_channels": 8, "lr": 0.0008}
+    assert {k: cfg["train"][k] for k in point} == point
+    cfg["train"].update({k: paper["train"][k] for k in point})
+    assert cfg == paper
