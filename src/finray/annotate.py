@@ -224,8 +224,7 @@ def draw_text(canvas: np.ndarray, xy: tuple[int, int], text: str, size: int,
     if r1 <= r0 or c1 <= c0:
         return
     sub = np.s_[r0 - top:r1 - top, c0 - left:c1 - left]
-    outer_all, inner_all = outer_all[sub], inner_all[sub]
-    _compose_text(canvas[r0:r1, c0:c1], outer_all, inner_all)
+    _compose_text(canvas[r0:r1, c0:c1], outer_all[sub], inner_all[sub])
 
 
 @nb.njit(cache=True, nogil=True)
