@@ -215,3 +215,19 @@ def test_fast_config_is_the_paper_config_at_the_budget_point_w8x2():
     assert {k: cfg["train"][k] for k in point} == point
     cfg["train"].update({k: paper["train"][k] for k in point})
     assert cfg == paper
+
+
+def test_pitch_model_config_is_the_paper_config_with_the_pitch_model():
+    """config/pitch_model.yaml: config/config.yaml with the pitch-augmented model added to
+    its models (the default run trains it no more) and nothing else changed; the smoke
+    config trains all four, so that each model's path runs in CI."""
+    cfg = load_config(ROOT / "config" / "pitch_model.yaml")
+    paper = validate_config(FULL)
+    assert "pitch" not in paper["train"]["models"]
+    assert set(cfg["train"]["models"]) == set(paper["train"]["models"]) | {"pitch"}
+    assert cfg["train"]["models"]["pitch"] == {"pitch_p": 0.5, "pitch_max_deg": 30.0}
+    del cfg["train"]["models"]["pitch"]
+    assert cfg == paper
+    smoke = load_config(ROOT / "config" / "smoke.yaml")
+    assert smoke["train"]["models"] == {**paper["train"]["models"],
+                                        "pitch": {"pitch_p": 0.5, "pitch_max_deg": 30.0}}

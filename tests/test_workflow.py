@@ -209,6 +209,8 @@ def test_smoke_evaluation_summary_and_paper(smoke_run):
     assert list(exps["occlusion"]) == ["none", "low", "medium", "high"]
     assert set(exps["occlusion"]["high"]) == {"plain", "occlusion", "baseline"}
     assert [float(p) for p in exps["pitch"]] == [0, 5, 10, 15, 20, 25, 30]
+    # the camera model is scored on the pitch series beside the plain and pitch models
+    assert all(set(c) == {"plain", "pitch", "camera", "baseline"} for c in exps["pitch"].values())
     assert set(exps["material"]["all"]["plain"]["groups"]) == {"steel", "neoprene"}
     # the camera path (rendered frames through the Predictor) beside the shard path
     import pandas as pd

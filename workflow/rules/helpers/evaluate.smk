@@ -36,7 +36,8 @@ def experiment_setup(wildcards):
                 "group_col": "distance_mm",
                 "conditions": [[f"{p:g}", {"pitch_deg": p}] for p in series_pitches()],
                 "renders": viewpoint_indices()}
-    return {"shards": pitch_series_shards(), "models": eval_models("plain", "pitch", train_dir=d),
+    # the camera model too: trained on perspective views, it is scored on the same pitches
+    return {"shards": pitch_series_shards(), "models": eval_models("plain", "pitch", "camera", train_dir=d),
             "group_col": None,
             "conditions": [[f"{p:g}", {"pitch_deg": p}] for p in series_pitches()], "renders": []}
 
