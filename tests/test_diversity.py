@@ -157,7 +157,7 @@ def test_compare_model_config():
     assert diversity_models(validate_config({**raw, "generated": {"count": 2, "compare_model": None}})) is None
     assert diversity_models(validate_config({**raw, "generated": {"count": 2, "split": "shape"}})) is None
     with pytest.raises(ConfigError, match=r"^generated.compare_model: 'nope' is not a key of train.models "
-                                          r"\(camera, occlusion, pitch, plain\); null: no comparison$"):
+                                          r"\(camera, occlusion, plain\); null: no comparison$"):
         validate_config({**raw, "generated": {"count": 2, "compare_model": "nope"}})
     with pytest.raises(ConfigError, match="^generated.compare_model: train.models already has 'plain_paper_objects'"):
         validate_config({**raw, "generated": {"count": 2},

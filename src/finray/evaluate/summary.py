@@ -271,8 +271,13 @@ def build_summary(evaluate_dir, experiments, baseline_fit, speed_json, fea_paret
 
 
 #: Where the summary's keys are names from the config or the data (conditions, groups,
-#: materials, stages, pitches) rather than fixed keys: see :func:`key_structure`.
-NAMED = [("experiments", "*"), ("experiments", "*", "*", "*", "groups"),
+#: materials, stages, pitches, the models that train.models lists) rather than fixed
+#: keys: see :func:`key_structure`.
+NAMED = [("experiments", "*"), ("experiments", "*", "*"), ("experiments", "*", "*", "*", "groups"),
+         ("camera_path", "*", "*"),
+         ("pitch_usable_deg",), ("pitch_within_threshold_deg",), ("pitch_nrmse_range_pct",),
+         ("viewpoint", "usable_deg"), ("viewpoint", "usable_deg_by_distance"),
+         ("viewpoint", "nrmse_pct"), ("viewpoint", "nrmse_pct_by_distance"), ("viewpoint", "fy_nrmse_pct"),
          ("experiments", "*", "*", "*", "*", "groups"),  # camera / shard_rendered groups
          ("speed", "fea_seconds_per_scene"), ("speed", "stages"), ("speed", "studies"), ("pitch_augmentation_iou",),
          ("viewpoint", "usable_deg_by_distance", "*"), ("viewpoint", "nrmse_pct", "*"),
