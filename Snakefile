@@ -20,6 +20,7 @@ include: "workflow/rules/helpers/evaluate.smk"
 include: "workflow/rules/helpers/spread.smk"
 include: "workflow/rules/helpers/lab.smk"
 include: "workflow/rules/helpers/targets.smk"
+include: "workflow/rules/helpers/scheduler.smk"
 include: "workflow/rules/geometry.smk"
 include: "workflow/rules/fea.smk"
 include: "workflow/rules/fea_benchmarks.smk"
@@ -33,6 +34,11 @@ include: "workflow/rules/lab.smk"
 include: "workflow/rules/rigs.smk"
 include: "workflow/rules/rig_prior.smk"
 include: "workflow/rules/spread.smk"
+
+
+onstart:
+    # Snakemake's default job-rate limit makes its scheduler spin (helpers/scheduler.smk)
+    drop_default_rate_limit(workflow)
 
 
 rule all:
