@@ -141,4 +141,3 @@ def render_index_files(pitch=None, splits=None):
         for s, p in rendered_views()
         if (pitch is None or p == pitch) and (splits is None or s.split in splits)
     )
-
