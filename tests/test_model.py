@@ -105,7 +105,10 @@ def test_he_init_keeps_the_scale_and_bfloat16_gradients_follow_float32():
         assert lo < spread < hi, (init, spread)
     _, g16 = grads("he", True)
     _, g32 = grads("he", False)
-    assert min(cosine(g16[n], g32[n]) for n in g32) > 0.8
+    # the least over every layer: 0.86 on a Zen 4 (AVX-512 BF16), 0.78 on an Intel Xeon
+    # whose bfloat16 kernels run on AMX, 0.77-0.84 with seeds 2 and 3 on either: rounding
+    # differs between kernels, while PyTorch's init stays below 0.05 in the force head
+    assert min(cosine(g16[n], g32[n]) for n in g32) > 0.7
     _, g16 = grads("torch", True)
     _, g32 = grads("torch", False)
     assert cosine(g16["force_head.4.weight"], g32["force_head.4.weight"]) < 0.5
