@@ -6,10 +6,10 @@ def drop_default_rate_limit(wf):
     Why: in Snakemake 9.27 every scheduler pass under a limit arms a 1 s timer that wakes
     the scheduler again, and every finished job adds a pass: while ready jobs wait for a
     core the timers pile up, and after N jobs the scheduler runs about N passes a second,
-    each re-reading the size of every ready job's inputs. On the full run that took about half a core while the trainings
-    ran, beside them on two cores (README, "Snakemake's own process").
-    A local run starts a job only when one ends, so it needs no rate limit; a cluster
-    run (not local) and a limit a user sets keep theirs."""
+    each re-reading the size of every ready job's inputs. On the full run that took about
+    half a core while the trainings ran beside it on two cores (README, "Snakemake's own
+    process"). A local run starts a job only when one ends, so it needs no rate limit; a
+    cluster run (not local) and a limit a user sets keep theirs."""
     limit = getattr(wf.scheduling_settings, "max_jobs_per_timespan", None)
     scheduler = getattr(wf, "scheduler", None)
     if (limit is None or not wf.local_exec or scheduler is None
