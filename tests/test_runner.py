@@ -1,7 +1,10 @@
-"""The Snakefile drops Snakemake's default job-rate limit (workflow/rules/helpers/
-scheduler.smk): under it, every finished job leaves a timer that wakes the scheduler each
-second while a ready job waits. A toy workflow of short jobs counts the threads of
-Snakemake's own process (Linux's /proc) while a ready job waits for cores."""
+"""How Snakemake runs the jobs (workflow/rules/helpers/runner.smk), on toy workflows.
+
+The Snakefile drops Snakemake's default job-rate limit: under it, every finished job
+leaves a timer that wakes the scheduler each second while a ready job waits; a toy
+workflow of short jobs counts the threads of Snakemake's own process (Linux's /proc)
+while a ready job waits for cores. And it samples a benchmarked job every 2 s: a job
+of 20 s of CPU reads as such in its benchmark file, not as its first 15 s."""
 import subprocess
 import sys
 from pathlib import Path
@@ -9,7 +12,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-HELPER = ROOT / "workflow" / "rules" / "helpers" / "scheduler.smk"
+HELPER = ROOT / "workflow" / "rules" / "helpers" / "runner.smk"
 JOBS = 40
 
 SNAKEFILE = f"""
@@ -69,3 +72,28 @@ def test_a_limit_the_user_sets_is_kept(tmp_path, limit):
     dropped, threads = run_toy(tmp_path, "--max-jobs-per-timespan", limit)
     assert not dropped
     assert threads > JOBS // 2
+
+
+BENCH_SNAKEFILE = f"""
+include: {str(HELPER)!r}
+
+onstart:
+    open("sampled.txt", "w").write(str(sample_benchmarks_every(2)))
+
+rule busy:
+    output: "busy.txt"
+    benchmark: "busy.tsv"
+    shell: "{sys.executable} -c 'import time; t = time.process_time()\\nwhile time.process_time() - t < 20: pass' && touch {{output}}"
+"""
+
+
+def test_a_long_job_s_benchmark_holds_its_cpu_time(tmp_path):
+    # Snakemake's own sampling (every 30 s after the first 15 s, the last sample kept)
+    # reads this job's 20 s of CPU as about 15 s
+    (tmp_path / "Snakefile").write_text(BENCH_SNAKEFILE)
+    r = subprocess.run([sys.executable, "-m", "snakemake", "--cores", "1", "--quiet"],
+                       cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert (tmp_path / "sampled.txt").read_text() == "True"
+    head, values = (line.split("\t") for line in (tmp_path / "busy.tsv").read_text().splitlines()[:2])
+    assert 17.5 <= float(values[head.index("cpu_time")]) <= 21.0
