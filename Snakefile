@@ -40,7 +40,7 @@ onstart:
     # Snakemake's default job-rate limit makes its scheduler spin, and its benchmark files
     # read a long job's CPU time up to 30 s low (helpers/runner.smk)
     drop_default_rate_limit(workflow)
-    sample_benchmarks_every(2)
+    sample_benchmarks_every(0.5)
 
 
 rule all:

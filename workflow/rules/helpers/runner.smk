@@ -23,11 +23,13 @@ def drop_default_rate_limit(wf):
 
 def sample_benchmarks_every(seconds):
     """Make Snakemake sample a benchmarked job's CPU time and memory every ``seconds`` s
-    after its first few half-second samples; returns whether it could.
+    once its first ``seconds`` half-second samples are taken (0.5: every 0.5 s
+    throughout); returns whether it could.
 
     Why: Snakemake 9.27 samples every 30 s after a job's first 15 s and keeps the last
     sample, so a longer job's CPU time read up to 30 s low (an emulated lab take: 14.7 s
     in its benchmark file, 24.4 s by /usr/bin/time; README, "Snakemake's own process").
+    A longer interval would cost shorter jobs their accuracy: at 2 s a 5 s job read 3 s.
     The interval is the default argument of ``snakemake.benchmark.benchmarked``, which
     times every benchmarked job from this process."""
     import snakemake.benchmark
