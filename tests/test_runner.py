@@ -51,11 +51,16 @@ rule blocked:
 """
 
 
-def run_toy(tmp_path, *args):
-    (tmp_path / "Snakefile").write_text(SNAKEFILE)
-    r = subprocess.run([sys.executable, "-m", "snakemake", "--cores", "2", "--quiet", *args],
+def snakemake_in(tmp_path, snakefile, *args):
+    """Run ``snakefile`` in ``tmp_path`` (``args`` on the command line); fail on errors."""
+    (tmp_path / "Snakefile").write_text(snakefile)
+    r = subprocess.run([sys.executable, "-m", "snakemake", "--quiet", *args],
                        cwd=tmp_path, capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr[-2000:]
+
+
+def run_toy(tmp_path, *args):
+    snakemake_in(tmp_path, SNAKEFILE, "--cores", "2", *args)
     return ((tmp_path / "dropped.txt").read_text() == "True",
             int((tmp_path / "threads.txt").read_text()))
 
@@ -90,10 +95,7 @@ rule busy:
 def test_a_long_job_s_benchmark_holds_its_cpu_time(tmp_path):
     # Snakemake's own sampling (every 30 s after the first 15 s, the last sample kept)
     # reads this job's 20 s of CPU as about 15 s
-    (tmp_path / "Snakefile").write_text(BENCH_SNAKEFILE)
-    r = subprocess.run([sys.executable, "-m", "snakemake", "--cores", "1", "--quiet"],
-                       cwd=tmp_path, capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0, r.stderr[-2000:]
+    snakemake_in(tmp_path, BENCH_SNAKEFILE, "--cores", "1")
     assert (tmp_path / "sampled.txt").read_text() == "True"
     head, values = (line.split("\t") for line in (tmp_path / "busy.tsv").read_text().splitlines()[:2])
     assert 19.0 <= float(values[head.index("cpu_time")]) <= 21.0
