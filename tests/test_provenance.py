@@ -133,6 +133,7 @@ READERS: list[tuple[str, set[str]]] = [
     # the no-context fit (the simulation's, every rig's) and the context fits
     ("evaluate.sim2real.sim_every", {"sim2real_no_context"}),
     ("evaluate.sim2real.sim_folds", {"sim2real_no_context"}),
+    ("evaluate.sim2real.sim_views", {"sim2real_no_context"}),
     ("evaluate.sim2real.heads.*", {"sim2real_no_context", "sim2real"}),
     ("evaluate.sim2real.priors.*", {"sim2real_no_context", "sim2real"}),
     ("evaluate.sim2real.sampler.*", {"sim2real_no_context", "sim2real"}),
@@ -257,6 +258,7 @@ NEW_VALUES = {
     "render.frames_per_scene": 30,
     "dataset.sizes": [[128, 64], [64, 32], [32, 16]],
     "evaluate.sim2real.folds": "take",
+    "evaluate.sim2real.sim_views": "camera",
     "benchmarks.training_budget.points": {"f3": {"frame_every": 3}},
     "dataset.crop_x_mm": [-4.0, 36.0],
     "dataset.crop_y_mm": [1.0, 81.0],

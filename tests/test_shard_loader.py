@@ -61,3 +61,29 @@ def test_training_and_evaluation_read_the_same_frames(shards):
     np.testing.assert_array_equal(tr["displacement_mm"][order], table["displacement_mm"])
     assert tr["scene_id"].dtype.kind == "U"
     assert table["object"].tolist() == ["circle"] * 4 + ["square"] * 5
+
+
+def test_no_context_frames_in_each_view(shards, tmp_path):
+    """The no-context fit's simulated frames: front, camera or both views, forces and
+    table row for row with the images; camera views a shard lacks are one clear error."""
+    from finray.evaluate.sim2real import _frames
+
+    cam = [tmp_path / f"cam{i}.npz" for i in range(len(shards))]
+    for src, dst in zip(shards, cam):
+        with np.load(src) as f:
+            d = {k: f[k] for k in f.files}
+        d["camera_input_16x8"] = 255 - d["input_16x8"]
+        save_npz(dst, d)
+    x_f, y_f, t_f = _frames(cam, (16, 8))
+    x_c, y_c, _ = _frames(cam, (16, 8), views="camera")
+    x_b, y_b, t_b = _frames(cam, (16, 8), views="both")
+    assert x_f.shape == x_c.shape == (9, 1, 16, 8) and x_b.shape == (18, 1, 16, 8)
+    np.testing.assert_allclose(x_c, 1 - x_f, atol=1e-6)
+    np.testing.assert_array_equal(x_b, np.concatenate([x_f, x_c]))
+    np.testing.assert_array_equal(y_c, y_f)
+    np.testing.assert_array_equal(y_b, np.r_[y_f, y_f])
+    assert t_b["scene_id"].tolist() == t_f["scene_id"].tolist() * 2 and len(t_b) == len(y_b)
+    with pytest.raises(ValueError, match="sim_views: both reads the camera views.*set sim_views: front"):
+        _frames(shards, (16, 8), views="both")
+    with pytest.raises(ValueError, match="sim_views: 'side' is not one of"):
+        _frames(cam, (16, 8), views="side")

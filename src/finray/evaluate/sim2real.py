@@ -47,6 +47,7 @@ class Sim2RealConfig:
     max_context: int = 2
     sim_every: int = 4
     sim_folds: int = 5
+    sim_views: str = "front"  # the simulated frames of the no-context fit (SIM_VIEWS)
     priors: Priors = field(default_factory=Priors)
     sampler: Sampler = field(default_factory=Sampler)
     rig_prior: RigPrior = field(default_factory=RigPrior)  # with no context frames
@@ -58,6 +59,7 @@ class Sim2RealConfig:
                    folds=str(p.get("folds", "object")),
                    level=float(p.get("level", 0.9)), max_context=int(p.get("max_context", 2)),
                    sim_every=int(p.get("sim_every", 4)), sim_folds=int(p.get("sim_folds", 5)),
+                   sim_views=str(p.get("sim_views", "front")),
                    priors=Priors(**{k: tuple(v) if isinstance(v, list) else v for k, v in pr.items()}),
                    sampler=Sampler(**p.get("sampler", {})),
                    rig_prior=RigPrior(**{k: v for k, v in p.get("rig_prior", {}).items() if k != "gain"}))
@@ -70,12 +72,32 @@ class Sim2RealConfig:
                                                gain_log_sd=float(prior["gain_log_sd"])))
 
 
-def _frames(shards, size, every=1):
-    """Network inputs (N, 1, H, W) float32, fx_N, and the frame table of shards."""
+#: Which simulated views the no-context heads are fitted and checked on: the front view,
+#: each frame's randomised camera view (what a rig's camera sees), or both.
+SIM_VIEWS = ("front", "camera", "both")
+
+
+def _frames(shards, size, every=1, views="front"):
+    """Network inputs (N, 1, H, W) float32, fx_N, and the frame table of shards;
+    ``views`` (:data:`SIM_VIEWS`): ``both`` stacks the camera views after the front views."""
     from ..dataset import load_frames
 
-    a, table = load_frames(shards, tuple(size), every)
-    return a["images"][:, None].astype(np.float32) / np.float32(255.0), a["fx_N"], table
+    if views not in SIM_VIEWS:
+        raise ValueError(f"evaluate.sim2real.sim_views: {views!r} is not one of {list(SIM_VIEWS)}")
+    try:
+        a, table = load_frames(shards, tuple(size), every, camera=views != "front")
+    except ValueError as e:
+        if views == "front":
+            raise
+        raise ValueError(f"evaluate.sim2real.sim_views: {views} reads the camera views, and {e}; "
+                         "set sim_views: front") from None
+    x, y = a["images"], a["fx_N"]
+    if views == "camera":
+        x = a["camera_images"]
+    elif views == "both":
+        x, y = np.concatenate([x, a["camera_images"]]), np.tile(y, 2)
+        table = pd.concat([table, table], ignore_index=True)
+    return x[:, None].astype(np.float32) / np.float32(255.0), y, table
 
 
 def lab_table(shards, table: pd.DataFrame) -> pd.DataFrame:
@@ -106,8 +128,9 @@ def fit_no_context(model_pt, sim_shards, sim_test_shards, size, cfg: Sim2RealCon
 
     t0 = time.perf_counter()
     model, _ = load_checkpoint(model_pt)
-    xs, ys, ts = _frames(sim_shards, size, cfg.sim_every)
+    xs, ys, ts = _frames(sim_shards, size, cfg.sim_every, cfg.sim_views)
     f_sim = encoder_features(model, xs)
+    # the held-out shapes have no camera views (rendered for training scenes only)
     xt, yt, _ = _frames(sim_test_shards, size, cfg.sim_every)
     f_test = encoder_features(model, xt)
     log(f"features: {len(xs)} simulated, {len(xt)} simulated test frames ({time.perf_counter() - t0:.1f} s)")
@@ -120,7 +143,8 @@ def fit_no_context(model_pt, sim_shards, sim_test_shards, size, cfg: Sim2RealCon
     sim = {"n_frames": int(len(yt)), "coverage_pct": 100 * coverage(yt, sim_band),
            "metrics": force_metrics(yt, sim_band["median"]),
            "raw_metrics": force_metrics(yt, p_test.mean(0)), "own_head": force_metrics(yt, own),
-           "shards": len(sim_test_shards), "every": cfg.sim_every}
+           "shards": len(sim_test_shards), "every": cfg.sim_every, "views": "front",
+           "heads_fitted_on": cfg.sim_views}
     log(f"no context: {time.perf_counter() - t0:.1f} s; simulated test frames inside the "
         f"{cfg.level:.0%} interval: {sim['coverage_pct']:.1f} %")
     return {"heads": [h.state_dict() for h in heads0], "calibration": cal0, "simulated_test": sim}

@@ -122,15 +122,16 @@ def rig_prior_input():
 
 
 #: what the no-context fit reads of evaluate.sim2real (the rest is the context fits')
-NO_CONTEXT_KEYS = ("heads", "priors", "sampler", "level", "sim_every", "sim_folds")
+NO_CONTEXT_KEYS = ("heads", "priors", "sampler", "level", "sim_every", "sim_folds", "sim_views")
 
 
 def sim2real_params():
     """evaluate.sim2real as the context fits read it: without the no-context fit's own
-    keys (sim_every, sim_folds) and what only the rig prior's FEA reads (rig_prior.gain)."""
+    keys (sim_every, sim_folds, sim_views) and what only the rig prior's FEA reads
+    (rig_prior.gain)."""
     s = copy.deepcopy(config["evaluate"]["sim2real"])
     (s.get("rig_prior") or {}).pop("gain", None)
-    return canonical({k: v for k, v in s.items() if k not in ("sim_every", "sim_folds")})
+    return canonical({k: v for k, v in s.items() if k not in ("sim_every", "sim_folds", "sim_views")})
 
 
 def no_context_params():
