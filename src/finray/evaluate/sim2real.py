@@ -72,7 +72,7 @@ class Sim2RealConfig:
                                                gain_log_sd=float(prior["gain_log_sd"])))
 
 
-#: Which simulated views the no-context heads are fitted and checked on: the front view,
+#: Which simulated views the no-context heads are fitted on: the front view,
 #: each frame's randomised camera view (what a rig's camera sees), or both.
 SIM_VIEWS = ("front", "camera", "both")
 
