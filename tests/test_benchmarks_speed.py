@@ -78,3 +78,17 @@ def test_speed_figure_shows_stages_and_studies(bench, tmp_path):
              "studies": study_times(bench), "dag": dag_span(bench)}
     speed_figure(speed, tmp_path / "speed.pdf")
     assert (tmp_path / "speed.pdf").stat().st_size > 0
+
+
+def test_a_stage_counts_its_sub_folders(bench):
+    """The drawn rigs' jobs (lab/rigs/<rig>/) belong to the lab stage and fill the cores:
+    left out, their time was counted as idle."""
+    t0 = 1_700_000_000.0
+    _tsv(bench / "lab" / "take.tsv", 30.0, 29.0, t0 + 90)  # 60-90 s, beside plain
+    _tsv(bench / "lab" / "rigs" / "rig1" / "take.tsv", 20.0, 19.0, t0 + 110)  # 90-110 s
+    t = stage_times(bench)
+    assert t["lab"] == {"jobs": 2, "wall_s": 50.0, "cpu_s": 48.0, "longest_job_s": 30.0}
+    d = dag_span(bench)
+    assert d["jobs"] == 8 and d["job_cpu_s"] == pytest.approx(218.5 + 48.0)
+    # the 60-110 s gap beside plain is filled: idle 0-5 s (one core), 5-10 s (both), 130-150 s (one)
+    assert d["idle_core_s"] == pytest.approx(5 + 10 + 20)

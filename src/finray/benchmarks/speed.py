@@ -75,13 +75,20 @@ def _stage_dirs(benchmark_dir) -> list[Path]:
     return sorted(dirs, key=lambda p: (rank.get(p.name, len(rank)), p.name))
 
 
+def _stage_files(stage_dir: Path) -> list[Path]:
+    """A stage's benchmark files, those of its sub-folders too (the drawn rigs'
+    ``lab/rigs/<rig>/``, the rig prior's ``evaluate/rig_prior/``): left out, their jobs'
+    time counted as idle cores."""
+    return sorted(stage_dir.rglob("*.tsv"))
+
+
 def stage_times(benchmark_dir) -> dict[str, dict]:
-    """Per pipeline stage (sub-folder of ``benchmark_dir``, in pipeline order; not
-    ``studies/``): jobs, summed wall s, summed CPU s and the longest job (s), from the
-    ``.tsv`` files Snakemake writes (``benchmark:`` of each rule)."""
+    """Per pipeline stage (sub-folder of ``benchmark_dir`` with its own sub-folders, in
+    pipeline order; not ``studies/``): jobs, summed wall s, summed CPU s and the longest
+    job (s), from the ``.tsv`` files Snakemake writes (``benchmark:`` of each rule)."""
     out = {}
     for d in _stage_dirs(benchmark_dir):
-        files = sorted(d.glob("*.tsv"))
+        files = _stage_files(d)
         if files:
             out[d.name] = _totals(_jobs(files))
     return out
@@ -104,7 +111,7 @@ def dag_span(benchmark_dir) -> dict:
     the log of its own invocation is unfinished, and a DAG built in several
     invocations (a figure, then the rest) has several logs; every kept result has
     its benchmark file."""
-    stages = [f for d in _stage_dirs(benchmark_dir) for f in sorted(d.glob("*.tsv"))]
+    stages = [f for d in _stage_dirs(benchmark_dir) for f in _stage_files(d)]
     studies = sorted((Path(benchmark_dir) / STUDIES).glob("*.tsv"))
     pipe, every = _jobs(stages), _jobs(stages + studies)
 

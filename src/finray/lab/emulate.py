@@ -109,25 +109,38 @@ def emulate_take(result_npz, take_dir, lab: dict, *, object_name: str, height_mm
         inner = (slice(b2[0] - b3[0], b2[1] - b3[0]), slice(b2[2] - b3[2], b2[3] - b3[2]))
         log(f"  moving box {u1 - u0}x{v1 - v0} px of {W}x{H}")
         next_report = 0.1
+        box = (slice(b2[0], b2[1]), slice(b2[2], b2[3]))
+        # a still frame at a push seen before (the rest and the hold: most of a take) is
+        # that frame again up to its noise: its box, mask and noise level are kept
+        seen: dict[tuple[float, float], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        # outside the box every frame is the still one: the box is written into these
+        frame, sig = still.copy(), sigma.copy()
         for k in range(n):
             subs = t[k] + exposure * (np.linspace(-0.5, 0.5, n_sub) if n_sub > 1 else np.zeros(1))
             pushes = motion.push(subs)
+            key = None
             if np.ptp(pushes) < 1e-3:  # still: one render
                 pushes = pushes[len(pushes) // 2:len(pushes) // 2 + 1]
-            acc = np.zeros((v1 - v0, u1 - u0, 3), np.float32)
-            for d in pushes:
-                scene.pose(fea.points(d), -d)
-                acc += scene.render_colour()
-            pin[v0:v1, u0:u1] = acc / len(pushes)
-            scene.pose(fea.points(push_mid[k]), -push_mid[k])
-            pin_mask[v0:v1, u0:u1] = scene.render_mask()
+                key = (float(pushes[0]), float(push_mid[k]))
+            if key in seen:
+                box_img, box_mask, box_sig = seen[key]
+            else:
+                acc = np.zeros((v1 - v0, u1 - u0, 3), np.float32)
+                for d in pushes:
+                    scene.pose(fea.points(d), -d)
+                    acc += scene.render_colour()
+                pin[v0:v1, u0:u1] = acc / len(pushes)
+                scene.pose(fea.points(push_mid[k]), -push_mid[k])
+                pin_mask[v0:v1, u0:u1] = scene.render_mask()
+                box_mask = lens.labels(pin_mask, b1)
+                box_img = _optics(lens.image(pin, b3), psf)[inner]
+                box_sig = noise.sigma(box_img)
+                if key is not None:
+                    seen[key] = (box_img, box_mask, box_sig)
             mask = np.zeros((H, W), bool)
-            mask[b1[0]:b1[1], b1[2]:b1[3]] = lens.labels(pin_mask, b1)
+            mask[b1[0]:b1[1], b1[2]:b1[3]] = box_mask
             bits[k], mask_px[k] = np.packbits(mask, axis=-1), mask.sum()
-            frame, sig = still.copy(), sigma.copy()
-            box = (slice(b2[0], b2[1]), slice(b2[2], b2[3]))
-            frame[box] = _optics(lens.image(pin, b3), psf)[inner]
-            sig[box] = noise.sigma(frame[box])
+            frame[box], sig[box] = box_img, box_sig
             video.write(noise.apply(frame, sig))
             if (k + 1) / n >= next_report:
                 log(f"  frame {k + 1}/{n} ({time.perf_counter() - t_wall:.1f} s)")
