@@ -121,17 +121,18 @@ def rig_prior_input():
     return [f"{rig_prior_dir()}/rig_prior.json"] if rig_prior_spec() else []
 
 
+#: what the no-context fit alone reads of evaluate.sim2real
+NO_CONTEXT_ONLY = ("sim_every", "sim_folds", "sim_views")
 #: what the no-context fit reads of evaluate.sim2real (the rest is the context fits')
-NO_CONTEXT_KEYS = ("heads", "priors", "sampler", "level", "sim_every", "sim_folds", "sim_views")
+NO_CONTEXT_KEYS = ("heads", "priors", "sampler", "level") + NO_CONTEXT_ONLY
 
 
 def sim2real_params():
     """evaluate.sim2real as the context fits read it: without the no-context fit's own
-    keys (sim_every, sim_folds, sim_views) and what only the rig prior's FEA reads
-    (rig_prior.gain)."""
+    keys (NO_CONTEXT_ONLY) and what only the rig prior's FEA reads (rig_prior.gain)."""
     s = copy.deepcopy(config["evaluate"]["sim2real"])
     (s.get("rig_prior") or {}).pop("gain", None)
-    return canonical({k: v for k, v in s.items() if k not in ("sim_every", "sim_folds", "sim_views")})
+    return canonical({k: v for k, v in s.items() if k not in NO_CONTEXT_ONLY})
 
 
 def no_context_params():
