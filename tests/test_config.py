@@ -7,8 +7,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from finray.config import (ConfigError, load_config, merge_config, read_config_file, scenes,
-                           validate_config)
+from finray.config import (ConfigError, extra_train_heights, load_config, merge_config,
+                           read_config_file, scenes, validate_config)
 
 ROOT = Path(__file__).resolve().parents[1]
 FULL = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
@@ -20,9 +20,23 @@ def test_full_config_scenes():
     splits = {s.split for s in sc}
     assert splits == {"train", "shape", "material"}
     # 3 circles + 12 squares in training, 3 held-out shapes, ring x 3 materials, x 3 heights
+    assert extra_train_heights(cfg) == []
     assert sum(s.split == "train" for s in sc) == 15 * 3
     assert sum(s.split == "shape" for s in sc) == 3 * 3
     assert sorted({s.material for s in sc if s.split == "material"}) == ["neoprene", "ninjaflex", "steel"]
+    assert len({s.id for s in sc}) == len(sc)
+
+
+def test_extra_train_heights_add_training_scenes_only():
+    """extra_train_heights_mm: the training objects at the extra heights (of every model,
+    or of one), the test objects at heights_mm only."""
+    cfg = validate_config({**copy.deepcopy(FULL), "extra_train_heights_mm": {"camera": [17, 20],
+                                                                          "plain": [45]}})
+    assert extra_train_heights(cfg) == [17.0, 45.0]  # 20 is a paper height already
+    assert extra_train_heights(cfg, "camera") == [17.0] and extra_train_heights(cfg, "occlusion") == []
+    sc = scenes(cfg)
+    assert sum(s.split == "train" for s in sc) == 15 * 5
+    assert {s.height_mm for s in sc if s.split != "train"} == {20.0, 30.0, 40.0}
     assert len({s.id for s in sc}) == len(sc)
 
 
@@ -109,6 +123,10 @@ BAD = {
         lambda c: c["finger"]["ribs"].update(first_height_mm=4.0), "finger.ribs.first_height_mm"),
     "contact height above the finger": (
         lambda c: c.update(heights_mm=[20, 95]), "heights_mm"),
+    "extra height above the finger": (
+        lambda c: c.update(extra_train_heights_mm={"camera": [95]}), "extra_train_heights_mm.camera"),
+    "extra heights of an unknown model": (
+        lambda c: c.update(extra_train_heights_mm={"cam": [17]}), "extra_train_heights_mm.cam"),
     "unknown key": (lambda c: c["finger"].update(colour="red"), "finger.colour"),
     "missing size": (lambda c: c["objects"]["circle_d5"].pop("diameter_mm"), "objects.circle_d5.diameter_mm"),
     "unknown material": (lambda c: c["objects"]["circle_d20"].update(materials=["gold"]),

@@ -83,6 +83,10 @@ READERS: list[tuple[str, set[str]]] = [
     ("heights_mm", {"geometry_object", "fea_scene", "render_scene", "geometry_gallery", "viewpoint_render",
                     "dataset_examples", "evaluate_experiment", "figure_material_generalisation",
                     "render_benchmark", "summary"} | _LISTS),
+    # new training scenes, and the model that trains on them (sim-to-real's no-context fit
+    # reads the camera model's training shards)
+    ("extra_train_heights_mm", {"geometry_object", "fea_scene", "render_scene", "dataset_manifest",
+                                "fea_figures", "train_model", "sim2real_no_context", "inference_latency"}),
     # (the rig prior: its wall variants' friction, and the nominal its gains are against)
     ("fea.friction", {"fea_scene", "summary", "rig_prior_fea", "rig_prior"} | _STUDIES),
     ("fea.push_mm", {"fea_scene", "summary", "rig_prior_fea"} | _STUDIES),
@@ -249,6 +253,7 @@ def _with_wall(spec):
 #: flipped, last list item changed) is invalid or says nothing; a callable edits the
 #: config (a key the schema then requires comes with it)
 NEW_VALUES = {
+    "extra_train_heights_mm": {"camera": [16.0]},
     "finger.material": "neoprene",
     "finger.ribs.count": 10,
     "mesh.order": 1,
@@ -647,3 +652,28 @@ def test_diversity_needs_generated_training_objects(tmp_path):
     f = _write(tmp_path, "gen", {**raw, "generated": {"count": 2, "compare_model": "occlusion"}})
     train, diversity = _train_and_diversity_jobs(planner, [f])
     assert train["occlusion_paper_objects"][0] == train["occlusion"][0] and diversity
+
+
+def test_extra_heights_reach_their_model_only(tmp_path):
+    """extra_train_heights_mm (here camera at 17 mm over config.yaml): the camera model
+    trains on every training object at 17 mm as well, the other models and the ridge
+    baseline on the paper's heights only; sim-to-real's no-context fit reads the camera
+    model's shards. Without the key, every model trains on the same shards."""
+    def fn(w):
+        jobs = {j.rule.name + ":" + j.wildcards.get("model", ""): j for j in w.dag.jobs}
+        inputs = {name: sorted(map(str, j.input)) for name, j in jobs.items()}
+        return inputs, sorted(map(str, jobs["sim2real_no_context:"].input.sim))
+
+    paper = ROOT / "config" / "config.yaml"
+    extra = _write(tmp_path, "extra", {"extends": str(paper), "extra_train_heights_mm": {"camera": [17]}})
+    planner = Planner(tmp_path)
+    before, _ = planner._run(fn, [paper])
+    inputs, no_context = planner._run(fn, [extra])
+    camera, plain = inputs["train_model:camera"], inputs["train_model:plain"]
+    added = sorted(set(camera) - set(plain))
+    assert len(added) == 15 and all("/h17/" in f for f in added)
+    assert set(plain) < set(camera) and not any("/h17/" in f for f in plain)
+    assert inputs["train_model:occlusion"] == plain == before["train_model:plain"]
+    assert before["train_model:camera"] == plain
+    assert inputs["evaluate_baseline:"] == before["evaluate_baseline:"]
+    assert no_context == [f for f in camera if f.startswith("results/dataset/shards/")]

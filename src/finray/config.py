@@ -96,6 +96,13 @@ def validate_config(config: dict, base_dir: str | Path = ".") -> dict:
         if h >= finger.height_mm:
             raise ConfigError("heights_mm", (
                 f"contact height {h} mm is at or above the finger (height {finger.height_mm} mm)"))
+    for model, hs in cfg.get("extra_train_heights_mm", {}).items():
+        if model not in cfg["train"]["models"]:
+            raise ConfigError(f"extra_train_heights_mm.{model}", "is not a model of train.models")
+        for h in hs:
+            if h >= finger.height_mm:
+                raise ConfigError(f"extra_train_heights_mm.{model}", (
+                    f"contact height {h} mm is at or above the finger (height {finger.height_mm} mm)"))
     for name, spec in cfg["objects"].items():
         for m in spec["materials"]:
             if m not in mats:
@@ -105,7 +112,8 @@ def validate_config(config: dict, base_dir: str | Path = ".") -> dict:
             spec["path"] = str(p if p.is_absolute() else Path(base_dir) / p)
         try:
             shape = object_shape(spec, cfg["mesh"]["size_mm"], f"objects.{name}")
-            for h in cfg["heights_mm"]:
+            extra = extra_train_heights(cfg) if spec["split"] == "train" else []
+            for h in [*cfg["heights_mm"], *extra]:
                 place_object(shape, finger, h, cfg["placement"]["gap_mm"], f"objects.{name}")
         except GeometryError as exc:
             raise ConfigError(exc.key, str(exc).split(": ", 1)[1]) from None
@@ -322,8 +330,20 @@ def object_is_meshed(cfg: dict, name: str) -> bool:
     return any(not cfg["materials"][m]["rigid"] for m in cfg["objects"][name]["materials"])
 
 
+def extra_train_heights(cfg: dict, model: str | None = None) -> list[float]:
+    """Contact heights (mm) beyond ``heights_mm`` at which the training objects are also
+    simulated and rendered: those of ``model`` in ``extra_train_heights_mm``, or of every
+    model (``None``), sorted."""
+    extra = cfg.get("extra_train_heights_mm", {})
+    picked = extra.values() if model is None else [extra.get(model, [])]
+    return sorted({float(h) for hs in picked for h in hs} - {float(h) for h in cfg["heights_mm"]})
+
+
 def scenes(cfg: dict) -> list[Scene]:
-    """Every scene of the config."""
+    """Every scene of the config: every object at every height of ``heights_mm``, and the
+    training objects at the extra heights of :func:`extra_train_heights` too."""
+    extra = extra_train_heights(cfg)
     return [Scene(name, m, float(h), spec["split"])
             for name, spec in cfg["objects"].items()
-            for m in spec["materials"] for h in cfg["heights_mm"]]
+            for m in spec["materials"]
+            for h in [*cfg["heights_mm"], *(extra if spec["split"] == "train" else [])]]

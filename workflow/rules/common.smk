@@ -8,7 +8,8 @@ from types import SimpleNamespace
 import yaml
 from snakemake.utils import update_config
 
-from finray.config import ConfigError, merge_config, read_config_file, scenes, validate_config
+from finray.config import (ConfigError, extra_train_heights, merge_config, read_config_file, scenes,
+                           validate_config)
 from finray.dataset import pitch_object
 from finray.dataset.params import SHARD_KEYS
 
@@ -114,15 +115,20 @@ def rendered_views():
     return views
 
 
-def shard_files(splits=None, pitch=None, exclude_objects=()):
+def shard_files(splits=None, pitch=None, exclude_objects=(), model=None, every_height=False):
     """Shards of every rendered view (optionally of some splits, or one pitch only, less
     those of ``exclude_objects``), sorted: the order of the objects in the config does not
-    change what a job reads."""
+    change what a job reads. Of the training objects' extra heights (``extra_train_heights_mm``)
+    only those of ``model``, or all where ``every_height``: what reads shards without a
+    model in mind sees the paper's heights."""
+    heights = {float(h) for h in config["heights_mm"]}
+    heights |= set(extra_train_heights(config, None if every_height else model)) if (
+        every_height or model) else set()
     return sorted(
         f"{DATASET}/shards/{s.object}/{s.material}/h{s.height_mm:g}/p{pitch_label(p)}.npz"
         for s, p in rendered_views()
         if (splits is None or s.split in splits) and (pitch is None or p == pitch)
-        and s.object not in exclude_objects
+        and s.object not in exclude_objects and s.height_mm in heights
     )
 
 

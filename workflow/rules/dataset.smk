@@ -5,7 +5,7 @@
 
 rule dataset_manifest:
     input:
-        shards=shard_files(),
+        shards=shard_files(every_height=True),
     output:
         manifest=f"{DATASET}/manifest.csv",
     log:

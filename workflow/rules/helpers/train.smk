@@ -18,10 +18,12 @@ def trained_model(name):
 
 
 def train_shards(wildcards):
-    """A model's training shards (front views of the train split); the paper-objects model
-    of the diversity comparison gets those of the non-generated objects only."""
+    """A model's training shards (front views of the train split, at its extra heights
+    too); the paper-objects model of the diversity comparison gets those of the
+    non-generated objects only."""
     exclude = GENERATED_TRAIN if DIVERSITY and wildcards.model == DIVERSITY[0] else ()
-    return shard_files(splits=["train"], pitch=0.0, exclude_objects=exclude)
+    return shard_files(splits=["train"], pitch=0.0, exclude_objects=exclude,
+                       model=trained_model(wildcards.model))
 
 
 def model_augment(wildcards):
