@@ -65,6 +65,8 @@ _SEGMENT = _RENDER | {"dataset_examples", "train_model"}  # crop and segmentatio
 #: what renders with the render settings: also the viewpoint experiment's perspective renders
 _RENDERS = _RENDER | {"viewpoint_render"}
 #: what lists every scene or every training shard (a new or moved scene changes its input)
+#: what a training object's scenes at extra_train_heights_mm change (the smoke config has one)
+_EXTRA_HEIGHT = {"dataset_manifest", "fea_figures", "inference_latency", "sim2real_no_context"}
 _LISTS = {"fea_figures", "dataset_manifest", "evaluate_baseline", "train_model", "train_pareto",
           "inference_latency", "sim2real_no_context"}
 READERS: list[tuple[str, set[str]]] = [
@@ -161,18 +163,20 @@ READERS: list[tuple[str, set[str]]] = [
     ("materials.neoprene.rigid", {"geometry_object", "fea_scene", "fea_stability"}),
     ("materials.neoprene.*", {"fea_scene", "fea_stability"}),
     ("materials.steel.rigid", {"geometry_object", "fea_scene"} | _STUDIES),
-    # where an object's scenes go: its scenes, and what lists the splits' shards
-    ("objects.circle_d10.split", {"fea_scene", "render_scene", "geometry_gallery",
+    # where an object's scenes go: its scenes, and what lists the splits' shards; into or
+    # out of training, its scenes at the smoke config's extra training height come or go
+    # (what lists every scene, and the camera model's shards)
+    ("objects.circle_d10.split", _EXTRA_HEIGHT | {"fea_scene", "render_scene", "geometry_gallery",
                                   "dataset_examples", "dataset_manifest", "evaluate_baseline",
                                   "evaluate_experiment", "render_benchmark", "train_model",
                                   "train_pareto", "viewpoint_render",
                                   # the first held-out shape: the live-stream benchmark's
                                   # and the annotated figure's renders
                                   "realtime_benchmark", "figure_annotated"}),  # it becomes the pitch object
-    ("objects.square_s10_a30.split", {"fea_scene", "render_scene", "geometry_gallery",
+    ("objects.square_s10_a30.split", _EXTRA_HEIGHT | {"fea_scene", "render_scene", "geometry_gallery",
                                       "evaluate_baseline", "evaluate_experiment", "train_model",
                                       "train_pareto", "figure_material_generalisation", "sim2real_no_context"}),
-    ("objects.ring_d15.split", {"fea_scene", "render_scene", "geometry_gallery",
+    ("objects.ring_d15.split", _EXTRA_HEIGHT | {"geometry_object", "fea_scene", "render_scene", "geometry_gallery",
                                 "evaluate_baseline", "evaluate_experiment", "train_model",
                                 "train_pareto", "figure_material_generalisation", "sim2real_no_context"}),
     ("objects.ellipse_16x9.split", {"fea_scene", "render_scene", "geometry_gallery",
