@@ -99,27 +99,85 @@ def fit_heads(model: FinRayNet, features: torch.Tensor, force_N, fit: HeadFit,
     start = linear[-fit.layers] if 0 < fit.layers < len(linear) else 0
     frozen = template[:start].requires_grad_(False)
     with torch.no_grad():  # the frozen layers' output, once for every member
-        z = frozen(features) if start else features
-    heads, n = [], len(y)
-    steps = fit.n_steps(n)
+        z = frozen(features) if start else features.clone()  # (not an inference tensor)
+    n, steps, b = len(y), fit.n_steps(len(y)), min(fit.batch, len(y))
+    gens = [torch.Generator().manual_seed(fit.seed * 1000 + m) for m in range(fit.members)]
+    pools = torch.stack([torch.randint(0, n, (n,), generator=g) if fit.bootstrap else torch.arange(n)
+                         for g in gens])
+    ops, params = _stacked_tail(template[start:], fit.members)
+    opt = torch.optim.Adam(params, lr=fit.lr)
+    decay = torch.optim.lr_scheduler.CosineAnnealingLR(opt, steps) if fit.lr_decay else None
+    rows = torch.arange(fit.members)[:, None]
+    for _ in range(steps):  # every member's step at once: (members, batch) frames
+        idx = pools[rows, torch.stack([torch.randint(0, n, (b,), generator=g) for g in gens])]
+        loss = ((_run_stacked(ops, z[idx])[..., 0] - target[idx]) ** 2).mean(dim=1).sum()
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        opt.step()
+        if decay is not None:
+            decay.step()
+    heads = []
     for m in range(fit.members):
-        gen = torch.Generator().manual_seed(fit.seed * 1000 + m)
-        tail = copy.deepcopy(template[start:])
-        opt = torch.optim.Adam(tail.parameters(), lr=fit.lr)
-        decay = torch.optim.lr_scheduler.CosineAnnealingLR(opt, steps) if fit.lr_decay else None
-        pool = torch.randint(0, n, (n,), generator=gen) if fit.bootstrap else torch.arange(n)
-        for _ in range(steps):
-            idx = pool[torch.randint(0, n, (min(fit.batch, n),), generator=gen)]
-            loss = ((tail(z[idx])[:, 0] - target[idx]) ** 2).mean()
-            opt.zero_grad(set_to_none=True)
-            loss.backward()
-            opt.step()
-            if decay is not None:
-                decay.step()
-        head = nn.Sequential(*copy.deepcopy(frozen), *tail)
+        head = nn.Sequential(*copy.deepcopy(frozen), *_member_tail(template[start:], ops, m))
         head.requires_grad_(False)
         heads.append(head)
     return heads
+
+
+def _stacked_tail(tail: nn.Sequential, members: int) -> tuple[list, list[torch.Tensor]]:
+    """The fitted layers of ``members`` heads as stacked tensors, so that one batched
+    step fits them all (they share no weight, and the loss is their sum, so each
+    member's gradient, and Adam's update, is its own; a Python loop over the members
+    spent most of a sim-to-real job in PyTorch's per-step overhead). Returns the
+    operations in order and the trainable tensors: each linear layer's weight
+    (M, out, in) and bias (M, 1, out), each batch norm's affine (M, 1, C) (its
+    statistics stay the simulation's)."""
+    ops, params = [], []
+
+    def stack(t: torch.Tensor) -> torch.Tensor:
+        out = t.detach().expand(members, *t.shape)
+        return (out if out.dim() == 3 else out[:, None]).clone().requires_grad_()
+
+    for mod in tail:
+        if isinstance(mod, nn.Linear):
+            ops.append(("linear", stack(mod.weight), stack(mod.bias)))
+        elif isinstance(mod, nn.BatchNorm1d):
+            ops.append(("norm", stack(mod.weight), stack(mod.bias), mod.running_mean.clone(),
+                        torch.sqrt(mod.running_var + mod.eps)))
+        elif isinstance(mod, (nn.ReLU, nn.Sigmoid, nn.Identity)):
+            ops.append(("act", mod))
+            continue
+        elif isinstance(mod, nn.Flatten):  # the features are flat already
+            continue
+        else:
+            raise TypeError(f"cannot fit a head with a {type(mod).__name__} layer")
+        params += list(ops[-1][1:3])
+    return ops, params
+
+
+def _run_stacked(ops: list, x: torch.Tensor) -> torch.Tensor:
+    """The stacked layers (:func:`_stacked_tail`) on ``x`` (M, B, F)."""
+    for op in ops:
+        if op[0] == "linear":
+            x = torch.baddbmm(op[2], x, op[1].transpose(1, 2))
+        elif op[0] == "norm":
+            x = (x - op[3]) / op[4] * op[1] + op[2]
+        else:
+            x = op[1](x)
+    return x
+
+
+def _member_tail(tail: nn.Sequential, ops: list, m: int) -> nn.Sequential:
+    """A copy of ``tail`` with member ``m``'s fitted weights (:func:`_stacked_tail`)."""
+    tail = copy.deepcopy(tail)
+    fitted = iter(op for op in ops if op[0] != "act")
+    with torch.no_grad():
+        for mod in tail:
+            if isinstance(mod, (nn.Linear, nn.BatchNorm1d)):
+                op = next(fitted)
+                mod.weight.copy_(op[1][m].reshape(mod.weight.shape))
+                mod.bias.copy_(op[2][m].reshape(mod.bias.shape))
+    return tail
 
 
 def head_from_state(model: FinRayNet, state: dict, component: int = 0) -> nn.Module:
