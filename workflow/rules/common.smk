@@ -122,8 +122,8 @@ def shard_files(splits=None, pitch=None, exclude_objects=(), model=None, every_h
     only those of ``model``, or all where ``every_height``: what reads shards without a
     model in mind sees the paper's heights."""
     heights = {float(h) for h in config["heights_mm"]}
-    heights |= set(extra_train_heights(config, None if every_height else model)) if (
-        every_height or model) else set()
+    if every_height or model:
+        heights |= set(extra_train_heights(config, None if every_height else model))
     return sorted(
         f"{DATASET}/shards/{s.object}/{s.material}/h{s.height_mm:g}/p{pitch_label(p)}.npz"
         for s, p in rendered_views()
