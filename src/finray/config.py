@@ -103,6 +103,7 @@ def validate_config(config: dict, base_dir: str | Path = ".") -> dict:
             if h >= finger.height_mm:
                 raise ConfigError(f"extra_train_heights_mm.{model}", (
                     f"contact height {h} mm is at or above the finger (height {finger.height_mm} mm)"))
+    extra = extra_train_heights(cfg)
     for name, spec in cfg["objects"].items():
         for m in spec["materials"]:
             if m not in mats:
@@ -112,8 +113,7 @@ def validate_config(config: dict, base_dir: str | Path = ".") -> dict:
             spec["path"] = str(p if p.is_absolute() else Path(base_dir) / p)
         try:
             shape = object_shape(spec, cfg["mesh"]["size_mm"], f"objects.{name}")
-            extra = extra_train_heights(cfg) if spec["split"] == "train" else []
-            for h in [*cfg["heights_mm"], *extra]:
+            for h in [*cfg["heights_mm"], *(extra if spec["split"] == "train" else [])]:
                 place_object(shape, finger, h, cfg["placement"]["gap_mm"], f"objects.{name}")
         except GeometryError as exc:
             raise ConfigError(exc.key, str(exc).split(": ", 1)[1]) from None
@@ -180,7 +180,7 @@ def _check_spread(cfg: dict) -> None:
     if unknown:
         raise ConfigError("evaluate.spread.models", (
             f"{', '.join(map(repr, unknown))} not in train.models ({', '.join(sorted(models))})"))
-    start = "camera" if "camera" in models else "plain"
+    start = sim2real_model_name(cfg)
     if chosen and start not in chosen:
         raise ConfigError("evaluate.spread.models", (
             f"must hold '{start}', the model sim-to-real starts from"))
@@ -328,6 +328,11 @@ class Scene:
 def object_is_meshed(cfg: dict, name: str) -> bool:
     """Deformable objects are meshed; purely rigid ones stay boundaries."""
     return any(not cfg["materials"][m]["rigid"] for m in cfg["objects"][name]["materials"])
+
+
+def sim2real_model_name(cfg: dict) -> str:
+    """The model sim-to-real starts from: camera where train.models has it, else plain."""
+    return "camera" if "camera" in cfg["train"]["models"] else "plain"
 
 
 def extra_train_heights(cfg: dict, model: str | None = None) -> list[float]:

@@ -9,7 +9,7 @@ import yaml
 from snakemake.utils import update_config
 
 from finray.config import (ConfigError, extra_train_heights, merge_config, read_config_file, scenes,
-                           validate_config)
+                           sim2real_model_name, validate_config)
 from finray.dataset import pitch_object
 from finray.dataset.params import SHARD_KEYS
 

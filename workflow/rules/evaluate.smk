@@ -70,7 +70,7 @@ rule sim2real_no_context:
     # the no-context heads and calibration: from the simulation alone, every rig's the same
     input:
         model=sim2real_model(),
-        sim=shard_files(splits=["train"], pitch=0.0, model=sim2real_model_name()),
+        sim=shard_files(splits=["train"], pitch=0.0, model=sim2real_model_name(config)),
         sim_test=shard_files(splits=["shape"], pitch=0.0),
     output:
         no_context=f"{EVALUATE}/sim2real/no_context.pt",

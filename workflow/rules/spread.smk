@@ -61,7 +61,7 @@ use rule evaluate_experiment as spread_experiment with:
 use rule sim2real_no_context as spread_sim2real_no_context with:
     input:
         model=lambda w: sim2real_model(train_dir(w)),
-        sim=shard_files(splits=["train"], pitch=0.0, model=sim2real_model_name()),
+        sim=shard_files(splits=["train"], pitch=0.0, model=sim2real_model_name(config)),
         sim_test=shard_files(splits=["shape"], pitch=0.0),
     output:
         no_context=f"{SPREAD}/{{variant}}/sim2real/no_context.pt",

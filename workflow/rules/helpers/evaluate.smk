@@ -64,14 +64,9 @@ def experiment_inputs(wildcards):
             "renders": setup["renders"]}
 
 
-def sim2real_model_name():
-    """The model sim-to-real starts from: camera where configured, else plain."""
-    return "camera" if "camera" in config["train"]["models"] else "plain"
-
-
 def sim2real_model(train_dir=TRAIN):
-    """The network sim-to-real starts from (:func:`sim2real_model_name`)."""
-    return f"{train_dir}/{sim2real_model_name()}/model.pt"
+    """The network sim-to-real starts from (finray.config.sim2real_model_name)."""
+    return f"{train_dir}/{sim2real_model_name(config)}/model.pt"
 
 
 # The diversity comparison (evaluate.smk's evaluate_diversity, DIVERSITY_DIR there)
