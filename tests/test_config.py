@@ -8,7 +8,8 @@ import pytest
 import yaml
 
 from finray.config import (ConfigError, extra_train_heights, load_config, merge_config,
-                           read_config_file, scenes, validate_config)
+                           model_augment_settings, model_start, read_config_file, scenes,
+                           validate_config)
 
 ROOT = Path(__file__).resolve().parents[1]
 FULL = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
@@ -38,6 +39,19 @@ def test_extra_train_heights_add_training_scenes_only():
     assert sum(s.split == "train" for s in sc) == 15 * 5
     assert {s.height_mm for s in sc if s.split != "train"} == {20.0, 30.0, 40.0}
     assert len({s.id for s in sc}) == len(sc)
+
+
+def test_a_model_entry_splits_into_augmentation_and_its_start():
+    """train.models.<model>: start_from and epochs say how it trains; the rest are the
+    augmentation's settings."""
+    cfg = validate_config(bad(lambda c: c["train"]["models"]["occlusion"].update(
+        start_from="plain", epochs=4)))
+    entry = cfg["train"]["models"]["occlusion"]
+    assert model_augment_settings(entry) == {k: v for k, v in entry.items()
+                                             if k not in ("start_from", "epochs")}
+    assert "start_from" not in model_augment_settings(entry)
+    assert model_start(cfg, "occlusion") == {"from": "plain", "epochs": 4}
+    assert model_start(cfg, "camera") == {"from": None, "epochs": None}
 
 
 def test_smoke_config_is_valid_and_small():
@@ -154,6 +168,22 @@ BAD = {
                                                         "amplitude": 0.9}), "objects.b.amplitude"),
     "unknown pitch object": (lambda c: c.setdefault("dataset", {}).update(pitch_object="nope"),
                              "dataset.pitch_object"),
+    "start from an unknown model": (
+        lambda c: c["train"]["models"]["occlusion"].update(start_from="nope"),
+        "train.models.occlusion.start_from"),
+    "a model starts from itself": (
+        lambda c: c["train"]["models"]["occlusion"].update(start_from="occlusion"),
+        "train.models.occlusion.start_from"),
+    "models start from one another": (
+        lambda c: (c["train"]["models"]["occlusion"].update(start_from="plain"),
+                   c["train"]["models"]["plain"].update(start_from="occlusion"))[0],
+        "train.models.plain.start_from"),
+    "no epochs": (lambda c: c["train"]["models"]["occlusion"].update(epochs=0),
+                  "train.models.occlusion.epochs"),
+    "diversity compared on a fine-tuned model": (
+        lambda c: (c.update(generated={"count": 2, "compare_model": "occlusion"}),
+                   c["train"]["models"]["occlusion"].update(start_from="plain"))[0],
+        "generated.compare_model"),
     "spread model not trained": (
         lambda c: c.setdefault("evaluate", {}).update(spread={"models": ["camera", "nope"]}),
         "evaluate.spread.models"),

@@ -114,8 +114,11 @@ READERS: list[tuple[str, set[str]]] = [
                           "evaluate_experiment", "summary", "lab_qa", "sim2real",
                           "sim2real_no_context"}),
     ("train.base_channels", {"train_model", "train_pareto", "summary"}),
+    # how a model trains (another's weights, its own epochs): the manuscript says it
+    ("train.models.*.start_from", {"train_model", "summary"}),
+    ("train.models.*.epochs", {"train_model", "summary"}),
     ("train.models.*", {"train_model"}),
-    ("train.epochs", {"train_model"}),
+    ("train.epochs", {"train_model", "summary"}),
     ("train.frame_every", {"train_model"}),  # (the network study reads its own benchmarks.train_every)
     ("train.lr", {"train_model"}),
     ("train.alpha_*", {"train_model", "summary"}),  # the manuscript states the loss
@@ -281,6 +284,7 @@ NEW_VALUES = {
     "generated.split": "shape",
     "generated.materials": ["steel", "neoprene"],
     "generated.compare_model": "occlusion",
+    "train.models.occlusion.start_from": "camera",
     "train.input_size": [128, 64],
     "train.forces": ["fx"],
     "train.bf16": False,
@@ -591,12 +595,12 @@ def test_named_mappings(planner, smoke, tmp_path):
     raw, full = smoke
     jobs = planner.jobs(SMOKE)
 
-    def replanned(key, rule):
+    def replanned(key, rule, any_reason=False):
         f = _write(tmp_path, "x", changed_config(raw, full, key))
 
         def fn(w):
             return sorted(str(j.output[0]) for j in w.dag.needrun_jobs()
-                          if j.rule.name == rule and w.dag.reason(j).params_changed)
+                          if j.rule.name == rule and (any_reason or w.dag.reason(j).params_changed))
         return planner._run(fn, f)
 
     assert replanned(("materials", "ninjaflex", "youngs_modulus_MPa"), "fea_scene") \
@@ -605,7 +609,13 @@ def test_named_mappings(planner, smoke, tmp_path):
     for key in [("mesh", k) for k in ("size_mm", "min_angle_deg", "order", "arc_chord_mm")]:
         assert replanned(key, "geometry_finger") == jobs["geometry_finger"], key
     assert replanned(("render", "stress_ref_MPa"), "render_scene") == sorted(jobs["render_scene"])
-    assert replanned(("train", "seed"), "train_model") == sorted(jobs["train_model"])
+    # every model; one that starts from another's weights (train.models.<m>.start_from) for
+    # its new input: Snakemake checks a job's params only where nothing upstream reruns
+    assert replanned(("train", "seed"), "train_model", any_reason=True) == sorted(jobs["train_model"])
+    fine_tuned = {f"results/train/{m}/model.pt" for m, e in full["train"]["models"].items()
+                  if e.get("start_from")}
+    assert fine_tuned
+    assert replanned(("train", "seed"), "train_model") == sorted(set(jobs["train_model"]) - fine_tuned)
 
 
 # ------------------------------------------------- training on generated objects
@@ -653,9 +663,10 @@ def test_diversity_needs_generated_training_objects(tmp_path):
         f = _write(tmp_path, "gen", {**raw, "generated": gen})
         train, diversity = _train_and_diversity_jobs(planner, [f])
         assert "plain_paper_objects" not in train and diversity == [], gen
-    f = _write(tmp_path, "gen", {**raw, "generated": {"count": 2, "compare_model": "occlusion"}})
+    # (a model trained from scratch: the fine-tuned occlusion model cannot be compared)
+    f = _write(tmp_path, "gen", {**raw, "generated": {"count": 2, "compare_model": "camera"}})
     train, diversity = _train_and_diversity_jobs(planner, [f])
-    assert train["occlusion_paper_objects"][0] == train["occlusion"][0] and diversity
+    assert train["camera_paper_objects"][0] == train["camera"][0] and diversity
 
 
 def test_extra_heights_reach_their_model_only(tmp_path):

@@ -139,3 +139,41 @@ def test_validation_scenes_follow_split_seed_not_seed(tmp_path, monkeypatch):
     assert len(same) == 2 and same == stage.validation_scenes(ids, 0.1, 0)
     assert held_out(1, 0) == same and held_out(2, 0) == same
     assert held_out(0, 5) == stage.validation_scenes(ids, 0.1, 5) != same
+
+
+def test_training_starts_from_the_given_weights():
+    """``init_state``: the network starts from another's weights and force scale. At a
+    learning rate of zero its weights stay those (only batch-norm statistics move); from
+    new weights they are not those."""
+    x, s, f = toy(64)
+    net = NetConfig(height=32, width=16, base_channels=4)
+    start, _ = train(x, s, f, None, net, TrainConfig(**CFG), log=lambda m: None)
+    x2, s2, f2 = toy(64, seed=1)  # other data: another force scale of its own
+    still, hist = train(x2, s2, f2, None, net, TrainConfig(**{**CFG, "lr": 0.0, "seed": 3}),
+                        log=lambda m: None, init_state=start.state_dict())
+    fresh, _ = train(x2, s2, f2, None, net, TrainConfig(**{**CFG, "lr": 0.0, "seed": 3}),
+                     log=lambda m: None)
+    for (name, a), b, c in zip(start.named_parameters(), still.parameters(), fresh.parameters()):
+        assert torch.equal(a, b), name
+        assert not torch.equal(a, c), name
+    assert torch.equal(still.force_mean_N, start.force_mean_N)
+    assert hist.force_mean_N == start.force_mean_N.tolist()
+
+
+def test_a_start_of_another_network_is_refused(tmp_path, monkeypatch):
+    """``train_from_shards(init=...)`` with a checkpoint of another network (here: other
+    channel counts) stops with one line before training."""
+    import finray.train.stage as stage
+
+    x, s, f = toy(32)
+    model, hist = train(x, s, f, None, NetConfig(height=32, width=16, base_channels=4),
+                        TrainConfig(**CFG), log=lambda m: None)
+    save_checkpoint(model, hist, tmp_path / "start.pt")
+    ids = np.repeat([f"scene{k}" for k in range(4)], 8)
+    fake = {"images": x[:, :1], "stress": s, "force_N": f, "scene_id": ids}
+    monkeypatch.setattr(stage, "load_split", lambda *a, **k: fake)
+    monkeypatch.setattr(stage, "train", lambda *a, **k: pytest.fail("trained"))
+    with pytest.raises(ValueError, match=r"start\.pt: its network .* is not the one to train"):
+        stage.train_from_shards([], tmp_path / "out", NetConfig(height=32, width=16, base_channels=8),
+                                TrainConfig(**CFG), None, 0.25, log=lambda m: None,
+                                init=tmp_path / "start.pt")

@@ -118,6 +118,7 @@ def validate_config(config: dict, base_dir: str | Path = ".") -> dict:
         except GeometryError as exc:
             raise ConfigError(exc.key, str(exc).split(": ", 1)[1]) from None
     _check_lab(cfg, finger)
+    _check_start_from(cfg)
     _check_diversity(cfg)
     _check_spread(cfg)
     return cfg
@@ -170,6 +171,41 @@ def _check_diversity(cfg: dict) -> None:
     if pair[0] in models:
         raise ConfigError("generated.compare_model", (
             f"train.models already has '{pair[0]}', the name of its paper-objects model"))
+    if models[pair[1]].get("start_from") is not None:
+        raise ConfigError("generated.compare_model", (
+            f"'{pair[1]}' starts from another model's weights (train.models.{pair[1]}.start_from), "
+            "which saw the generated objects: compare a model trained from scratch"))
+
+
+#: keys of a train.models entry that set how it trains, not how its frames are augmented
+#: (the others are finray.train.AugmentConfig's)
+MODEL_TRAINING_KEYS = ("start_from", "epochs")
+
+
+def model_augment_settings(entry: dict) -> dict:
+    """A train.models entry's augmentation settings (finray.train.AugmentConfig's keys)."""
+    return {k: v for k, v in entry.items() if k not in MODEL_TRAINING_KEYS}
+
+
+def model_start(cfg: dict, name: str) -> dict:
+    """How train.models' ``name`` trains: ``from``, the model whose weights it starts
+    from (None: from scratch), and ``epochs``, its own count (None: train.epochs)."""
+    entry = cfg["train"]["models"][name]
+    return {"from": entry.get("start_from"), "epochs": entry.get("epochs")}
+
+
+def _check_start_from(cfg: dict) -> None:
+    """Each start_from names another model of train.models, and no chain of them loops."""
+    models = cfg["train"]["models"]
+    for name in sorted(models):
+        chain = [name]
+        while (src := models[chain[-1]].get("start_from")) is not None:
+            key = f"train.models.{chain[-1]}.start_from"
+            if src not in models:
+                raise ConfigError(key, f"'{src}' is not a key of train.models ({', '.join(sorted(models))})")
+            if src in chain:
+                raise ConfigError(key, f"the models start from one another: {' -> '.join(chain + [src])}")
+            chain.append(src)
 
 
 def _check_spread(cfg: dict) -> None:

@@ -16,6 +16,7 @@ wildcard_constraints:
 rule spread_train:
     input:
         shards=train_shards,
+        init=model_init,  # the weights it starts from (train.models.<model>.start_from)
     output:
         model=f"{SPREAD}/{{variant}}/train/{{model}}/model.pt",
         torchscript=f"{SPREAD}/{{variant}}/train/{{model}}/model.ts",

@@ -6,6 +6,7 @@
 rule train_model:
     input:
         shards=train_shards,
+        init=model_init,  # the weights it starts from (train.models.<model>.start_from)
     output:
         model=f"{TRAIN}/{{model}}/model.pt",
         torchscript=f"{TRAIN}/{{model}}/model.ts",
@@ -18,7 +19,7 @@ rule train_model:
             category="Training",
         ),
     params:
-        train=section("train", drop=("models",)),  # device too: the rounding follows it
+        train=model_train_params,  # device too: the rounding follows it
         augment=model_augment,
         dataset=section("dataset", keys=SEGMENT_KEYS + ("crop_x_mm", "crop_y_mm", "occlusion_levels",
                                                         "base_band")),

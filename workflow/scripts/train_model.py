@@ -26,4 +26,6 @@ with log_to(snakemake.log[0]):
                                                 "max_hole_frac", "keep_largest")}}
     train_from_shards(snakemake.input.shards, Path(snakemake.output.model).parent, net, cfg, aug,
                       t["val_fraction"], occ, preprocess, forces=tuple(t["forces"]),
-                      frame_every=t["frame_every"])
+                      frame_every=t["frame_every"],
+                      # train.models.<model>.start_from: that model's model.pt
+                      init=snakemake.input.init[0] if snakemake.input.init else None)

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from ..config import model_start
 from ..paper_reference import paper_reference
 from .tables import PATH_KEYS, headline_rows, usable_range
 
@@ -74,7 +75,10 @@ def setup_summary(cfg: dict) -> dict:
             "batch_size": cfg["train"]["batch_size"],
             "alpha_stress": cfg["train"]["alpha_stress"], "alpha_force": cfg["train"]["alpha_force"],
             "occlusion_levels": {k: list(v) for k, v in cfg["dataset"]["occlusion_levels"].items()},
-            "viewpoint": cfg["evaluate"]["viewpoint"], "camera_views": cfg["render"]["camera_views"]}
+            "viewpoint": cfg["evaluate"]["viewpoint"], "camera_views": cfg["render"]["camera_views"],
+            # how each model trains: from another's weights, and its own epochs
+            "epochs": cfg["train"]["epochs"],
+            "model_start": {m: model_start(cfg, m) for m in sorted(cfg["train"]["models"])}}
 
 
 def fea_checks(fea_scenes_csv) -> dict:

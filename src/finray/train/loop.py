@@ -159,7 +159,8 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
           net_cfg: NetConfig, cfg: TrainConfig,
           augment: Callable[[torch.Tensor, torch.Tensor, torch.Generator], tuple] | None = None,
           log: Callable[[str], None] = print,
-          camera_images: np.ndarray | None = None) -> tuple[FinRayNet, History]:
+          camera_images: np.ndarray | None = None,
+          init_state: dict | None = None) -> tuple[FinRayNet, History]:
     """Train a network; returns the kept model (``cfg.keep``) and the history.
 
     ``images`` (N, C, H, W) float in [0, 1]; ``stress`` (N, 1, H, W) log-stress maps;
@@ -168,7 +169,8 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
     ``camera_images`` (N, C, H, W: each frame seen by its randomised camera) it is called
     ``augment(x, s, generator, x_camera)`` and picks between the two views.
     Runs on ``cfg.device`` (:func:`~finray.precision.resolve_device`: ``cuda`` without a
-    GPU stops here, before any work); the model is returned on the CPU.
+    GPU stops here, before any work); the model is returned on the CPU. ``init_state``:
+    a state dict of the same network to start from instead of new weights.
     """
     if cfg.keep not in KEEP:
         raise ValueError(f"train.keep: {cfg.keep!r} is not one of {list(KEEP)}")
@@ -200,6 +202,9 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
     mean = f_all.mean(0)
     scale = f_all.std(0).clamp_min(1e-6)
     model.set_force_normalisation(mean, scale)
+    if init_state is not None:  # fine-tuning: the start's weights, its force scale too
+        model.load_state_dict(init_state)
+        mean, scale = model.force_mean_N.clone(), model.force_scale_N.clone()
     model = model.to(device)  # initialised on the CPU: the same weights on any device
     if cfg.channels_last:
         model = model.to(memory_format=torch.channels_last)

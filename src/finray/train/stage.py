@@ -10,25 +10,28 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ..model import NetConfig
+from ..model import FinRayNet, NetConfig
 from ..precision import cpu_name, resolve_device
 from .augment import TrainAugment
 from .config import AugmentConfig, History, TrainConfig
 from .data import FORCE_COMPONENTS, load_split, validation_scenes
-from .export import export_onnx, export_torchscript, save_checkpoint
+from .export import export_onnx, export_torchscript, load_checkpoint, save_checkpoint
 from .loop import train
 
 
 def train_from_shards(shards, out_dir: str | Path, net_cfg: NetConfig, cfg: TrainConfig,
                       augment: AugmentConfig | None, val_fraction: float = 0.1,
                       occlusion_levels: dict | None = None, preprocess: dict | None = None,
-                      forces: tuple[str, ...] = ("fx",), frame_every: int = 1, log=print) -> dict:
+                      forces: tuple[str, ...] = ("fx",), frame_every: int = 1, log=print,
+                      init: str | Path | None = None) -> dict:
     """Train on the shards (force components ``forces``, ``fx`` first; ``net_cfg.n_forces``
     is set to match), keep the epoch ``cfg.keep`` chooses and write
     ``model.pt``, ``model.ts`` (TorchScript), ``model.onnx`` and ``model.force.onnx``
     (ONNX), ``history.json`` and ``curves.png``. ``frame_every``: train and validate on
     every ``frame_every``-th frame of each scene (the rendered frames are interpolated
     between solver frames, so neighbours are near copies; the training-budget study).
+    ``init``: a ``model.pt`` whose weights (force normalisation included) the training
+    starts from instead of new ones; its network must be this one.
     ``cuda`` without a GPU stops before the data load."""
     resolve_device(cfg.device, "train.device")
     if int(frame_every) < 1:
@@ -39,6 +42,14 @@ def train_from_shards(shards, out_dir: str | Path, net_cfg: NetConfig, cfg: Trai
     if not forces or forces[0] != "fx":
         raise ValueError(f"train.forces must start with fx (the headline force), got {list(forces)}")
     net_cfg = replace(net_cfg, n_forces=len(forces))
+    init_state = None
+    if init is not None:
+        start, _ = load_checkpoint(init)
+        if start.config_dict() != FinRayNet(net_cfg).config_dict():
+            raise ValueError(f"{init}: its network ({start.config_dict()}) is not the one to "
+                             f"train ({FinRayNet(net_cfg).config_dict()}); it cannot start from it")
+        init_state = start.state_dict()
+        log(f"starting from the weights of {init}")
     camera = augment is not None and augment.camera_p > 0
     data = load_split(shards, (net_cfg.height, net_cfg.width), every=frame_every, forces=forces,
                       camera=camera)
@@ -55,14 +66,15 @@ def train_from_shards(shards, out_dir: str | Path, net_cfg: NetConfig, cfg: Trai
                np.concatenate([va["force_N"]] * 2))
     t0, c0 = time.perf_counter(), time.process_time()
     model, hist = train(tr["images"], tr["stress"], tr["force_N"], val, net_cfg, cfg, aug, log=log,
-                        camera_images=tr.get("camera_images"))
+                        camera_images=tr.get("camera_images"), init_state=init_state)
     seconds, cpu_seconds = time.perf_counter() - t0, time.process_time() - c0
     extra = {"train_config": asdict(cfg), "augment": asdict(augment) if augment else None,
              "cpu": cpu_name(), "device": hist.device, "torch_threads": torch.get_num_threads(),
              "validation_scenes": sorted(val_ids), "n_train": int(len(tr["images"])),
              "n_val": int(len(va["images"])), "train_seconds": seconds,
              "train_cpu_seconds": cpu_seconds, "frame_every": int(frame_every),
-             "forces": [FORCE_COMPONENTS[c] for c in forces]}
+             "forces": [FORCE_COMPONENTS[c] for c in forces],
+             "start_from": None if init is None else str(init)}
     save_checkpoint(model, hist, out_dir / "model.pt", extra)
     export_torchscript(model, out_dir / "model.ts", preprocess, extra["forces"])
     export_onnx(model, out_dir / "model.onnx")

@@ -53,8 +53,9 @@ def budget_variants():
 
 
 def spread_train_params(wildcards):
-    """The run's train section with the variant's seed, bf16 and budget point."""
+    """The run's train section with the variant's seed, bf16 and budget point, and the
+    model's own settings (its epochs win over the point's)."""
     seed, kind, *point = wildcards.variant[1:].split("_")
     over = config["benchmarks"]["training_budget"]["points"][point[0]] if point else {}
     return canonical({**section("train", drop=("models",)), **over, "seed": int(seed),
-                      "bf16": SPREAD_TYPES[kind]})
+                      "bf16": SPREAD_TYPES[kind], **model_overrides(wildcards.model)})

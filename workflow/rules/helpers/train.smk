@@ -1,6 +1,6 @@
 # Helpers of the train rules (train.smk): each model's training shards and augmentation; the
 # models an experiment compares.
-from finray.config import diversity_models, generated_training_objects
+from finray.config import diversity_models, generated_training_objects, model_augment_settings, model_start
 
 
 # The diversity comparison (generated.compare_model): (paper-objects model, model), or None
@@ -27,7 +27,28 @@ def train_shards(wildcards):
 
 
 def model_augment(wildcards):
-    return canonical(config["train"]["models"][trained_model(wildcards.model)])
+    return canonical(model_augment_settings(config["train"]["models"][trained_model(wildcards.model)]))
+
+
+def model_overrides(name):
+    """What a model sets of its own training (finray.config.model_start): its ``epochs``
+    and the model it starts from (``start_from``), only where it sets them, so that a
+    model trained from new weights has the train section's params as before."""
+    start = model_start(config, trained_model(name))
+    return {k: v for k, v in (("epochs", start["epochs"]), ("start_from", start["from"]))
+            if v is not None}
+
+
+def model_train_params(wildcards):
+    """The train section (less the models) with the model's own settings."""
+    return canonical({**section("train", drop=("models",)), **model_overrides(wildcards.model)})
+
+
+def model_init(wildcards):
+    """The weights a model starts from: the model.pt of its start_from model trained
+    beside it (the run's, or the same spread variant's), or nothing."""
+    src = model_start(config, trained_model(wildcards.model))["from"]
+    return [f"{train_dir(wildcards)}/{src}/model.pt"] if src else []
 
 
 def model_file(name, train_dir=TRAIN):
