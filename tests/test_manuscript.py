@@ -123,6 +123,18 @@ def test_the_words_turn_with_the_numbers():
     assert "about the same as\nits" in text and "already worse" not in text
 
 
+def test_the_occlusion_section_says_how_the_occlusion_model_trained():
+    """Trained from new weights the paper's words stand; fine-tuned from another model
+    (train.models.occlusion.start_from), the section says from which and for how long."""
+    assert "Retrained with random occlusion, it is at" in render(FULL)
+    s = copy.deepcopy(FULL)
+    s["setup"]["model_start"]["occlusion"] = {"from": "plain", "epochs": 5}
+    text = " ".join(render(s).split())
+    assert ("Retrained with random occlusion (the paper retrains; here the plain network's "
+            "weights are trained on for 5 more epochs, against 10 for a network from new "
+            "weights), it is at") in text
+
+
 def test_summary_training_data_and_forces(tmp_path):
     """The frames behind training against the solver frames; the force spread per height."""
     rows = []

@@ -94,10 +94,12 @@ def test_smoke_dataset_and_training(smoke_run):
     assert set(man.split) == {"train", "shape", "material", "pitch"}
     assert sorted(man[man.split == "pitch"].pitch_deg.unique()) == [0, 5, 10, 15, 20, 25, 30]
     assert man.fx_N.notna().all()
-    for model in ("plain", "occlusion", "camera"):
+    # train.epochs is 2; the occlusion model is fine-tuned from plain's weights for its own 1
+    for model, epochs, start in (("plain", 2, None), ("occlusion", 1, "plain"), ("camera", 2, None)):
         d = smoke_run / "results" / "train" / model
         hist = json.loads((d / "history.json").read_text())
-        assert len(hist["train_loss"]) == 2 and np.isfinite(hist["train_loss"]).all()
+        assert len(hist["train_loss"]) == epochs and np.isfinite(hist["train_loss"]).all()
+        assert hist["start_from"] == (None if start is None else f"results/train/{start}/model.pt")
         assert (d / "model.ts").is_file() and (d / "curves.png").is_file()
 
 
