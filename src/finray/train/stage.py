@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ..model import FinRayNet, NetConfig
+from ..model import NetConfig
 from ..precision import cpu_name, resolve_device
 from .augment import TrainAugment
 from .config import AugmentConfig, History, TrainConfig
@@ -45,9 +45,9 @@ def train_from_shards(shards, out_dir: str | Path, net_cfg: NetConfig, cfg: Trai
     init_state = None
     if init is not None:
         start, _ = load_checkpoint(init)
-        if start.config_dict() != FinRayNet(net_cfg).config_dict():
-            raise ValueError(f"{init}: its network ({start.config_dict()}) is not the one to "
-                             f"train ({FinRayNet(net_cfg).config_dict()}); it cannot start from it")
+        if start.cfg != net_cfg:
+            raise ValueError(f"{init}: its network ({start.cfg}) is not the one to train "
+                             f"({net_cfg}); it cannot start from it")
         init_state = start.state_dict()
         log(f"starting from the weights of {init}")
     camera = augment is not None and augment.camera_p > 0

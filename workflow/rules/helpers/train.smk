@@ -1,6 +1,7 @@
 # Helpers of the train rules (train.smk): each model's training shards and augmentation; the
 # models an experiment compares.
-from finray.config import diversity_models, generated_training_objects, model_augment_settings, model_start
+from finray.config import (MODEL_TRAINING_KEYS, diversity_models, generated_training_objects,
+                           model_augment_settings, model_start)
 
 
 # The diversity comparison (generated.compare_model): (paper-objects model, model), or None
@@ -34,9 +35,8 @@ def model_overrides(name):
     """What a model sets of its own training (finray.config.model_start): its ``epochs``
     and the model it starts from (``start_from``), only where it sets them, so that a
     model trained from new weights has the train section's params as before."""
-    start = model_start(config, trained_model(name))
-    return {k: v for k, v in (("epochs", start["epochs"]), ("start_from", start["from"]))
-            if v is not None}
+    entry = config["train"]["models"][trained_model(name)]
+    return {k: entry[k] for k in MODEL_TRAINING_KEYS if k in entry}
 
 
 def model_train_params(wildcards):
