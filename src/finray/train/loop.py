@@ -208,9 +208,7 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
     model = model.to(device)  # initialised on the CPU: the same weights on any device
     if cfg.channels_last:
         model = model.to(memory_format=torch.channels_last)
-    # fused: one kernel for all parameters instead of ~8 small ops per parameter tensor;
-    # the same update up to rounding (README, "CPUs, numeric type and what a full run costs")
-    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, fused=device.type in ("cpu", "cuda"))
+    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
     mse = nn.MSELoss()
     if val is not None:
         vx, vs, vf = (torch.as_tensor(a, dtype=torch.float32) for a in val)
