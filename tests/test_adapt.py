@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 import torch
 
-from finray.adapt import HeadEnsemble, HeadFit, encoder_features, export_ensemble, fit_heads, head_forces
+from finray.adapt import (HeadEnsemble, HeadFit, SimAnchor, encoder_features, export_ensemble, fit_heads,
+                          head_forces)
 from finray.cli import main
 from finray.model import FinRayNet, NetConfig
 from finray.predict import InputError, Predictor
@@ -65,6 +66,32 @@ def test_decayed_heads_spread_by_the_data_not_the_optimiser(net):
     assert 0.5 * se < out["last layers"][0] < 2 * se
     assert out[False][0] > 3 * se
     assert out[True][1] < 1.05 * out[False][1]
+
+
+def test_sim_anchor_maps_the_simulation_to_the_rig(net):
+    """The simulated frames join the context frames with their force mapped by the gain
+    and offset that map the no-context heads' reading to the context's sensor: a rig
+    reading 1.7 times the heads plus 0.4 N gets ``frames`` simulated forces 1.7 F + 0.4 N."""
+    g = torch.Generator().manual_seed(2)
+    heads0 = fit_heads(net, encoder_features(net, torch.rand(32, 1, 64, 32, generator=g)),
+                       np.linspace(0, 4, 32), HeadFit(members=2, steps=5))
+    f_sim, sim_N = encoder_features(net, torch.rand(50, 1, 64, 32, generator=g)), np.linspace(0, 9, 50)
+    f = encoder_features(net, torch.rand(20, 1, 64, 32, generator=g))
+    rig = 1.7 * head_forces(net, heads0, f).mean(0) + 0.4
+    feats, force = SimAnchor(f_sim, sim_N, tuple(heads0), frames=30).with_context(net, f, rig, seed=0)
+    assert feats.shape == (20 + 30, f.shape[1]) and force.shape == (50,)
+    assert torch.equal(feats[:20], f) and np.allclose(force[:20], rig, atol=1e-5)
+    rows = [int(np.flatnonzero((f_sim == r).all(1).numpy())[0]) for r in feats[20:]]
+    np.testing.assert_allclose(force[20:], 1.7 * sim_N[rows] + 0.4, rtol=1e-4, atol=1e-4)
+
+
+def test_a_sim_anchor_of_no_frames_changes_nothing(net):
+    f = encoder_features(net, torch.rand(24, 1, 64, 32))
+    y = np.linspace(0, 3, 24)
+    anchor = SimAnchor(f, y, tuple(fit_heads(net, f, y, HeadFit(members=1, steps=2))), frames=0)
+    fit = HeadFit(members=2, steps=10)
+    np.testing.assert_array_equal(head_forces(net, fit_heads(net, f, y, fit), f),
+                                  head_forces(net, fit_heads(net, f, y, fit, anchor=anchor), f))
 
 
 def test_fit_heads_rejects_bad_labels(net):
@@ -237,3 +264,41 @@ def test_members_fitted_together_as_one_at_a_time(net, layers):
     alone = head_forces(net, _one_head_at_a_time(net, f, rig, fit), f)
     assert np.abs(together - alone).max() < 1e-4 * np.abs(rig).max()
     assert np.abs(together[0] - together[1]).max() > 1e-3  # the members differ
+
+
+def test_calibrate_refuses_a_missing_no_context_file(net, tmp_path, capsys):
+    from recording_synth import write_take
+
+    write_take(tmp_path / "t", size=(320, 240), duration_s=1.0, starts=(0.2,), ramp=0.3, hold=0.1)
+    rc = main(["calibrate", str(tmp_path / "t"), "--model", str(tmp_path / "model.pt"),
+               "--no-context", str(tmp_path / "none.pt"), "--out", str(tmp_path / "c.json")])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and len(err.splitlines()) == 1 and "--no-context" in err, err
+    assert not (tmp_path / "c.ingest").exists() and not (tmp_path / "c.json").exists()
+
+
+def test_the_no_context_file_keeps_the_simulated_frames(net, tmp_path):
+    """save_no_context keeps the simulated frames' features (float16) and forces, and
+    load_sim_anchor gives them back with the heads; a file written without them, or of
+    another encoder, is refused in one line."""
+    from finray.errors import CalibrationError
+    from finray.evaluate.sim2real import load_sim_anchor, save_no_context
+
+    f = encoder_features(net, torch.rand(16, 1, 64, 32, generator=torch.Generator().manual_seed(4)))
+    y = np.linspace(0, 2, 16)
+    heads = fit_heads(net, f, y, HeadFit(members=2, steps=5))
+    result = {"heads": [h.state_dict() for h in heads], "calibration": {}, "simulated_test": {},
+              "anchor": {"features": f.half(), "force_N": torch.tensor(y, dtype=torch.float32)}}
+    save_no_context(result, tmp_path / "nc.pt")
+    anchor = load_sim_anchor(net, tmp_path / "nc.pt", 40)
+    assert anchor.frames == 40 and load_sim_anchor(net, tmp_path / "nc.pt", 0) is None
+    np.testing.assert_allclose(anchor.features.numpy(), f.numpy(), rtol=1e-3, atol=1e-3)
+    np.testing.assert_allclose(anchor.force_N, y, rtol=1e-6)
+    np.testing.assert_array_equal(head_forces(net, list(anchor.heads), f), head_forces(net, heads, f))
+    torch.save({"heads": result["heads"], "info": "{}"}, tmp_path / "old.pt")
+    with pytest.raises(CalibrationError, match="no simulated frames"):
+        load_sim_anchor(net, tmp_path / "old.pt", 40)
+    result["anchor"]["features"] = torch.zeros(16, 3).half()
+    save_no_context(result, tmp_path / "other.pt")
+    with pytest.raises(CalibrationError, match="not of this model's encoder"):
+        load_sim_anchor(net, tmp_path / "other.pt", 40)

@@ -12,6 +12,7 @@ per-frame uncertainty of the network (:mod:`finray.calibration` adds the sensor'
 - :func:`encoder_features` -- the frozen encoder's latent per frame
 - :func:`fit_heads` -- the head ensemble on features and forces (N); :func:`head_from_state`
   one of its heads again from its weights
+- :class:`SimAnchor` -- simulated frames fitted beside a rig's context frames
 - :class:`HeadEnsemble` -- the network with the heads: ``force`` (mean, N),
   ``members`` (each head's, N); :func:`export_ensemble` writes it for
   :class:`finray.predict.Predictor`
@@ -81,17 +82,57 @@ def encoder_features(model: FinRayNet, images, batch: int = 256) -> torch.Tensor
                           for i in range(0, len(x), batch)]) if len(x) else torch.zeros(0)
 
 
+@dataclass(frozen=True)
+class SimAnchor:
+    """Simulated frames fitted beside a rig's context frames: their encoder features
+    ``features`` (N, F), forces ``force_N`` (N,, N), the no-context heads ``heads`` (fitted
+    on such frames), and how many of them each fit draws (``frames``).
+
+    Why: one or two context objects are all a rig's heads see, and fitted on them alone
+    the heads learn those objects' force range rather than the rig. The simulated frames
+    hold every training object at every height, their force mapped to the rig's sensor
+    by the gain and offset that map the no-context heads' reading of the context frames
+    to the sensor (least squares): the heads learn the rig's look from its frames and
+    the range of objects from the simulation. A fixed count, not a share of the context
+    frames: like a prior's weight, it counts for less as a rig gives more frames
+    (README, "Sim-to-real")."""
+
+    features: torch.Tensor
+    force_N: np.ndarray
+    heads: tuple
+    frames: int = 900
+
+    def with_context(self, model: FinRayNet, features: torch.Tensor, force_N,
+                     seed: int) -> tuple[torch.Tensor, np.ndarray]:
+        """The context frames followed by ``frames`` simulated ones (drawn with
+        ``seed``), their force the rig's sensor's by the context's gain and offset."""
+        y = np.asarray(force_N, dtype=np.float64)
+        read = head_forces(model, list(self.heads), features).mean(0)
+        gain, offset = np.linalg.lstsq(np.c_[read, np.ones_like(read)], y, rcond=None)[0]
+        pool = len(self.force_N)
+        pick = np.random.default_rng(seed).choice(pool, self.frames, replace=self.frames > pool)
+        sim_y = gain * np.asarray(self.force_N, dtype=np.float64)[pick] + offset
+        return (torch.cat([features, self.features[pick].to(features.dtype)]),
+                np.concatenate([y, sim_y]))
+
+
 def fit_heads(model: FinRayNet, features: torch.Tensor, force_N, fit: HeadFit,
-              component: int = 0) -> list[nn.Module]:
+              component: int = 0, anchor: SimAnchor | None = None) -> list[nn.Module]:
     """``fit.members`` copies of the model's force head, reduced to output
     ``component`` (0: along the push), each fitted to ``force_N`` (N,) on
     ``features`` (N, F): its last ``fit.layers`` linear layers (all where 0), the
-    layers before them and the batch-norm statistics stay the simulation's."""
+    layers before them and the batch-norm statistics stay the simulation's. With an
+    ``anchor``, its simulated frames are fitted beside them (:class:`SimAnchor`), in as
+    many steps as the frames given alone would take."""
     y = torch.tensor(np.asarray(force_N, dtype=np.float32))
     if len(y) != len(features) or not len(y):
         raise ValueError(f"need as many forces as feature rows, got {len(y)} and {len(features)}")
     if not torch.isfinite(y).all():
         raise ValueError("the forces to fit contain NaN")
+    steps = fit.n_steps(len(y))
+    if anchor is not None and anchor.frames > 0:
+        features, force = anchor.with_context(model, features, y.numpy(), fit.seed)
+        y = torch.tensor(force.astype(np.float32))
     mean, scale = model.force_mean_N[component], model.force_scale_N[component]
     target = (y - mean) / scale
     template = _single_output(model.force_head, component).eval()  # batch-norm: frozen
@@ -100,7 +141,7 @@ def fit_heads(model: FinRayNet, features: torch.Tensor, force_N, fit: HeadFit,
     frozen = template[:start].requires_grad_(False)
     with torch.no_grad():  # the frozen layers' output, once for every member
         z = frozen(features) if start else features.clone()  # (not an inference tensor)
-    n, steps, b = len(y), fit.n_steps(len(y)), min(fit.batch, len(y))
+    n, b = len(y), min(fit.batch, len(y))
     gens = [torch.Generator().manual_seed(fit.seed * 1000 + m) for m in range(fit.members)]
     pools = torch.stack([torch.randint(0, n, (n,), generator=g) if fit.bootstrap else torch.arange(n)
                          for g in gens])

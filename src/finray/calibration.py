@@ -335,7 +335,7 @@ def fold_units(table, folds: str) -> list[np.ndarray]:
     return sets
 
 
-def cross_fitted(model, features, force_N, units, fit):
+def cross_fitted(model, features, force_N, units, fit, anchor=None):
     """Each frame's ensemble mean and spread (N) from heads fitted without its unit
     (``units``: a label per frame, e.g. its take): what the network does on frames it
     has not seen, the residuals a calibration needs.
@@ -344,7 +344,9 @@ def cross_fitted(model, features, force_N, units, fit):
     fewer heads is a noisier measure (that of 2 heads falls below a tenth of the
     heads' true spread on 8 % of frames, that of 4 on 0.14 %: chi-square with M - 1
     degrees of freedom), and a calibration fitted on it reads that noise as heavy
-    tails, which widens the intervals of the ensemble it is then applied to."""
+    tails, which widens the intervals of the ensemble it is then applied to. ``anchor``
+    (:class:`finray.adapt.SimAnchor`): fitted beside each fold's frames, its gain and
+    offset from them alone."""
     from dataclasses import replace
 
     from .adapt import fit_heads, head_forces
@@ -358,23 +360,24 @@ def cross_fitted(model, features, force_N, units, fit):
     for j, u in enumerate(labels):
         out = units == u
         heads = fit_heads(model, features[~out], y[~out],
-                          replace(fit, seed=fit.seed + 101 * (j + 1)))
+                          replace(fit, seed=fit.seed + 101 * (j + 1)), anchor=anchor)
         P = head_forces(model, heads, features[out])
         mu[out], sd[out] = P.mean(0), spread(P)
     return mu, sd
 
 
 def fit_rig(model, features, force_N, unit_sets, fit, priors: Priors | None = None,
-            sampler: Sampler | None = None, log=print):
-    """A rig's head ensemble (:func:`finray.adapt.fit_heads` on every frame) and its
-    sensor calibration, sampled on the cross-fitted predictions (:func:`cross_fitted`)
-    of every labelling in ``unit_sets`` (each a label per frame; the frames enter once
-    per labelling). Returns (heads, calibration dict)."""
+            sampler: Sampler | None = None, log=print, anchor=None):
+    """A rig's head ensemble (:func:`finray.adapt.fit_heads` on every frame, beside
+    ``anchor``'s simulated frames where given) and its sensor calibration, sampled on the
+    cross-fitted predictions (:func:`cross_fitted`) of every labelling in ``unit_sets``
+    (each a label per frame; the frames enter once per labelling). Returns (heads,
+    calibration dict)."""
     from .adapt import fit_heads
 
-    heads = fit_heads(model, features, force_N, fit)
+    heads = fit_heads(model, features, force_N, fit, anchor=anchor)
     y = np.asarray(force_N, dtype=np.float64)
-    parts = [cross_fitted(model, features, force_N, u, fit) for u in unit_sets]
+    parts = [cross_fitted(model, features, force_N, u, fit, anchor) for u in unit_sets]
     mu, sd = (np.concatenate(a) for a in zip(*parts))
     # each frame once per labelling: a likelihood weighted 1/len, so that the posterior
     # is not narrowed as if there were more frames
@@ -385,15 +388,19 @@ def fit_rig(model, features, force_N, unit_sets, fit, priors: Priors | None = No
                         "nrmse_pct": [float(100 * np.sqrt(np.mean((m - y) ** 2)) / np.max(np.abs(y)))
                                       for m, _ in parts]}
     cal["heads"] = dict(vars(fit))
+    cal["sim_replay_frames"] = anchor.frames if anchor is not None else 0
     return heads, cal
 
 
 def calibrate_takes(takes, model_path, out_json, ingest_params, fit, folds: str = "object",
                     priors: Priors | None = None,
-                    sampler: Sampler | None = None, level: float = 0.9, log=print) -> dict:
+                    sampler: Sampler | None = None, level: float = 0.9, log=print,
+                    no_context=None, replay_frames: int = 0) -> dict:
     """``finray calibrate``: ingest the take folders (:func:`finray.recording.ingest`,
     into ``<out>.ingest/<take>/``), fit the rig's head ensemble on the simulation-trained
-    model (``model.pt``, or the ``model.ts`` it was exported to, beside it) and sample
+    model (``model.pt``, or the ``model.ts`` it was exported to, beside it), beside
+    ``replay_frames`` simulated frames of ``no_context`` (the same model's no-context
+    fit, :class:`finray.adapt.SimAnchor`) where given, and sample
     the sensor calibration on cross-fitted predictions. Writes ``out_json``, the adapted
     model ``<out>.model.ts`` (+ ``.json``; what ``finray predict --calibration`` runs), the
     takes' colour segmentation (``segment``: new frames are segmented as the takes were)
@@ -428,7 +435,13 @@ def calibrate_takes(takes, model_path, out_json, ingest_params, fit, folds: str 
     table = table.assign(t_s=np.concatenate(t), take=np.repeat(names, [len(x) for x in t]))
     feats = encoder_features(model, a["images"][:, None].astype(np.float32) / 255.0)
     y = np.asarray(a["fx_N"], dtype=np.float64)
-    heads, cal = fit_rig(model, feats, y, fold_units(table, folds), fit, priors, sampler, log=log)
+    anchor = None
+    if no_context is not None and replay_frames > 0:
+        from .evaluate.sim2real import load_sim_anchor
+
+        anchor = load_sim_anchor(model, no_context, replay_frames)
+    heads, cal = fit_rig(model, feats, y, fold_units(table, folds), fit, priors, sampler, log=log,
+                         anchor=anchor)
     ts_path = Path(f"{stem}.model.ts")
     export_ensemble(HeadEnsemble(model, heads), ts_path, meta.get("preprocess", {}),
                     {"base_model": str(pt), "takes": [str(p) for p in takes]})

@@ -461,7 +461,7 @@ takes' finger colour), <out>.corner.png and the ingested takes under
 
 example:
   finray calibrate lab/cylinder_h20 lab/cylinder_h30 --model results/train/camera/model.pt \\
-      --out rig/calibration.json
+      --no-context results/evaluate/sim2real/no_context.pt --out rig/calibration.json
   finray predict --calibration rig/calibration.json video.mp4 --out rig/pred --force-only
 """
 
@@ -474,6 +474,11 @@ def _calibrate_parser(sub) -> None:
     p.add_argument("--model", type=Path, required=True,
                    help="the simulation-trained model: model.pt (or its model.ts, beside it)")
     p.add_argument("--out", type=Path, required=True, help="calibration.json to write")
+    p.add_argument("--no-context", type=Path, default=None,
+                   help="the same model's no-context fit (results/evaluate/sim2real/no_context.pt): "
+                        "evaluate.sim2real.sim_replay_frames of its simulated frames are fitted "
+                        "beside the takes, as the sim-to-real evaluation does; without it, the "
+                        "takes alone")
     p.add_argument("--config", type=Path, default=None,
                    help="YAML config (dataset crop, finger base width, evaluate.sim2real; "
                         "default: config/config.yaml of the source tree)")
@@ -486,9 +491,12 @@ def _run_calibrate(args) -> int:
 
     raw = _raw_config(args.config)
     c = Sim2RealConfig.from_params((raw.get("evaluate") or {}).get("sim2real") or {})
+    if args.no_context is not None and not args.no_context.is_file():
+        raise UsageError(f"--no-context: no file at {args.no_context}")
     cal = calibrate_takes(args.takes, args.model, args.out, _ingest_params(raw), c.heads, c.folds,
                           c.priors, c.sampler, c.level,
-                          log=lambda m: print(m, flush=True))
+                          log=lambda m: print(m, flush=True), no_context=args.no_context,
+                          replay_frames=c.sim_replay_frames)
     sm, dg = cal["summary"], cal["diagnostics"]
     for k in ("gain", "offset_N", "sigma_N", "rho", "kappa", "nu"):
         if k in cal.get("fixed", {}):  # held (prior sd 0): the heads are fitted to the sensor

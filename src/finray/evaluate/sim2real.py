@@ -26,9 +26,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..adapt import HeadFit, encoder_features, head_forces, head_from_state
+from ..adapt import HeadFit, SimAnchor, encoder_features, head_forces, head_from_state
 from ..calibration import (Priors, RigPrior, Sampler, coverage, fit_rig, fold_units, predictive,
                            shard_times, spread)
+from ..errors import CalibrationError
 from ..paper_reference import paper_value
 from .metrics import force_metrics
 
@@ -48,6 +49,7 @@ class Sim2RealConfig:
     sim_every: int = 4
     sim_folds: int = 5
     sim_views: str = "front"  # the simulated frames of the no-context fit (SIM_VIEWS)
+    sim_replay_frames: int = 0  # simulated frames fitted beside each fit's context frames (SimAnchor)
     priors: Priors = field(default_factory=Priors)
     sampler: Sampler = field(default_factory=Sampler)
     rig_prior: RigPrior = field(default_factory=RigPrior)  # with no context frames
@@ -60,6 +62,7 @@ class Sim2RealConfig:
                    level=float(p.get("level", 0.9)), max_context=int(p.get("max_context", 2)),
                    sim_every=int(p.get("sim_every", 4)), sim_folds=int(p.get("sim_folds", 5)),
                    sim_views=str(p.get("sim_views", "front")),
+                   sim_replay_frames=int(p.get("sim_replay_frames", 0)),
                    priors=Priors(**{k: tuple(v) if isinstance(v, list) else v for k, v in pr.items()}),
                    sampler=Sampler(**p.get("sampler", {})),
                    rig_prior=RigPrior(**{k: v for k, v in p.get("rig_prior", {}).items() if k != "gain"}))
@@ -75,6 +78,11 @@ class Sim2RealConfig:
 #: Which simulated views the no-context heads are fitted on: the front view,
 #: each frame's randomised camera view (what a rig's camera sees), or both.
 SIM_VIEWS = ("front", "camera", "both")
+
+#: Simulated frames whose features the no-context file keeps for the context fits
+#: (:class:`finray.adapt.SimAnchor`, ``sim_replay_frames`` drawn for each fit), drawn
+#: from those of the no-context fit; float16, 8 MB.
+ANCHOR_FRAMES = 4096
 
 
 def _frames(shards, size, every=1, views="front"):
@@ -122,8 +130,11 @@ def fit_no_context(model_pt, sim_shards, sim_test_shards, size, cfg: Sim2RealCon
     every rig: heads on the training frames (every ``cfg.sim_every``-th), calibrated on
     predictions of training objects by heads fitted without them (``cfg.sim_folds``
     folds, as a test object is new to them), checked on the simulated test frames.
-    Returns ``{"heads": [state dicts], "calibration", "simulated_test"}``
-    (:func:`save_no_context`)."""
+    Returns ``{"heads": [state dicts], "calibration", "simulated_test", "anchor"}``
+    (:func:`save_no_context`; ``anchor``: :data:`ANCHOR_FRAMES` of the simulated frames'
+    features and forces, for :func:`load_sim_anchor`)."""
+    import torch
+
     from ..train import load_checkpoint
 
     t0 = time.perf_counter()
@@ -147,14 +158,18 @@ def fit_no_context(model_pt, sim_shards, sim_test_shards, size, cfg: Sim2RealCon
            "heads_fitted_on": cfg.sim_views}
     log(f"no context: {time.perf_counter() - t0:.1f} s; simulated test frames inside the "
         f"{cfg.level:.0%} interval: {sim['coverage_pct']:.1f} %")
-    return {"heads": [h.state_dict() for h in heads0], "calibration": cal0, "simulated_test": sim}
+    pick = np.sort(np.random.default_rng(cfg.heads.seed).choice(
+        len(ys), min(ANCHOR_FRAMES, len(ys)), replace=False))
+    anchor = {"features": f_sim[pick].half(), "force_N": torch.tensor(ys[pick], dtype=torch.float32)}
+    return {"heads": [h.state_dict() for h in heads0], "calibration": cal0, "simulated_test": sim,
+            "anchor": anchor}
 
 
 def save_no_context(result: dict, path) -> None:
     """:func:`fit_no_context`'s result as one file: the heads' weights and the rest as JSON."""
     import torch
 
-    torch.save({"heads": result["heads"], "info": json.dumps(
+    torch.save({"heads": result["heads"], "anchor": result["anchor"], "info": json.dumps(
         {k: result[k] for k in ("calibration", "simulated_test")})}, path)
 
 
@@ -166,6 +181,24 @@ def load_no_context(model, path) -> tuple[list, dict, dict]:
     saved = torch.load(path, weights_only=True)
     info = json.loads(saved["info"])
     return [head_from_state(model, state) for state in saved["heads"]], info["calibration"], info["simulated_test"]
+
+
+def load_sim_anchor(model, path, frames: int) -> SimAnchor | None:
+    """The simulated frames of :func:`save_no_context`'s file and its heads, ``frames`` of
+    them fitted beside each fit's context frames (:class:`finray.adapt.SimAnchor`); None
+    where ``frames`` is 0."""
+    import torch
+
+    if frames <= 0:
+        return None
+    saved = torch.load(path, weights_only=True)
+    if "anchor" not in saved:
+        raise CalibrationError(f"{path}: no simulated frames (written before sim_replay_frames); "
+                               "run the no-context fit again")
+    if saved["anchor"]["features"].shape[1] != model.force_head[1].in_features:
+        raise CalibrationError(f"{path}: its simulated frames are not of this model's encoder")
+    return SimAnchor(saved["anchor"]["features"].float(), saved["anchor"]["force_N"].numpy(),
+                     tuple(head_from_state(model, state) for state in saved["heads"]), int(frames))
 
 
 def run_sim2real(model_pt, lab_shards, no_context, size, cfg: Sim2RealConfig, log=print) -> dict:
@@ -199,6 +232,7 @@ def run_sim2real(model_pt, lab_shards, no_context, size, cfg: Sim2RealConfig, lo
 
     # no context: the simulation's heads and calibration (fit_no_context), the rig prior on top
     heads0, cal0, sim = load_no_context(model, no_context)
+    anchor = load_sim_anchor(model, no_context, cfg.sim_replay_frames)
     cal0.update(rig_prior=asdict(cfg.rig_prior))
     cals.append(cal0)
     record(0, (), np.ones(len(y), bool), heads0, cal0)
@@ -209,7 +243,7 @@ def run_sim2real(model_pt, lab_shards, no_context, size, cfg: Sim2RealConfig, lo
             ctx = table["group"].isin(context).to_numpy().copy()
             fit = replace(cfg.heads, seed=cfg.heads.seed + 7 * len(cals))
             heads, cal = fit_rig(model, f_lab[ctx], y[ctx], fold_units(table[ctx], cfg.folds), fit,
-                                 cfg.priors, cfg.sampler, log=log)
+                                 cfg.priors, cfg.sampler, log=log, anchor=anchor)
             cal.update(context_objects=k, context=" + ".join(context), fitted_on="context takes")
             cals.append(cal)
             record(k, context, ~ctx, heads, cal)
