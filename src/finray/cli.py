@@ -461,7 +461,7 @@ takes' finger colour), <out>.corner.png and the ingested takes under
 
 example:
   finray calibrate lab/cylinder_h20 lab/cylinder_h30 --model results/train/camera/model.pt \\
-      --no-context results/evaluate/sim2real/no_context.pt --out rig/calibration.json
+      --out rig/calibration.json
   finray predict --calibration rig/calibration.json video.mp4 --out rig/pred --force-only
 """
 
@@ -476,9 +476,8 @@ def _calibrate_parser(sub) -> None:
     p.add_argument("--out", type=Path, required=True, help="calibration.json to write")
     p.add_argument("--no-context", type=Path, default=None,
                    help="the same model's no-context fit (results/evaluate/sim2real/no_context.pt): "
-                        "evaluate.sim2real.sim_replay_frames of its simulated frames are fitted "
-                        "beside the takes, as the sim-to-real evaluation does; without it, the "
-                        "takes alone")
+                        "where the config's evaluate.sim2real.sim_replay_frames is above 0 (it is 0 "
+                        "by default), that many of its simulated frames are fitted beside the takes")
     p.add_argument("--config", type=Path, default=None,
                    help="YAML config (dataset crop, finger base width, evaluate.sim2real; "
                         "default: config/config.yaml of the source tree)")
@@ -493,6 +492,9 @@ def _run_calibrate(args) -> int:
     c = Sim2RealConfig.from_params((raw.get("evaluate") or {}).get("sim2real") or {})
     if args.no_context is not None and not args.no_context.is_file():
         raise UsageError(f"--no-context: no file at {args.no_context}")
+    if args.no_context is not None and not c.sim_replay_frames:
+        print("--no-context: evaluate.sim2real.sim_replay_frames is 0, so the heads are fitted "
+              "on the takes alone", flush=True)
     cal = calibrate_takes(args.takes, args.model, args.out, _ingest_params(raw), c.heads, c.folds,
                           c.priors, c.sampler, c.level,
                           log=lambda m: print(m, flush=True), no_context=args.no_context,
