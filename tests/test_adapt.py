@@ -279,10 +279,10 @@ def test_calibrate_refuses_a_missing_no_context_file(net, tmp_path, capsys):
 
 def test_the_no_context_file_keeps_the_simulated_frames(net, tmp_path):
     """save_no_context keeps the simulated frames' features (float16) and forces, and
-    load_sim_anchor gives them back with the heads; a file written without them, or of
+    SimAnchor.from_file gives them back with the heads; a file written without them, or of
     another encoder, is refused in one line."""
     from finray.errors import CalibrationError
-    from finray.evaluate.sim2real import load_sim_anchor, save_no_context
+    from finray.evaluate.sim2real import save_no_context
 
     f = encoder_features(net, torch.rand(16, 1, 64, 32, generator=torch.Generator().manual_seed(4)))
     y = np.linspace(0, 2, 16)
@@ -290,15 +290,15 @@ def test_the_no_context_file_keeps_the_simulated_frames(net, tmp_path):
     result = {"heads": [h.state_dict() for h in heads], "calibration": {}, "simulated_test": {},
               "anchor": {"features": f.half(), "force_N": torch.tensor(y, dtype=torch.float32)}}
     save_no_context(result, tmp_path / "nc.pt")
-    anchor = load_sim_anchor(net, tmp_path / "nc.pt", 40)
-    assert anchor.frames == 40 and load_sim_anchor(net, tmp_path / "nc.pt", 0) is None
+    anchor = SimAnchor.from_file(net, tmp_path / "nc.pt", 40)
+    assert anchor.frames == 40 and SimAnchor.from_file(net, tmp_path / "nc.pt", 0) is None
     np.testing.assert_allclose(anchor.features.numpy(), f.numpy(), rtol=1e-3, atol=1e-3)
     np.testing.assert_allclose(anchor.force_N, y, rtol=1e-6)
     np.testing.assert_array_equal(head_forces(net, list(anchor.heads), f), head_forces(net, heads, f))
     torch.save({"heads": result["heads"], "info": "{}"}, tmp_path / "old.pt")
     with pytest.raises(CalibrationError, match="no simulated frames"):
-        load_sim_anchor(net, tmp_path / "old.pt", 40)
+        SimAnchor.from_file(net, tmp_path / "old.pt", 40)
     result["anchor"]["features"] = torch.zeros(16, 3).half()
     save_no_context(result, tmp_path / "other.pt")
     with pytest.raises(CalibrationError, match="not of this model's encoder"):
-        load_sim_anchor(net, tmp_path / "other.pt", 40)
+        SimAnchor.from_file(net, tmp_path / "other.pt", 40)

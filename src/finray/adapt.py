@@ -29,6 +29,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from .errors import CalibrationError
 from .model import FinRayNet
 
 
@@ -102,6 +103,23 @@ class SimAnchor:
     force_N: np.ndarray
     heads: tuple
     frames: int
+
+    @classmethod
+    def from_file(cls, model: FinRayNet, path, frames: int) -> "SimAnchor | None":
+        """The simulated frames and heads of a no-context file
+        (:func:`finray.evaluate.sim2real.save_no_context`: ``heads``, the heads' state
+        dicts, and ``anchor``, the frames' ``features`` and ``force_N``), ``frames`` of them
+        fitted beside each fit's context frames; None where ``frames`` is 0."""
+        if frames <= 0:
+            return None
+        saved = torch.load(path, weights_only=True)
+        if "anchor" not in saved:
+            raise CalibrationError(f"{path}: no simulated frames (written before sim_replay_frames); "
+                                   "run the no-context fit again")
+        if saved["anchor"]["features"].shape[1] != model.force_head[1].in_features:
+            raise CalibrationError(f"{path}: its simulated frames are not of this model's encoder")
+        return cls(saved["anchor"]["features"].float(), saved["anchor"]["force_N"].numpy(),
+                   tuple(head_from_state(model, state) for state in saved["heads"]), int(frames))
 
     def with_context(self, model: FinRayNet, features: torch.Tensor, force_N,
                      seed: int) -> tuple[torch.Tensor, np.ndarray]:

@@ -405,7 +405,7 @@ def calibrate_takes(takes, model_path, out_json, ingest_params, fit, folds: str 
     model ``<out>.model.ts`` (+ ``.json``; what ``finray predict --calibration`` runs), the
     takes' colour segmentation (``segment``: new frames are segmented as the takes were)
     and the corner plot ``<out>.corner.png``; returns the calibration."""
-    from .adapt import HeadEnsemble, encoder_features, export_ensemble
+    from .adapt import HeadEnsemble, SimAnchor, encoder_features, export_ensemble
     from .dataset import load_frames
     from .recording import ingest
     from .recording.ingest import check_take
@@ -435,11 +435,7 @@ def calibrate_takes(takes, model_path, out_json, ingest_params, fit, folds: str 
     table = table.assign(t_s=np.concatenate(t), take=np.repeat(names, [len(x) for x in t]))
     feats = encoder_features(model, a["images"][:, None].astype(np.float32) / 255.0)
     y = np.asarray(a["fx_N"], dtype=np.float64)
-    anchor = None
-    if no_context is not None and replay_frames > 0:
-        from .evaluate.sim2real import load_sim_anchor
-
-        anchor = load_sim_anchor(model, no_context, replay_frames)
+    anchor = SimAnchor.from_file(model, no_context, replay_frames) if no_context is not None else None
     heads, cal = fit_rig(model, feats, y, fold_units(table, folds), fit, priors, sampler, log=log,
                          anchor=anchor)
     ts_path = Path(f"{stem}.model.ts")

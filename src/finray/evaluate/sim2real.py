@@ -29,7 +29,6 @@ import pandas as pd
 from ..adapt import HeadFit, SimAnchor, encoder_features, head_forces, head_from_state
 from ..calibration import (Priors, RigPrior, Sampler, coverage, fit_rig, fold_units, predictive,
                            shard_times, spread)
-from ..errors import CalibrationError
 from ..paper_reference import paper_value
 from .metrics import force_metrics
 
@@ -132,7 +131,7 @@ def fit_no_context(model_pt, sim_shards, sim_test_shards, size, cfg: Sim2RealCon
     folds, as a test object is new to them), checked on the simulated test frames.
     Returns ``{"heads": [state dicts], "calibration", "simulated_test", "anchor"}``
     (:func:`save_no_context`; ``anchor``: :data:`ANCHOR_FRAMES` of the simulated frames'
-    features and forces, for :func:`load_sim_anchor`)."""
+    features and forces, for :meth:`finray.adapt.SimAnchor.from_file`)."""
     import torch
 
     from ..train import load_checkpoint
@@ -183,24 +182,6 @@ def load_no_context(model, path) -> tuple[list, dict, dict]:
     return [head_from_state(model, state) for state in saved["heads"]], info["calibration"], info["simulated_test"]
 
 
-def load_sim_anchor(model, path, frames: int) -> SimAnchor | None:
-    """The simulated frames of :func:`save_no_context`'s file and its heads, ``frames`` of
-    them fitted beside each fit's context frames (:class:`finray.adapt.SimAnchor`); None
-    where ``frames`` is 0."""
-    import torch
-
-    if frames <= 0:
-        return None
-    saved = torch.load(path, weights_only=True)
-    if "anchor" not in saved:
-        raise CalibrationError(f"{path}: no simulated frames (written before sim_replay_frames); "
-                               "run the no-context fit again")
-    if saved["anchor"]["features"].shape[1] != model.force_head[1].in_features:
-        raise CalibrationError(f"{path}: its simulated frames are not of this model's encoder")
-    return SimAnchor(saved["anchor"]["features"].float(), saved["anchor"]["force_N"].numpy(),
-                     tuple(head_from_state(model, state) for state in saved["heads"]), int(frames))
-
-
 def run_sim2real(model_pt, lab_shards, no_context, size, cfg: Sim2RealConfig, log=print) -> dict:
     """Every context combination; ``no_context``: :func:`save_no_context`'s file of the
     same model. Returns ``{"metrics", "frames"}`` (DataFrames), ``"calibrations"`` (one per
@@ -232,7 +213,7 @@ def run_sim2real(model_pt, lab_shards, no_context, size, cfg: Sim2RealConfig, lo
 
     # no context: the simulation's heads and calibration (fit_no_context), the rig prior on top
     heads0, cal0, sim = load_no_context(model, no_context)
-    anchor = load_sim_anchor(model, no_context, cfg.sim_replay_frames)
+    anchor = SimAnchor.from_file(model, no_context, cfg.sim_replay_frames)
     cal0.update(rig_prior=asdict(cfg.rig_prior))
     cals.append(cal0)
     record(0, (), np.ones(len(y), bool), heads0, cal0)
