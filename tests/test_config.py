@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from finray.config import (ConfigError, extra_train_heights, load_config, merge_config,
+from finray.config import (ConfigError, extra_train_heights, face_heights, load_config, merge_config,
                            model_augment_settings, model_start, read_config_file, scenes,
                            validate_config)
 
@@ -20,19 +20,40 @@ def test_full_config_scenes():
     sc = scenes(cfg)
     splits = {s.split for s in sc}
     assert splits == {"train", "shape", "material"}
-    # 3 circles + 12 squares in training, 3 held-out shapes, ring x 3 materials, x 3 heights
+    # 3 circles + 12 squares in training at the paper's 3 heights and the face's 4; 3 held-out
+    # shapes at 3 + 6 heights; the ring x 3 materials at the paper's 3
     assert extra_train_heights(cfg) == []
-    assert sum(s.split == "train" for s in sc) == 15 * 3
-    assert sum(s.split == "shape" for s in sc) == 3 * 3
+    assert sum(s.split == "train" for s in sc) == 15 * 7
+    assert sum(s.split == "shape" for s in sc) == 3 * 9
+    assert sum(s.split == "material" for s in sc) == 3 * 3
     assert sorted({s.material for s in sc if s.split == "material"}) == ["neoprene", "ninjaflex", "steel"]
     assert len({s.id for s in sc}) == len(sc)
+    # no held-out shape is tested at a face height that a training scene uses
+    train_h = {s.height_mm for s in sc if s.split == "train"}
+    assert not set(cfg["face_heights_mm"]["shape"]) & train_h
+
+
+def test_face_heights_leave_out_objects_below_the_base():
+    """face_heights_mm: each split's objects also at those heights, except where an object
+    would reach below the clamped base; a height above the finger is refused."""
+    cfg = validate_config({**copy.deepcopy(FULL), "face_heights_mm": {"train": [5, 12], "shape": [45]}})
+    train5 = {s.object for s in scenes(cfg) if s.split == "train" and s.height_mm == 5}
+    # circle_d5 and the 5 mm squares at 0 deg reach 2.5 mm below their centre; the
+    # 10 mm circle 5 mm: it just touches y = 0 (allowed, as for heights_mm)
+    assert {"circle_d5", "square_s5_a0", "circle_d10", "square_s10_a0"} <= train5
+    assert not {"circle_d20", "square_s15_a0", "square_s10_a15"} & train5
+    assert face_heights(cfg, "circle_d20") == [12.0]
+    assert face_heights(cfg, "ellipse_16x9") == [45.0] and face_heights(cfg, "ring_d15") == []
+    assert {s.height_mm for s in scenes(cfg) if s.split == "material"} == {20.0, 30.0, 40.0}
+    with pytest.raises(ConfigError, match="face_heights_mm.shape"):
+        validate_config({**copy.deepcopy(FULL), "face_heights_mm": {"shape": [85]}})
 
 
 def test_extra_train_heights_add_training_scenes_only():
     """extra_train_heights_mm: the training objects at the extra heights (of every model,
     or of one), the test objects at heights_mm only."""
-    cfg = validate_config({**copy.deepcopy(FULL), "extra_train_heights_mm": {"camera": [17, 20],
-                                                                          "plain": [45]}})
+    cfg = validate_config({**copy.deepcopy(FULL), "face_heights_mm": {},
+                           "extra_train_heights_mm": {"camera": [17, 20], "plain": [45]}})
     assert extra_train_heights(cfg) == [17.0, 45.0]  # 20 is a paper height already
     assert extra_train_heights(cfg, "camera") == [17.0] and extra_train_heights(cfg, "occlusion") == []
     sc = scenes(cfg)
@@ -66,7 +87,7 @@ SLICE = yaml.safe_load((ROOT / "config" / "diverse_slice.yaml").read_text())
 
 def test_diverse_config_is_the_paper_config_plus_generated_objects():
     """config/diverse.yaml: config/config.yaml unchanged (it extends it) plus 300
-    generated training objects, all at the three heights; the held-out test scenes are
+    generated training objects, at the training's heights; the held-out test scenes are
     the paper's."""
     raw = yaml.safe_load((ROOT / "config" / "diverse.yaml").read_text())
     assert sorted(raw) == ["extends", "generated"] and raw["extends"] == "config.yaml"
@@ -76,8 +97,9 @@ def test_diverse_config_is_the_paper_config_plus_generated_objects():
     assert blobs == [f"blob_s{s:03d}" for s in range(300)]
     assert {n: cfg["objects"][n] for n in paper["objects"]} == paper["objects"]
     sc = scenes(cfg)
-    assert len(sc) == len(scenes(paper)) + 300 * 3
-    assert {s.height_mm for s in sc if s.object in blobs} == {20.0, 30.0, 40.0}
+    # each blob at the paper's heights and at the face heights where it clears the base
+    assert len(sc) == len(scenes(paper)) + sum(3 + len(face_heights(cfg, b)) for b in blobs)
+    assert {s.height_mm for s in sc if s.object in blobs} == {12.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0}
     assert {(s.split, s.material) for s in sc if s.object in blobs} == {("train", "steel")}
     held_out = sorted(s.id for s in sc if s.split != "train")
     assert held_out == sorted(s.id for s in scenes(paper) if s.split != "train")

@@ -86,3 +86,44 @@ def test_fea_checks_gather_the_scene_checks(tmp_path):
                  "residual_max_scene": "s1", "equilibrium_tol": 1e-3,
                  "equilibrium_max_rel_error": 3e-7, "equilibrium_max_scene": "s1",
                  "line_search_failures": 2, "gradient_fallbacks": 1, "min_gap_mm": 0.002}
+
+
+def test_height_rows_give_each_height_its_own_scale_and_band():
+    """heights.csv: per contact height the force metrics relative to that height's largest
+    force, its 10 mm band and whether a training scene used it."""
+    import pandas as pd
+
+    from finray.evaluate.experiments import _height_rows
+
+    fr = pd.DataFrame({"height_mm": [15.0] * 3 + [20.0] * 3,
+                       "fx_N": [0.0, 5.0, 10.0, 0.0, 1.0, 2.0],
+                       "pred_camera": [0.0, 5.0, 11.0, 0.0, 1.0, 2.2]})
+    rows = {r["height_mm"]: r for r in _height_rows(fr, "all", ["camera"], train_heights_mm=[20])}
+    assert rows[15.0]["band_mm"] == 10.0 and rows[20.0]["band_mm"] == 20.0
+    assert rows[15.0]["unseen"] and not rows[20.0]["unseen"]
+    assert np.isclose(rows[15.0]["rmse_N"], np.sqrt(1 / 3))
+    assert np.isclose(rows[15.0]["nrmse_pct"], 100 * np.sqrt(1 / 3) / 10)
+    assert np.isclose(rows[20.0]["nrmse_pct"], 100 * np.sqrt(0.04 / 3) / 2)
+
+
+def test_face_summary_splits_unseen_from_trained_heights(tmp_path):
+    """The summary's face node: per-height rows, and the metrics over the unseen heights'
+    frames apart from the trained heights'."""
+    import pandas as pd
+
+    from finray.evaluate.experiments import _height_rows
+    from finray.evaluate.summary import face_summary
+
+    fr = pd.DataFrame({"condition": "all", "path": "shard", "height_mm": [15.0, 15.0, 20.0, 20.0],
+                       "fx_N": [1.0, 4.0, 0.5, 2.0], "pred_camera": [1.0, 3.0, 0.5, 2.0]})
+    pd.DataFrame(_height_rows(fr, "all", ["camera"], [20.0])).to_csv(tmp_path / "heights.csv", index=False)
+    fr.to_csv(tmp_path / "frames.csv", index=False)
+    s = face_summary(tmp_path)
+    assert s["unseen_heights_mm"] == [15.0] and s["heights_mm"] == [15.0, 20.0]
+    assert np.isclose(s["unseen"]["camera"]["rmse_N"], np.sqrt(0.5))
+    assert np.isclose(s["unseen"]["camera"]["nrmse_pct"], 100 * np.sqrt(0.5) / 4)
+    assert s["seen"]["camera"]["rmse_N"] == 0.0
+    assert [r["height_mm"] for r in s["by_height"]["camera"]] == [15.0, 20.0]
+    # no unseen height: no face node
+    pd.DataFrame(_height_rows(fr, "all", ["camera"], [15.0, 20.0])).to_csv(tmp_path / "heights.csv", index=False)
+    assert face_summary(tmp_path) is None

@@ -7,6 +7,8 @@ whose message is one line naming the key and the reason.
 from __future__ import annotations
 
 import copy
+import functools
+import json
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -103,7 +105,11 @@ def validate_config(config: dict, base_dir: str | Path = ".") -> dict:
             if h >= finger.height_mm:
                 raise ConfigError(f"extra_train_heights_mm.{model}", (
                     f"contact height {h} mm is at or above the finger (height {finger.height_mm} mm)"))
-    extra = extra_train_heights(cfg)
+    for split, hs in cfg.get("face_heights_mm", {}).items():
+        for h in hs:
+            if h >= finger.height_mm:
+                raise ConfigError(f"face_heights_mm.{split}", (
+                    f"contact height {h} mm is at or above the finger (height {finger.height_mm} mm)"))
     for name, spec in cfg["objects"].items():
         for m in spec["materials"]:
             if m not in mats:
@@ -113,7 +119,7 @@ def validate_config(config: dict, base_dir: str | Path = ".") -> dict:
             spec["path"] = str(p if p.is_absolute() else Path(base_dir) / p)
         try:
             shape = object_shape(spec, cfg["mesh"]["size_mm"], f"objects.{name}")
-            for h in [*cfg["heights_mm"], *(extra if spec["split"] == "train" else [])]:
+            for h in object_heights(cfg, name):
                 place_object(shape, finger, h, cfg["placement"]["gap_mm"], f"objects.{name}")
         except GeometryError as exc:
             raise ConfigError(exc.key, str(exc).split(": ", 1)[1]) from None
@@ -380,11 +386,40 @@ def extra_train_heights(cfg: dict, model: str | None = None) -> list[float]:
     return sorted({float(h) for hs in picked for h in hs} - {float(h) for h in cfg["heights_mm"]})
 
 
+@functools.lru_cache(maxsize=None)
+def _lowest_point_mm(spec_json: str, size_mm: float) -> float:
+    """y (mm) of an object's lowest point relative to its reference point."""
+    return float(object_shape(json.loads(spec_json), size_mm).bounds[1])
+
+
+def face_heights(cfg: dict, name: str) -> list[float]:
+    """Contact heights (mm) of ``face_heights_mm`` for object ``name``'s split, beyond
+    ``heights_mm`` and the extra training heights, at which the object stays above the
+    clamped base (its lowest point at y >= 0), sorted."""
+    spec = cfg["objects"][name]
+    hs = cfg.get("face_heights_mm", {}).get(spec["split"], [])
+    if not hs:
+        return []
+    low = _lowest_point_mm(json.dumps(spec, sort_keys=True), float(cfg["mesh"]["size_mm"]))
+    known = {float(h) for h in cfg["heights_mm"]}
+    if spec["split"] == "train":
+        known |= set(extra_train_heights(cfg))
+    return sorted({float(h) for h in hs if h + low >= 0} - known)
+
+
+def object_heights(cfg: dict, name: str) -> list[float]:
+    """Every contact height (mm) of object ``name``: ``heights_mm``, then (training
+    objects) :func:`extra_train_heights`, then :func:`face_heights`."""
+    split = cfg["objects"][name]["split"]
+    extra = extra_train_heights(cfg) if split == "train" else []
+    return [*(float(h) for h in cfg["heights_mm"]), *extra, *face_heights(cfg, name)]
+
+
 def scenes(cfg: dict) -> list[Scene]:
-    """Every scene of the config: every object at every height of ``heights_mm``, and the
-    training objects at the extra heights of :func:`extra_train_heights` too."""
-    extra = extra_train_heights(cfg)
-    return [Scene(name, m, float(h), spec["split"])
+    """Every scene of the config: every object at each of :func:`object_heights` (every
+    height of ``heights_mm``; the training objects' extra heights; the face heights of
+    the object's split)."""
+    return [Scene(name, m, h, spec["split"])
             for name, spec in cfg["objects"].items()
             for m in spec["materials"]
-            for h in [*cfg["heights_mm"], *(extra if spec["split"] == "train" else [])]]
+            for h in object_heights(cfg, name)]

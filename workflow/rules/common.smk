@@ -115,20 +115,23 @@ def rendered_views():
     return views
 
 
-def shard_files(splits=None, pitch=None, exclude_objects=(), model=None, every_height=False):
+def shard_files(splits=None, pitch=None, exclude_objects=(), model=None, every_height=False,
+                paper_heights=False):
     """Shards of every rendered view (optionally of some splits, or one pitch only, less
     those of ``exclude_objects``), sorted: the order of the objects in the config does not
     change what a job reads. Of the training objects' extra heights (``extra_train_heights_mm``)
     only those of ``model``, or all where ``every_height``: what reads shards without a
-    model in mind sees the paper's heights."""
-    heights = {float(h) for h in config["heights_mm"]}
-    if every_height or model:
-        heights |= set(extra_train_heights(config, None if every_height else model))
+    model in mind sees the paper's heights and the face heights (``face_heights_mm``).
+    ``paper_heights``: the paper's heights (heights_mm) only."""
+    skip = set() if every_height else (
+        set(extra_train_heights(config)) - set(extra_train_heights(config, model) if model else ()))
+    paper = {float(h) for h in config["heights_mm"]}
     return sorted(
         f"{DATASET}/shards/{s.object}/{s.material}/h{s.height_mm:g}/p{pitch_label(p)}.npz"
         for s, p in rendered_views()
         if (splits is None or s.split in splits) and (pitch is None or p == pitch)
-        and s.object not in exclude_objects and s.height_mm in heights
+        and s.object not in exclude_objects and not (s.split == "train" and s.height_mm in skip)
+        and (not paper_heights or s.height_mm in paper)
     )
 
 

@@ -43,6 +43,7 @@ rule evaluate_experiment:
         summary=f"{EVALUATE}/{{experiment}}/metrics.json",
         frames=f"{EVALUATE}/{{experiment}}/frames.csv",
         examples=f"{EVALUATE}/{{experiment}}/examples.npz",
+        heights=f"{EVALUATE}/{{experiment}}/heights.csv",
         checks=f"{EVALUATE}/{{experiment}}/checks.json",  # pitch: augmentation vs renders
     params:
         size=config["train"]["input_size"],

@@ -7,6 +7,37 @@ from finray.paper_reference import paper_reference
 PAPER = "paper"
 FIGURES = ["shape_generalisation", "material_generalisation", "occlusion", "viewpoint", "speed",
            "sim2real", "annotated"] + (["sim2real_rigs"] if rig_names() else [])  # lab.rigs
+FIGURES += ["face"] if config["face_heights_mm"].get("shape") else []  # contacts over the face
+
+
+def face_figure_runs():
+    """Label -> the shape experiment's heights.csv of each training the face figure draws:
+    the run's, and each spread variant's where the manuscript quotes the spread study."""
+    runs = {"this run": f"{EVALUATE}/shape/heights.csv"}
+    if config["evaluate"]["spread"]["manuscript"]:
+        runs.update({v: f"{SPREAD}/{v}/shape/heights.csv" for v in spread_variants()})
+    return runs
+
+
+rule figure_face:
+    input:
+        heights=list(face_figure_runs().values()),
+    output:
+        pdf=report(f"{PAPER}/figures/face.pdf", caption="../report/face.rst", category="Paper"),
+        png=f"{PAPER}/figures/face.png",
+    log:
+        f"{RESULTS}/logs/paper/face.log",
+    params:
+        figure="face",
+        labels=list(face_figure_runs()),
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=5,
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "../scripts/paper_figure.py"
 
 
 rule evaluate_speed:

@@ -52,6 +52,7 @@ use rule evaluate_experiment as spread_experiment with:
         summary=f"{SPREAD}/{{variant}}/{{experiment}}/metrics.json",
         frames=f"{SPREAD}/{{variant}}/{{experiment}}/frames.csv",
         examples=f"{SPREAD}/{{variant}}/{{experiment}}/examples.npz",
+        heights=f"{SPREAD}/{{variant}}/{{experiment}}/heights.csv",
         checks=f"{SPREAD}/{{variant}}/{{experiment}}/checks.json",
     log:
         f"{RESULTS}/logs/spread/{{variant}}/{{experiment}}.log",

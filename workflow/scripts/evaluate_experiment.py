@@ -19,7 +19,8 @@ with log_to(snakemake.log[0]):
             conditions=dict(setup["conditions"]) if setup["conditions"] else None,
             group_col=setup["group_col"],
             occlusion_levels={k: tuple(v) for k, v in snakemake.params.occlusion_levels.items()},
-            seed=snakemake.params.seed, render_indices=list(snakemake.input.renders))
+            seed=snakemake.params.seed, render_indices=list(snakemake.input.renders),
+            train_heights_mm=setup["train_heights_mm"])
     print(m[m["group"] == "all"].to_string(index=False))  # shard and camera paths
     checks = {}
     if exp == "pitch":

@@ -21,6 +21,8 @@ with log_to(snakemake.log[0]):
 
         sim2real_figure(pd.read_csv(snakemake.input.frames),
                         json.loads(Path(snakemake.input.summary).read_text()), out)
+    elif name == "face":
+        figures.face_figure(dict(zip(snakemake.params.labels, snakemake.input.heights)), out)
     elif name == "sim2real_rigs":
         import pandas as pd
 

@@ -17,6 +17,9 @@ Every experiment writes into one directory:
 - ``metrics.json``: ``{condition: {predictor: metrics of "all"}}`` for the summary
   (shard path, all frames), plus ``"<predictor>/camera"`` and
   ``"<predictor>/shard_rendered"`` when the camera path ran;
+- ``heights.csv``: force metrics per contact height of the test scenes and predictor
+  (shard path), each height's 10 mm band and whether a training scene used it
+  (:func:`_height_rows`; empty for the viewpoint experiment);
 - ``examples.npz``: a few frames (input, FEA and predicted stress) for the figures;
 - ``checks.json`` (written by the rule's script): experiment-specific checks, e.g. for
   the pitch study the IoU of the pitch augmentation against the pitched renders.
@@ -79,8 +82,29 @@ def _metric_rows(frames: pd.DataFrame, group_col: str | None, condition: str,
     return rows
 
 
+def _height_rows(frames: pd.DataFrame, condition: str, predictors,
+                 train_heights_mm=()) -> list[dict]:
+    """Force metrics per contact height of the test scenes (RMSE in N; NRMSE in % of the
+    largest |Fx| at that height, since the force near the base is many times the force
+    at the tip), each height with its 10 mm band (``band_mm``: the band's lower edge) and
+    whether any training scene used it (``unseen``)."""
+    seen = {round(float(h), 6) for h in train_heights_mm}
+    rows = []
+    heights = frames["height_mm"].to_numpy(dtype=float)
+    for h in np.unique(heights):
+        sel = heights == h
+        for p in predictors:
+            rows.append({"condition": condition, "height_mm": float(h),
+                         "band_mm": float(10 * np.floor(h / 10)),
+                         "unseen": round(float(h), 6) not in seen, "predictor": p,
+                         **force_metrics(frames["fx_N"][sel], frames[f"pred_{p}"][sel])})
+    return rows
+
+
 #: Columns that name a metrics row (the rest are metrics).
 ID_COLUMNS = ("condition", "path", "frames", "group", "predictor")
+#: Columns that name a row of ``heights.csv``.
+HEIGHT_COLUMNS = ["condition", "height_mm", "band_mm", "unseen", "predictor"]
 
 
 def _variant(row: dict) -> str:
@@ -115,10 +139,13 @@ def _camera_rows(render_indices, nets, base, tab, fr, stress, maps, group_col, c
 
 
 def _write_outputs(out_dir: Path, rows: list[dict], frames_out: list[pd.DataFrame],
-                   examples: dict) -> pd.DataFrame:
+                   examples: dict, height_rows: list[dict] = ()) -> pd.DataFrame:
     """Write ``frames.csv``, ``metrics.csv``, ``metrics.json`` (per condition, in the
-    order of ``examples``) and ``examples.npz``; returns the metrics table."""
+    order of ``examples``), ``heights.csv`` (:func:`_height_rows`) and ``examples.npz``;
+    returns the metrics table."""
     metrics = pd.DataFrame(rows)
+    pd.DataFrame(list(height_rows), columns=HEIGHT_COLUMNS if not height_rows else None).to_csv(
+        out_dir / "heights.csv", index=False, float_format="%.10g")
     pd.concat(frames_out, ignore_index=True).to_csv(out_dir / "frames.csv", index=False,
                                                     float_format="%.6g")
     metrics.to_csv(out_dir / "metrics.csv", index=False, float_format="%.10g")
@@ -142,15 +169,17 @@ def _example_indices(table: pd.DataFrame, per: str, n: int = 1) -> np.ndarray:
 def run_experiment(out_dir, shard_paths, size, models: dict[str, str], baseline_path=None, *,
                    conditions: dict[str, dict] | None = None, condition_col: str = "condition",
                    group_col: str | None = "object", occlusion_levels: dict | None = None,
-                   seed: int = 0, render_indices=None, log=print) -> pd.DataFrame:
+                   seed: int = 0, render_indices=None, train_heights_mm=(),
+                   log=print) -> pd.DataFrame:
     """Evaluate ``models`` (name -> TorchScript path) and the baseline on the shards.
 
     ``conditions``: name -> ``{"occlusion": level}`` (images corrupted, replayable from
     ``seed``) or ``{"pitch_deg": p}`` (frames of that pitch only); default: one condition
     ``"all"`` over every frame. ``render_indices`` (the test scenes' ``index.json``):
     also score the camera path on their rendered frames, and the shard path on the same
-    frames, for every condition without corruption or selection. Returns the metrics
-    table (also written).
+    frames, for every condition without corruption or selection. ``train_heights_mm``:
+    the training scenes' contact heights, which ``heights.csv`` tells apart from the
+    unseen ones. Returns the metrics table (also written).
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -161,7 +190,7 @@ def run_experiment(out_dir, shard_paths, size, models: dict[str, str], baseline_
     base = RidgeBaseline.load(baseline_path) if baseline_path else None
     predictors = list(nets) + (["baseline"] if base is not None else [])
     conditions = conditions or {"all": {}}
-    frames_out, rows, examples = [], [], {}
+    frames_out, rows, examples, height_rows = [], [], {}, []
     for cname, cond in conditions.items():
         sel = np.ones(len(table), bool)
         if "pitch_deg" in cond:
@@ -177,6 +206,7 @@ def run_experiment(out_dir, shard_paths, size, models: dict[str, str], baseline_
         _add_predictions(fr, preds)
         stress = {"true": arrays["stress"][sel], "mask": arrays["mask"][sel], "pred": maps}
         rows += _metric_rows(fr, group_col, cname, predictors, stress)
+        height_rows += _height_rows(fr, cname, predictors, train_heights_mm)
         fr.insert(1, "path", "shard")
         frames_out.append(fr)
         if render_indices and not cond:
@@ -189,7 +219,7 @@ def run_experiment(out_dir, shard_paths, size, models: dict[str, str], baseline_
                            "label": tab[group_col or "scene_id"].to_numpy()[ex].astype(str),
                            "fx_N": tab["fx_N"].to_numpy()[ex],
                            **{f"pred_{k}": v[ex, 0] for k, v in preds.items()}}
-    return _write_outputs(out_dir, rows, frames_out, examples)
+    return _write_outputs(out_dir, rows, frames_out, examples, height_rows)
 
 
 def viewpoint_test_set(index_paths, shard_paths, predictor: Predictor, size

@@ -283,3 +283,47 @@ def annotated_figure(model_path, render_index, lab_video, lab_ingest_json, out_p
                  "and its force", fontsize=10)
     fig.tight_layout()
     _save(fig, out_pdf)
+
+
+def face_figure(heights_csvs: dict[str, str], out_pdf, paper_band_mm=(20.0, 40.0)):
+    """Contacts over the finger's face: the held-out shapes' force NRMSE (% of the largest
+    |Fx| at that height) against the contact height (mm), one line per network and
+    training (``heights_csvs``: a training's label, e.g. its seed, -> the shape
+    experiment's ``heights.csv``), filled markers at heights no training scene used; and
+    the largest |Fx| at each height. The paper's heights are shaded."""
+    plt = _plt()
+    fig, (ax, axf) = plt.subplots(1, 2, figsize=(10, 4), gridspec_kw={"width_ratios": [1.6, 1]})
+    styles = ["-", "--", ":", "-."]
+    forces = None
+    for k, (label, path) in enumerate(heights_csvs.items()):
+        h = pd.read_csv(path)
+        h = h[h["condition"].astype(str) == "all"]
+        for p, g in h.groupby("predictor", sort=False):
+            g = g.sort_values("height_mm")
+            c = COLOURS.get(p)
+            ax.plot(g["height_mm"], g["nrmse_pct"], color=c, ls=styles[k % len(styles)], lw=1.2,
+                    label=f"{LABELS.get(p, p)}, {label}" if len(heights_csvs) > 1 else LABELS.get(p, p))
+            un = g["unseen"].astype(bool).to_numpy()
+            ax.scatter(g["height_mm"][un], g["nrmse_pct"][un], color=c, s=18, zorder=3)
+            ax.scatter(g["height_mm"][~un], g["nrmse_pct"][~un], facecolors="white", edgecolors=c,
+                       s=18, zorder=3)
+        if forces is None:
+            forces = h.drop_duplicates("height_mm").sort_values("height_mm")
+    for a in (ax, axf):
+        a.axvspan(*paper_band_mm, color="0.92", zorder=0)
+        a.set_xlabel("contact height (mm above the clamped base)")
+    ax.set_yscale("log")
+    from matplotlib.ticker import NullFormatter, ScalarFormatter
+
+    ax.yaxis.set_major_formatter(ScalarFormatter())
+    ax.yaxis.set_minor_formatter(NullFormatter())
+    ax.set_ylabel("Fx NRMSE (% of the largest |Fx| at that height)")
+    ax.set_title("held-out shapes (filled: heights no training scene used;\n"
+                 "shaded: the paper's heights)", fontsize=8)
+    ax.legend(fontsize=6)
+    axf.plot(forces["height_mm"], forces["max_true_N"], "k.-")
+    axf.set_yscale("log")
+    axf.set_ylabel("largest |Fx| of the held-out shapes (N)")
+    fig.suptitle("Force error over the finger's front face", fontsize=10)
+    fig.tight_layout()
+    _save(fig, out_pdf)

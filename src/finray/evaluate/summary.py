@@ -212,6 +212,38 @@ def viewpoint_summary(exp_dir, usable_nrmse_pct: float) -> dict:
     return out
 
 
+#: What the summary keeps of a ``heights.csv`` row.
+HEIGHT_KEEP = ("height_mm", "band_mm", "unseen", "n", "rmse_N", "nrmse_pct", "max_true_N")
+
+
+def face_summary(exp_dir, condition: str = "all") -> dict | None:
+    """Contacts over the finger's face in one experiment's condition (shard path): per
+    predictor, the force metrics at each test height (``heights.csv``: RMSE in N, NRMSE
+    in % of that height's largest |Fx|) and over the frames at heights no training scene
+    used (``unseen``) and at the others (``seen``), from ``frames.csv``. None where every
+    test height is a training height (no face heights)."""
+    from .metrics import force_metrics
+
+    h = pd.read_csv(Path(exp_dir) / "heights.csv")
+    h = h[h["condition"].astype(str) == condition]
+    if h.empty or not h["unseen"].any():
+        return None
+    f = pd.read_csv(Path(exp_dir) / "frames.csv")
+    f = f[(f["path"] == "shard") & (f.iloc[:, 0].astype(str) == condition)]
+    unseen = sorted({float(x) for x in h.loc[h["unseen"], "height_mm"]})
+    is_unseen = f["height_mm"].astype(float).isin(unseen).to_numpy()
+    out = {"heights_mm": sorted({float(x) for x in h["height_mm"]}), "unseen_heights_mm": unseen,
+           "by_height": {}, "unseen": {}, "seen": {}}
+    for p, g in h.groupby("predictor", sort=False):
+        out["by_height"][p] = [{k: (bool(r[k]) if k == "unseen" else float(r[k])) for k in HEIGHT_KEEP}
+                               for r in g.sort_values("height_mm").to_dict("records")]
+        for key, sel in (("unseen", is_unseen), ("seen", ~is_unseen)):
+            if sel.any():
+                m = force_metrics(f["fx_N"][sel], f[f"pred_{p}"][sel])
+                out[key][p] = {k: m[k] for k in ("n", "rmse_N", "nrmse_pct", "max_true_N")}
+    return out
+
+
 def lab_summary(qa_json, qa_csv, lab_setup: dict) -> dict:
     """The emulated lab takes (:mod:`finray.evaluate.lab_takes`): the QA over all takes,
     one record per take, and the emulator's set-up (``lab`` config, less the scene)."""
@@ -248,6 +280,8 @@ def build_summary(evaluate_dir, experiments, baseline_fit, speed_json, fea_paret
         s["pitch_augmentation_iou"] = checks.get("augmentation_iou", {})
     if "viewpoint" in experiments:
         s["viewpoint"] = viewpoint_summary(evaluate_dir / "viewpoint", usable_nrmse_pct)
+    if "shape" in experiments and (face := face_summary(evaluate_dir / "shape")) is not None:
+        s["face"] = {"shape": face}
     for e in ("shape", "material"):  # the camera model on front views, against the plain one
         node = s["experiments"].get(e, {}).get("all", {})
         if "camera" in node and "plain" in node:
@@ -290,7 +324,8 @@ NAMED = [("experiments", "*"), ("experiments", "*", "*"), ("experiments", "*", "
          ("setup", "occlusion_levels"),
          ("sim2real", "by_context"), ("sim2real", "by_context", "*", "per_object"),
          ("sim2real_rigs", "by_context"), ("sim2real_rigs", "per_rig"), ("sim2real_rigs", "settings"),
-         ("diversity", "tests", "*", "groups")]
+         ("diversity", "tests", "*", "groups"),
+         ("face", "shape", "by_height"), ("face", "shape", "unseen"), ("face", "shape", "seen")]
 
 
 def key_structure(node, path: tuple = ()):

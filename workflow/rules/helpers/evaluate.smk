@@ -31,7 +31,7 @@ def experiment_setup(wildcards):
                 "conditions": [[lvl, {"occlusion": lvl}] for lvl in occlusion_level_order()],
                 "renders": []}
     if e == "viewpoint":  # perspective renders of the held-out shapes (evaluate.viewpoint)
-        return {"shards": shard_files(splits=["shape"], pitch=0.0),
+        return {"shards": shard_files(splits=["shape"], pitch=0.0, paper_heights=True),
                 "models": eval_models("plain", "pitch", "camera", train_dir=d),
                 "group_col": "distance_mm",
                 "conditions": [[f"{p:g}", {"pitch_deg": p}] for p in series_pitches()],
@@ -43,9 +43,11 @@ def experiment_setup(wildcards):
 
 
 def viewpoint_indices():
-    """index.json of the viewpoint experiment's renders: every held-out shape scene."""
+    """index.json of the viewpoint experiment's renders: every held-out shape scene at the
+    paper's heights (heights_mm; not the face heights: the 3D renders cost most)."""
+    paper = {float(h) for h in config["heights_mm"]}
     return sorted(f"{RENDER}/viewpoint/{s.object}/{s.material}/h{s.height_mm:g}/index.json"
-                  for s in scenes(config) if s.split == "shape")
+                  for s in scenes(config) if s.split == "shape" and s.height_mm in paper)
 
 
 def experiment_params(wildcards):
@@ -53,7 +55,12 @@ def experiment_params(wildcards):
     settings] pairs) of an experiment; the shards and model files are its inputs."""
     setup = experiment_setup(wildcards)
     return canonical({"models": list(setup["models"]), "group_col": setup["group_col"],
-                      "conditions": setup["conditions"]})
+                      "conditions": setup["conditions"], "train_heights_mm": train_heights()})
+
+
+def train_heights():
+    """Contact heights (mm) of the training scenes, sorted (what heights.csv calls seen)."""
+    return sorted({s.height_mm for s in scenes(config) if s.split == "train"})
 
 
 def experiment_inputs(wildcards):
