@@ -73,3 +73,24 @@ def test_summary_over_rigs():
     assert s["by_context"]["0"]["coverage_pct_pooled"] == pytest.approx((90 * 100 + 70 * 300) / 400)
     assert (s["by_context"]["1"]["nrmse_pct_min"], s["by_context"]["1"]["nrmse_pct_max"]) == (3, 6)
     assert isinstance(table, pd.DataFrame) and len(table) == 6
+
+
+def test_height_span_draws_one_height_per_part_of_the_face():
+    """lab.rigs.height_span_mm: a rig's heights spread over the span, one in each equal
+    part, none where an object would reach below the base (plus the clearance)."""
+    import numpy as np
+
+    from finray.geometry.objects import object_shape
+    from finray.lab.rigs import BASE_CLEARANCE_MM, span_heights
+
+    objects = {"cylinder": {"type": "circle", "diameter_mm": 20.0},
+               "square": {"type": "square", "side_mm": 10.0, "angle_deg": 0.0}}
+    for seed in range(20):
+        hs = span_heights(np.random.default_rng(seed), objects, [4.0, 70.0], 3)
+        assert hs == sorted(hs) and len(set(hs)) == 3 and all(h == int(h) for h in hs)
+        lo = 10.0 + BASE_CLEARANCE_MM  # the cylinder's radius and the clearance
+        edges = np.linspace(lo, 70.0, 4)
+        assert all(a <= h <= b for h, a, b in zip(hs, edges[:-1], edges[1:]))
+        assert min(hs) + object_shape(objects["cylinder"], 0.5).bounds[1] >= BASE_CLEARANCE_MM
+    with pytest.raises(ValueError, match="height_span_mm"):
+        span_heights(np.random.default_rng(0), objects, [4.0, 12.0], 3)

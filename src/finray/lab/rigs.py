@@ -12,7 +12,11 @@ configured one with these drawn (from a generator seeded by ``seed`` and ``i``):
   from the finger's, as a lab would paint it), saturation, value and the background's
   grey, as ranges; colours are linear RGB;
 - ``object_scale``: each object's size scaled by one factor in the range;
-- ``height_jitter_mm``: each contact height moved by up to this much (whole mm).
+- ``height_jitter_mm``: each contact height moved by up to this much (whole mm);
+- ``height_span_mm``: ``[low, high]`` instead: the rig's contact heights (as many as
+  ``heights_mm``) drawn over the finger's face, one (whole mm) in each of as many equal
+  parts of the span, its low end raised to where every (scaled) object clears the
+  clamped base by ``BASE_CLEARANCE_MM``.
 
 Every drawn rig is emulated: its ``camera.model`` says so and which draw it is.
 """
@@ -22,6 +26,27 @@ import colorsys
 import copy
 
 import numpy as np
+
+
+#: mm between the clamped base and an object's lowest point at a drawn height
+BASE_CLEARANCE_MM = 1.0
+
+
+def span_heights(rng: np.random.Generator, objects: dict, span_mm, n: int) -> list[float]:
+    """``n`` contact heights (whole mm), one drawn in each of ``n`` equal parts of
+    ``span_mm`` = [low, high], the low end raised so that every object of ``objects``
+    clears the base by :data:`BASE_CLEARANCE_MM`."""
+    from ..geometry.objects import object_shape
+
+    reach = max(-object_shape(o, 0.5).bounds[1] for o in objects.values())
+    lo, hi = max(float(span_mm[0]), reach + BASE_CLEARANCE_MM), float(span_mm[1])
+    edges = np.linspace(lo, hi, n + 1)
+    a = np.ceil(edges[:-1]).astype(int)
+    b = np.r_[np.ceil(edges[1:-1]).astype(int) - 1, int(np.floor(hi))]
+    if np.any(b < a):
+        raise ValueError(f"lab.rigs.height_span_mm {list(span_mm)}: from {lo:.1f} mm (where every "
+                         f"object clears the base) it holds fewer than {n} whole-mm heights")
+    return [float(rng.integers(x, y + 1)) for x, y in zip(a, b)]
 
 
 def rig_names(rigs: dict) -> list[str]:
@@ -108,7 +133,10 @@ def draw_rig(lab: dict, index: int) -> dict:
         out["objects"] = {name: _scale_object(o, float(rng.uniform(*spec["object_scale"])))
                           for name, o in sorted(out["objects"].items())}
     jitter = int(spec.get("height_jitter_mm", 0))
-    if jitter:
+    if spec.get("height_span_mm"):
+        out["heights_mm"] = span_heights(rng, out["objects"], spec["height_span_mm"],
+                                         len(out["heights_mm"]))
+    elif jitter:
         heights = [float(h) + int(rng.integers(-jitter, jitter + 1)) for h in out["heights_mm"]]
         if len(set(heights)) < len(heights):
             raise ValueError(f"rig {index}: height_jitter_mm {jitter} made two heights equal")
