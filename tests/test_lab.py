@@ -118,3 +118,22 @@ def test_a_short_take_ingests_without_its_truth(result, tmp_path):
     g, b = np.polyfit(true, label, 1)
     assert g == pytest.approx(1 + LAB["sensor"]["gain_error"], abs=0.01)
     assert b == pytest.approx(-LAB["sensor"]["bias_N"][2], abs=0.02)
+
+
+def test_a_scene_stopped_at_its_force_limit_makes_a_shorter_push(tmp_path):
+    """An FEA scene that stopped at the physical limit (fea.force_cap_N) before the
+    motion's push: the take pushes as far as the FEA reached, and its truth says so."""
+    from finray.lab.emulate import emulate_take
+
+    res = write_synthetic_fea_result(tmp_path / "result.npz", n_frames=5, max_displacement_mm=6.0,
+                                     size_mm=1.0)
+    lab = json.loads(json.dumps(LAB))
+    lab["motion"].update(starts_s=[0.2], duration_s=1.6, speed_mm_s=25.0, hold_s=0.3)
+    lab["camera"].update(size_px=[320, 180], distance_mm=120.0)
+    said = []
+    truth = emulate_take(res, tmp_path / "take", lab, object_name="cylinder", height_mm=30.0,
+                         extrusion_mm=20.0, seed=3, log=said.append)
+    assert truth["force_limited"] and truth["push_mm"] == pytest.approx(6.0)
+    frames = pd.read_csv(tmp_path / "take" / "truth" / "frames.csv")
+    assert frames["push_mm"].max() == pytest.approx(6.0, abs=1e-3)
+    assert any("the take pushes 6.000 mm" in m for m in said)

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import json
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -72,9 +73,14 @@ def emulate_take(result_npz, take_dir, lab: dict, *, object_name: str, height_mm
     res = load_fea_result(result_npz)
     fea = _Interpolator(res)
     motion = GripperMotion.from_config(lab["motion"])
-    if motion.push_mm > fea.d[-1] + 1e-3:
-        raise ValueError(f"lab.motion.push_mm {motion.push_mm} mm is beyond the FEA's "
-                         f"{fea.d[-1]:g} mm")
+    reach = float(fea.d[-1])
+    force_limited = motion.push_mm > reach + 1e-3
+    if force_limited:
+        # the FEA stopped at its physical limit (fea.force_cap_N; a scene that failed
+        # writes no result): a force-limited gripper stops there too, at the same speed
+        motion = replace(motion, push_mm=reach)
+        log(f"the FEA stopped at {reach:.3f} mm of lab.motion.push_mm's "
+            f"{lab['motion']['push_mm']:g} mm: the take pushes {reach:.3f} mm")
     cam_cfg, look = lab["camera"], lab["scene"]
     target = (float(look["target_mm"][0]), float(look["target_mm"][1]), 0.0)
     camera = camera_from_config(cam_cfg, target)
@@ -184,6 +190,7 @@ def emulate_take(result_npz, take_dir, lab: dict, *, object_name: str, height_mm
              "camera": {"intrinsics": camera.intrinsics(), "position_mm": list(camera.position),
                         "target_mm": list(camera.target), "up": list(camera.up)},
              "force_max_N": float(f_frame.max()), "fea_result": str(result_npz),
+             "push_mm": motion.push_mm, "force_limited": force_limited,
              "seed": seed, "wall_s": time.perf_counter() - t_wall}
     (take_dir / "truth" / "truth.json").write_text(json.dumps(truth, indent=1))
     log(f"{take_dir.name}: {n} frames {camera.width}x{camera.height} at {fps:g} FPS, "
