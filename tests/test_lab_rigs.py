@@ -94,3 +94,27 @@ def test_height_span_draws_one_height_per_part_of_the_face():
         assert min(hs) + object_shape(objects["cylinder"], 0.5).bounds[1] >= BASE_CLEARANCE_MM
     with pytest.raises(ValueError, match="height_span_mm"):
         span_heights(np.random.default_rng(0), objects, [4.0, 12.0], 3)
+
+
+def test_sim2real_metrics_per_contact_height_and_over_rigs():
+    """Sim-to-real's metrics: each contact height over its contexts (NRMSE in % of that
+    height's largest force), carried into the summary and the summary over rigs."""
+    from finray.evaluate.rigs import rigs_heights
+    from finray.evaluate.sim2real import metrics_table
+
+    fr = pd.DataFrame({"context_objects": 1, "context": "a", "group": "b", "take": "t",
+                       "height_mm": [10.0, 10.0, 60.0, 60.0], "sensor_N": [10.0, 20.0, 1.0, 2.0],
+                       "pred_N": [10.0, 21.0, 1.0, 2.1], "net_mean_N": [10.0, 21.0, 1.0, 2.1],
+                       "lo_N": 0.0, "hi_N": 100.0})
+    m = metrics_table(fr, 0.9)
+    h = m[m["context"] == "by_height"].set_index("test")
+    assert list(h.index) == ["10", "60"]
+    assert h.loc["10", "nrmse_pct"] == pytest.approx(100 * np.sqrt(0.5) / 20)
+    assert h.loc["60", "nrmse_pct"] == pytest.approx(100 * np.sqrt(0.005) / 2)
+    # the per-object and overall rows are as before
+    assert set(m.loc[m["context"] == "all", "test"]) == {"b", "all"}
+    s = {"rigX": {"by_context": {"1": {"per_height": {
+        "60": {"nrmse_pct": 3.5, "coverage_pct": 90.0, "rmse_N": 0.07, "max_sensor_N": 2.0},
+        "10": {"nrmse_pct": 2.5, "coverage_pct": 80.0, "rmse_N": 0.5, "max_sensor_N": 20.0}}}}}}
+    assert rigs_heights(s) == {"rigX": {"1": {"10": {"nrmse_pct": 2.5, "coverage_pct": 80.0},
+                                              "60": {"nrmse_pct": 3.5, "coverage_pct": 90.0}}}}

@@ -26,6 +26,16 @@ def rigs_table(summaries: dict[str, dict]) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def rigs_heights(summaries: dict[str, dict]) -> dict:
+    """Per rig and context count, each contact height's NRMSE (% of that height's largest
+    force) and interval coverage (%): ``{rig: {k: {height: {"nrmse_pct", "coverage_pct"}}}}``
+    (empty for a summary written before heights were recorded)."""
+    return {rig: {k: {h: {c: m[c] for c in ("nrmse_pct", "coverage_pct")}
+                      for h, m in sorted(node.get("per_height", {}).items(), key=lambda kv: float(kv[0]))}
+                  for k, node in sorted(s["by_context"].items(), key=lambda kv: int(kv[0]))}
+            for rig, s in summaries.items()}
+
+
 def rigs_summary(table: pd.DataFrame, level: float, max_nrmse_pct: float = 5.0) -> dict:
     """Per context count: NRMSE mean and range over the rigs, the coverage pooled over
     every rig's frames; per rig, whether the error falls with each context object and the
@@ -92,7 +102,7 @@ def write_rigs(summaries: dict[str, dict], rigs: dict, out) -> dict:
     each drawn rig's settings, recorded beside its figures."""
     table = rigs_table(summaries)
     level = float(next(iter(summaries.values())).get("level", 0.9))
-    summary = rigs_summary(table, level) | {"settings": rigs}
+    summary = rigs_summary(table, level) | {"settings": rigs, "per_height": rigs_heights(summaries)}
     table.to_csv(out["csv"], index=False)
     wide = table.pivot(index="rig", columns="context_objects", values=["nrmse_pct", "coverage_pct"])
     wide = wide.loc[list(summaries)]

@@ -207,6 +207,7 @@ def run_sim2real(model_pt, lab_shards, no_context, size, cfg: Sim2RealConfig, lo
         frames.append(pd.DataFrame({
             "context_objects": k, "context": " + ".join(context) or "none",
             "take": tab["take"].to_numpy(), "group": tab["group"].to_numpy(),
+            "height_mm": tab["height_mm"].to_numpy(dtype=float),
             "frame": tab["frame"].to_numpy(), "t_s": tab["t_s"].to_numpy(),
             "sensor_N": y[test], "net_mean_N": mu, "net_spread_N": sd,
             "pred_N": band["median"], "lo_N": band["lo"], "hi_N": band["hi"]}))
@@ -248,7 +249,8 @@ def _row(g: pd.DataFrame) -> dict:
 
 def metrics_table(frames: pd.DataFrame, level: float) -> pd.DataFrame:
     """Per context size: every (context, test object) pair, each test object over its
-    contexts, and all frames (``test`` ``all``); the paper's MSE beside."""
+    contexts, all frames (``test`` ``all``) and each contact height over its contexts
+    (``context`` ``by_height``, ``test`` the height in mm); the paper's MSE beside."""
     rows = []
     for k, gk in frames.groupby("context_objects"):
         for (ctx, grp), g in gk.groupby(["context", "group"]):
@@ -256,6 +258,10 @@ def metrics_table(frames: pd.DataFrame, level: float) -> pd.DataFrame:
         for grp, g in gk.groupby("group"):
             rows.append({"context_objects": k, "context": "all", "test": grp, **_row(g)})
         rows.append({"context_objects": k, "context": "all", "test": "all", **_row(gk)})
+        if "height_mm" in gk:  # each contact height over its contexts (context "by_height")
+            for h, g in gk.groupby("height_mm"):
+                rows.append({"context_objects": k, "context": "by_height", "test": f"{float(h):g}",
+                             **_row(g)})
     out = pd.DataFrame(rows)
     out["paper_mse_N2"] = out["context_objects"].map(paper_mse_N2())
     out["interval"] = f"{level:.0%}"
@@ -275,7 +281,12 @@ def summarise_runs(metrics: pd.DataFrame, cals: list[dict], sim: dict, cfg: Sim2
             "per_object": {r["test"]: {c: float(r[c]) for c in ("mse_N2", "rmse_N", "nrmse_pct",
                                                                  "coverage_pct")}
                            for _, r in g[g["test"] != "all"].iterrows()},
-            "n_fits": sum(c["context_objects"] == int(k) for c in cals)}
+            "n_fits": sum(c["context_objects"] == int(k) for c in cals),
+            # per contact height of the takes: NRMSE in % of that height's largest force
+            "per_height": {r["test"]: {c: float(r[c]) for c in ("rmse_N", "nrmse_pct", "max_sensor_N",
+                                                                 "coverage_pct")}
+                           for _, r in metrics[(metrics["context"] == "by_height")
+                                               & (metrics["context_objects"] == k)].iterrows()}}
     mse = [by_k[k]["mse_N2"] for k in sorted(by_k, key=int)]
     fits = [{"context_objects": c["context_objects"], "context": c["context"],
              "fitted_on": c["fitted_on"], "n_frames": c["n_frames"], "summary": c["summary"],

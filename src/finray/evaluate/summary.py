@@ -325,7 +325,9 @@ NAMED = [("experiments", "*"), ("experiments", "*", "*"), ("experiments", "*", "
          ("sim2real", "by_context"), ("sim2real", "by_context", "*", "per_object"),
          ("sim2real_rigs", "by_context"), ("sim2real_rigs", "per_rig"), ("sim2real_rigs", "settings"),
          ("diversity", "tests", "*", "groups"),
-         ("face", "shape", "by_height"), ("face", "shape", "unseen"), ("face", "shape", "seen")]
+         ("face", "shape", "by_height"), ("face", "shape", "unseen"), ("face", "shape", "seen"),
+         ("sim2real", "by_context", "*", "per_height"), ("sim2real_rigs", "per_height"),
+         ("sim2real_rigs", "per_height", "*"), ("sim2real_rigs", "per_height", "*", "*")]
 
 
 def key_structure(node, path: tuple = ()):
