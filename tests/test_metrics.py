@@ -45,3 +45,21 @@ def test_stress_metrics_mask_and_ssim():
     assert stress_metrics(t, t, mask)["ssim"] == pytest.approx(1.0)
     p2 = t + 0.1 * mask
     assert stress_metrics(t, p2, mask)["stress_mse_log"] == pytest.approx(0.01)
+
+
+def test_contact_metrics_by_hand():
+    """Only frames with a true height and |fx| above the threshold count."""
+    from finray.evaluate.metrics import contact_metrics
+
+    true = [10.0, 20.0, np.nan, 40.0, 50.0]
+    pred = [13.0, 16.0, 99.0, 40.0, 0.0]
+    fx = [1.0, -2.0, 3.0, 0.5, 0.1]  # 0.5 is not above 0.5
+    m = contact_metrics(true, pred, fx)
+    assert m["n"] == 2
+    assert m["rmse_mm"] == pytest.approx(np.sqrt((9 + 16) / 2))
+    assert m["mae_mm"] == pytest.approx(3.5)
+    assert contact_metrics(true, pred, fx, min_force_N=0.05)["n"] == 4
+    empty = contact_metrics([np.nan], [1.0], [2.0])
+    assert empty["n"] == 0 and np.isnan(empty["rmse_mm"])
+    with pytest.raises(ValueError, match="one height and one force per frame"):
+        contact_metrics([1.0, 2.0], [1.0], [1.0, 1.0])

@@ -114,3 +114,54 @@ def test_he_init_keeps_the_scale_and_bfloat16_gradients_follow_float32():
     assert cosine(g16["force_head.4.weight"], g32["force_head.4.weight"]) < 0.5
     with pytest.raises(ValueError, match="init"):
         NetConfig(init="xavier")
+
+
+def test_contact_head_is_a_head_of_its_own_in_mm():
+    """The contact head reads the latent beside the force head (which keeps its layers,
+    what finray.adapt re-fits), its height comes in mm through its own normalisation, and
+    the paths agree: contact, force_contact (no decoder) and forward_contact. Drawn
+    after the other layers, it leaves their initial weights those of a model without it."""
+    torch.manual_seed(0)
+    plain = FinRayNet(NetConfig(base_channels=4))
+    torch.manual_seed(0)
+    net = FinRayNet(NetConfig(base_channels=4, contact=True)).eval()
+    both = net.state_dict()
+    for name, a in plain.state_dict().items():
+        assert torch.equal(a, both[name]), name
+    assert [m.out_features for m in net.force_head if isinstance(m, torch.nn.Linear)][-1] == 1
+    net.set_force_normalisation([1.5], [3.0])
+    x = torch.rand(4, 3, 64, 32)
+    with torch.no_grad():
+        _, _, c_norm = net.forward_normalised_all(x)
+        net.set_contact_normalisation(35.0, 12.0)
+        c = net.contact(x)
+        f2, c2 = net.force_contact(x)
+        s3, f3, c3 = net.forward_contact(x)
+        s, f = net(x)
+    assert c.shape == (4,)
+    torch.testing.assert_close(c, c_norm * 12.0 + 35.0)
+    torch.testing.assert_close(net.normalise_contact(c), c_norm)
+    for a, b in ((c2, c), (c3, c), (f2, f), (f3, f), (s3, s)):
+        torch.testing.assert_close(a, b)
+
+
+def test_a_model_without_the_contact_head_loads_and_predicts_force(tmp_path):
+    """A checkpoint written before the contact head (no ``contact`` in its net_config, no
+    contact buffers) loads as a model without it; its force is as before, and asking it
+    for a contact height says why not."""
+    from finray.train import load_checkpoint
+
+    torch.manual_seed(0)
+    old = FinRayNet(NetConfig(in_channels=1, base_channels=4)).eval()
+    cfg = old.config_dict()
+    del cfg["contact"]
+    torch.save({"net_config": cfg, "state_dict": old.state_dict(), "history": {}, "extra": {}},
+               tmp_path / "old.pt")
+    model, _ = load_checkpoint(tmp_path / "old.pt")
+    assert not model.cfg.contact and not hasattr(model, "contact_head")
+    x = torch.rand(2, 1, 64, 32)
+    with torch.no_grad():
+        torch.testing.assert_close(model.force(x), old.force(x))
+        assert model.forward_normalised_all(x)[2] is None
+        with pytest.raises(RuntimeError, match="no contact head"):
+            model.contact(x)

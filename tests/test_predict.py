@@ -740,3 +740,93 @@ def test_sigint_ends_a_live_run_with_a_complete_table(exported, render_png, tmp_
     assert len(rows) >= 5 and all(r["fx_N"] and r["t_s"] for r in rows)
     assert not (out / "forces.csv.part").exists()
     assert "stopped by Ctrl-C" in err
+
+
+@pytest.fixture(scope="module")
+def exported_contact(tmp_path_factory):
+    """An untrained network with the contact head (its own normalisation) exported to
+    TorchScript and ONNX."""
+    torch.manual_seed(2)
+    net = FinRayNet(NetConfig(in_channels=1, base_channels=4, height=64, width=32, contact=True))
+    net.set_force_normalisation([3.0], [2.0])
+    net.set_contact_normalisation(40.0, 15.0)
+    net.eval()
+    d = tmp_path_factory.mktemp("contact_model")
+    export_torchscript(net, d / "model.ts", PREPROCESS, contact_min_force_N=0.2)
+    export_onnx(net, d / "model.onnx")
+    return net, d
+
+
+@pytest.mark.parametrize("backend", ["onnx", "torchscript"])
+def test_a_contact_model_gives_the_height_beside_the_force(exported_contact, render_png, backend):
+    """``forces()`` adds ``contact_mm`` (the network's height, mm) for a model with the
+    head; the full and force-only paths agree on it."""
+    net, d = exported_contact
+    p = Predictor(d / "model.ts", backend=backend)
+    assert p.backend == backend and p.has_contact and p.contact_min_force_N == 0.2
+    frame = np.asarray(Image.open(render_png).convert("RGB"))
+    out = p.forces(frame)
+    assert list(out) == ["fx_N", "contact_mm"]
+    x = p.network_input(p.segment(frame))
+    with torch.no_grad():
+        want = float(net.contact(torch.from_numpy(x))[0])
+    assert out["contact_mm"] == pytest.approx(want, abs=1e-3) == p.contact(frame)
+    stress, force, contact = p.run_contact(x)
+    assert contact.shape == (1,) and contact[0] == pytest.approx(want, abs=1e-3)
+    np.testing.assert_allclose(stress, p.run(x)[0], atol=1e-4)
+    np.testing.assert_allclose(force, p.run_force_contact(x)[0], atol=1e-4)
+
+
+def test_cli_predict_writes_the_contact_height(exported_contact, exported, render_png, tmp_path,
+                                                capsys):
+    """forces.csv gets a contact_mm column (also --force-only), the CLI prints it,
+    --annotate draws; a model without the head keeps its columns and gives NaN."""
+    _, d = exported_contact
+    p = Predictor(d / "model.ts")
+    want = p.contact(np.asarray(Image.open(render_png).convert("RGB")))
+    for extra in ([], ["--force-only"], ["--annotate"]):
+        out = tmp_path / ("out" + "".join(extra))
+        assert main(["predict", str(render_png), "--model", str(d / "model.ts"), "--out",
+                     str(out), *extra]) == 0
+        rows = list(csv.DictReader(open(out / "forces.csv")))
+        assert list(rows[0]) == ["frame", "fx_N", "contact_mm"]
+        assert float(rows[0]["contact_mm"]) == pytest.approx(want, abs=1e-3)
+        assert f"contact {want:.2f} mm" in capsys.readouterr().out
+    assert (tmp_path / "out--annotate" / f"{render_png.stem}_annotated.png").is_file()
+    _, old = exported
+    p_old = Predictor(old / "model.ts")
+    assert not p_old.has_contact and np.isnan(p_old.contact(np.asarray(Image.open(render_png))))
+    assert main(["predict", str(render_png), "--model", str(old / "model.ts"), "--out",
+                 str(tmp_path / "old")]) == 0
+    assert list(csv.DictReader(open(tmp_path / "old" / "forces.csv")))[0].keys() == {"frame", "fx_N"}
+
+
+def test_annotate_marks_the_contact_height_on_the_front_edge():
+    """A finger 30 px wide (1 px/mm) standing on row 180 of a synthetic frame: a contact
+    at 40 mm is marked on its front (left) edge at row 140, and only when |fx| is above
+    the threshold; without crop_y_mm a height cannot be placed."""
+    from finray.annotate import CONTACT_RGB, annotate_frame, contact_point
+    from finray.dataset.imageops import base_anchored_box
+
+    frame = np.full((200, 100, 3), 60, np.uint8)
+    mask = np.zeros((200, 100), bool)
+    mask[20:180, 30:60] = True
+    frame[mask] = 200
+    box = base_anchored_box(mask, 30.0, (-5.0, 35.0), (0.0, 80.0))
+    assert box == pytest.approx((25.0, 100.0, 65.0, 180.0))
+    assert contact_point(mask, box, (0.0, 80.0), 40.0) == (140, 30)
+    assert contact_point(mask, box, (0.0, 80.0), 79.0) == (101, 30)
+    assert contact_point(mask, box, (0.0, 80.0), 200.0) is None  # above the frame
+    stress = np.zeros((64, 32), np.float32)
+    kw = dict(crop_y_mm=(0.0, 80.0), contact_min_force_N=0.2)
+    marked = annotate_frame(frame, mask, box, stress, {"fx_N": 1.0, "contact_mm": 40.0}, **kw)
+    plain = annotate_frame(frame, mask, box, stress, {"fx_N": 1.0}, **kw)
+    weak = annotate_frame(frame, mask, box, stress, {"fx_N": 0.1, "contact_mm": 40.0}, **kw)
+    weak_plain = annotate_frame(frame, mask, box, stress, {"fx_N": 0.1}, **kw)
+    np.testing.assert_array_equal(weak, weak_plain)
+    rows, cols = np.nonzero((marked != plain).any(axis=2))
+    mark = rows > 100  # the text is at the top
+    assert abs(rows[mark].mean() - 140) < 2 and abs(cols[mark].mean() - 30) < 10
+    assert (marked[140, 18:26] == CONTACT_RGB).all(axis=1).any()  # the tick left of the edge
+    with pytest.raises(ValueError, match="crop_y_mm"):
+        annotate_frame(frame, mask, box, stress, {"fx_N": 1.0, "contact_mm": 40.0})

@@ -4,7 +4,8 @@ import pytest
 import torch
 
 from finray.model import NetConfig
-from finray.train import TrainConfig, export_torchscript, load_checkpoint, save_checkpoint, train
+from finray.train import (TrainConfig, evaluate, export_torchscript, load_checkpoint, save_checkpoint,
+                          train)
 
 
 def toy(n=96, seed=0):
@@ -177,3 +178,116 @@ def test_a_start_of_another_network_is_refused(tmp_path, monkeypatch):
         stage.train_from_shards([], tmp_path / "out", NetConfig(height=32, width=16, base_channels=8),
                                 TrainConfig(**CFG), None, 0.25, log=lambda m: None,
                                 init=tmp_path / "start.pt")
+
+
+def toy_contact(n=128, seed=0):
+    """A learnable contact height: a bright line across a dim image at the contact's row
+    (mm above the bottom edge of an 80 mm window); forces in [0, 3) N drawn apart."""
+    rng = np.random.default_rng(seed)
+    x = 0.2 * rng.random((n, 1, 32, 16)).astype("f4")
+    row = rng.integers(2, 30, n)
+    x[np.arange(n), 0, row] = 1.0
+    x[np.arange(n), 0, row - 1] = 0.8
+    contact = (80.0 * (1 - (row + 0.5) / 32)).astype("f4")
+    f = (3.0 * rng.random(n)).astype("f4")[:, None]
+    return x, x.copy(), f, contact
+
+
+CONTACT_NET = NetConfig(in_channels=1, height=32, width=16, base_channels=4, contact=True)
+
+
+def test_the_contact_head_learns_a_height_it_can_see():
+    """Trained on the toy's heights, the head's validation RMSE (mm, over the masked
+    frames) is a fraction of the heights' spread; the history records it."""
+    x, s, f, c = toy_contact(256)
+    cfg = TrainConfig(**{**CFG, "epochs": 8, "lr": 3e-3, "contact_weight": 1.0})
+    val = toy_contact(128, seed=1)
+    model, hist = train(x, s, f, val, CONTACT_NET, cfg, log=lambda m: None, contact_mm=c)
+    keep = np.abs(val[2][:, 0]) > cfg.contact_min_force_N
+    assert hist.val_contact_rmse_mm[-1] < 0.4 * val[3][keep].std()
+    assert hist.train_contact_mse[-1] < 0.5 * hist.train_contact_mse[0]
+    ev = evaluate(model, *(torch.as_tensor(a) for a in val[:3]), cfg,
+                  contact_mm=torch.as_tensor(val[3]))
+    err = (ev["contact_pred_mm"].numpy() - val[3])[keep]
+    assert ev["contact_rmse_mm"] == pytest.approx(float(np.sqrt(np.mean(err ** 2))), rel=1e-4)
+
+
+def test_the_contact_loss_sees_the_masked_frames_only():
+    """Frames without a height (NaN) or pushed less than contact_min_force_N add nothing:
+    other labels there leave the training identical; the normalisation is the masked
+    frames' mean and standard deviation."""
+    x, s, f, c = toy_contact(64)
+    f[::3] = 0.05  # below 0.2 N
+    c[1::3] = np.nan
+    other = c.copy()
+    other[::3] = 1e4
+    keep = (np.abs(f[:, 0]) > 0.2) & np.isfinite(c)
+    cfg = TrainConfig(**{**CFG, "contact_weight": 2.0})
+    a, ha = train(x, s, f, None, CONTACT_NET, cfg, log=lambda m: None, contact_mm=c)
+    b, hb = train(x, s, f, None, CONTACT_NET, cfg, log=lambda m: None, contact_mm=other)
+    assert ha.train_loss == hb.train_loss and np.isfinite(ha.train_loss).all()
+    for (name, p), q in zip(a.state_dict().items(), b.state_dict().values()):
+        assert torch.equal(p, q), name
+    assert ha.n_contact_frames == keep.sum()
+    assert float(a.contact_mean_mm) == pytest.approx(c[keep].mean(), rel=1e-5)
+    assert float(a.contact_scale_mm) == pytest.approx(c[keep].std(ddof=1), rel=1e-4)
+
+
+def test_the_contact_head_needs_heights_and_its_weight():
+    x, s, f, c = toy_contact(32)
+    on = TrainConfig(**{**CFG, "contact_weight": 1.0})
+    with pytest.raises(ValueError, match="no training frame has a contact height"):
+        train(x, s, f, None, CONTACT_NET, on, log=lambda m: None, contact_mm=np.full(32, np.nan))
+    with pytest.raises(ValueError, match="needs the frames' contact heights"):
+        train(x, s, f, None, CONTACT_NET, on, log=lambda m: None)
+    with pytest.raises(ValueError, match="do not go together"):
+        train(x, s, f, None, CONTACT_NET, TrainConfig(**CFG), log=lambda m: None, contact_mm=c)
+
+
+def test_contact_training_in_bfloat16_autocast():
+    """bfloat16 autocast (train.bf16: true, emulated here if need be) trains the contact
+    head too: finite losses, a finite validation RMSE."""
+    x, s, f, c = toy_contact(48)
+    cfg = TrainConfig(**{**CFG, "epochs": 1, "bf16": True, "contact_weight": 1.0})
+    _, hist = train(x, s, f, toy_contact(16, seed=1), CONTACT_NET, cfg, log=lambda m: None,
+                    contact_mm=c)
+    assert hist.precision == "bfloat16"
+    assert np.isfinite(hist.train_contact_mse).all() and np.isfinite(hist.val_contact_rmse_mm).all()
+
+
+def test_contact_checkpoint_torchscript_and_onnx_parity(tmp_path):
+    """The contact model through its checkpoint, TorchScript (contact, force_contact,
+    forward_contact beside forward and force) and ONNX (contact_mm outputs) gives the
+    eager model's heights; the JSON says it has the head and its force threshold."""
+    import json
+
+    import onnxruntime as ort
+
+    from finray.train import export_onnx, force_onnx_path
+
+    x, s, f, c = toy_contact(64)
+    cfg = TrainConfig(**{**CFG, "contact_weight": 1.0, "contact_min_force_N": 0.3})
+    model, hist = train(x, s, f, None, CONTACT_NET, cfg, log=lambda m: None, contact_mm=c)
+    save_checkpoint(model, hist, tmp_path / "m.pt")
+    back, ck = load_checkpoint(tmp_path / "m.pt")
+    assert back.cfg.contact and ck["history"]["contact_mean_mm"] == hist.contact_mean_mm
+    export_torchscript(back, tmp_path / "m.ts", contact_min_force_N=0.3)
+    export_onnx(back, tmp_path / "m.onnx")
+    meta = json.loads((tmp_path / "m.ts.json").read_text())
+    assert meta["contact"] is True and meta["contact_min_force_N"] == 0.3
+    ts = torch.jit.load(str(tmp_path / "m.ts"))
+    xt = torch.as_tensor(x[:8])
+    with torch.no_grad():
+        s0, f0, c0 = model.forward_contact(xt)
+        s1, f1 = ts(xt)
+        f2, c2 = ts.force_contact(xt)
+        s3, f3, c3 = ts.forward_contact(xt)
+        c4 = ts.contact(xt)
+    for a, b in ((c0, c2), (c0, c3), (c0, c4), (f0, f1), (f0, f2), (f0, f3), (s0, s1), (s0, s3)):
+        assert (a - b).abs().max() < 1e-3
+    full = ort.InferenceSession(str(tmp_path / "m.onnx"))
+    force = ort.InferenceSession(str(force_onnx_path(tmp_path / "m.onnx")))
+    s5, f5, c5 = full.run(["stress_log", "force_N", "contact_mm"], {"image": x[:8]})
+    f6, c6 = force.run(["force_N", "contact_mm"], {"image": x[:8]})
+    for a, b in ((c0, c5), (c0, c6), (f0, f5), (f0, f6)):
+        assert np.abs(a.numpy() - b).max() < 1e-3

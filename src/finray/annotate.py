@@ -1,7 +1,8 @@
 """Annotated frames for a person to watch: the predicted stress map drawn over the finger
 in the camera's own pixels (log scale, a colour bar in MPa), the force as an arrow with
-its magnitude (N), the calibrated force with its interval; for a video, the annotated
-video (PyAV) and a force-against-time plot.
+its magnitude (N), the calibrated force with its interval, the predicted contact height
+(mm) as a mark on the finger's front edge; for a video, the annotated video (PyAV) and a
+force-against-time plot.
 
 The stress map covers the network's input window, which :meth:`finray.predict.Predictor.
 crop_box` places on the camera frame (pixel edges, rows down): each camera pixel of the
@@ -108,14 +109,57 @@ def peak_front_point(mask: np.ndarray, box, stress: np.ndarray,
     return r, int(np.argmax(mask[r]))
 
 
+def contact_point(mask: np.ndarray, box, crop_y_mm: tuple[float, float],
+                  contact_mm: float) -> tuple[int, int] | None:
+    """(row, col) of the finger's front edge (its leftmost mask pixel) at the height
+    ``contact_mm`` (mm above the clamped base): the window ``box`` (pixel edges, rows
+    down) spans ``crop_y_mm`` (its bottom edge at ``crop_y_mm[0]``), so a height is a row
+    by linear interpolation. The nearest row of the mask where that row has none (above
+    the tip); None outside the frame or without a mask."""
+    c0, r0, c1, r1 = box
+    y0, y1 = crop_y_mm
+    if not math.isfinite(contact_mm):
+        return None
+    row = int(math.floor(r1 - (contact_mm - y0) / (y1 - y0) * (r1 - r0)))
+    if not 0 <= row < mask.shape[0]:
+        return None
+    rows = np.flatnonzero(mask.any(axis=1))
+    if not len(rows):
+        return None
+    r = int(rows[np.argmin(np.abs(rows - row))])
+    return r, int(np.argmax(mask[r]))
+
+
+CONTACT_RGB = (80, 255, 80)  # the contact mark's colour
+
+
+def _draw_contact(canvas: np.ndarray, point: tuple[int, int], H: int) -> None:
+    """A ring on the front edge at ``point`` (row, col) and a tick left of it."""
+    r, c = point
+    rad = max(4.0, H / 90)
+    width = max(2, H // 240)
+    pad = 3 * rad + width
+
+    def mark(draw, dx, dy):
+        draw.ellipse([c - rad - dx, r - rad - dy, c + rad - dx, r + rad - dy],
+                     outline=CONTACT_RGB, width=width)
+        draw.line([(c - 3 * rad - dx, r - dy), (c - rad - dx, r - dy)], fill=CONTACT_RGB,
+                  width=width)
+    _draw_on(canvas, (c - pad, r - pad, c + pad + 1, r + pad + 1), mark)
+
+
 def annotate_frame(frame: np.ndarray, mask: np.ndarray, box, stress: np.ndarray,
                    forces: dict[str, float], calibrated: dict | None = None,
-                   label: str = "") -> np.ndarray:
+                   label: str = "", crop_y_mm: tuple[float, float] | None = None,
+                   contact_min_force_N: float = 0.0) -> np.ndarray:
     """The annotated frame (H, W + BAR_PX, 3) uint8: the stress overlay
     (:func:`overlay_stress`), the force arrow at the front edge (``fx_N`` along the push,
     to the right; ``fy_N`` across it, up), its magnitude, the calibrated force and its
     interval (``calibrated``: ``force_N``, ``lo_N``, ``hi_N``, ``level``), ``label`` (e.g.
-    the frame's name and time) and a colour bar in MPa. Text and arrow are drawn on the
+    the frame's name and time) and a colour bar in MPa. With ``contact_mm`` in ``forces``
+    (mm above the clamped base) and ``|fx_N|`` above ``contact_min_force_N`` (N): a ring
+    on the front edge at that height (:func:`contact_point`; ``crop_y_mm``, the window's
+    heights in mm, places it) and the value. Text and arrow are drawn on the
     patches they cover only, the colour bar is drawn once per frame height: a 1280x720
     frame costs a few ms (``finray.benchmarks.realtime``)."""
     rgb = np.asarray(frame)
@@ -145,6 +189,14 @@ def annotate_frame(frame: np.ndarray, mask: np.ndarray, box, stress: np.ndarray,
     text = [label] if label else []
     text.append(f"|F| {mag:.2f} N  (fx {fx:.2f} N, fy {fy:.2f} N)" if "fy_N" in forces
                 else f"fx {fx:.2f} N")
+    contact = forces.get("contact_mm")
+    if contact is not None and math.isfinite(contact) and abs(fx) > contact_min_force_N:
+        if crop_y_mm is None:
+            raise ValueError("a contact height needs crop_y_mm (the window's heights, mm) to be drawn")
+        point = contact_point(np.asarray(mask, bool), box, crop_y_mm, contact)
+        if point is not None:
+            _draw_contact(canvas, point, H)
+        text[-1] += f"  contact {contact:.1f} mm"
     if calibrated:
         text.append(f"calibrated {calibrated['force_N']:.2f} N, "
                     f"{100 * calibrated['level']:.0f} % [{calibrated['lo_N']:.2f}, "

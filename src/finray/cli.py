@@ -262,7 +262,9 @@ stream (rtsp://, udp://, tcp://, http://), read until it ends or Ctrl-C, the new
 frame each time (frames that come while the network is busy are dropped and counted).
 The finger is segmented and cropped as in the dataset
 stage, anchored on its clamped base, so camera frames of any size work. Writes
-forces.csv (frame[,t_s],fx_N,fy_N: the model's force outputs, a video frame's time; a row as each frame completes) and, per frame,
+forces.csv (frame[,t_s],fx_N,fy_N[,contact_mm]: the model's force outputs and, for a
+model trained with the contact head, the contact height in mm (on the finger, from its
+clamped base), a video frame's time; a row as each frame completes) and, per frame,
 <name>_stress.exr (log10(1 + sigma / 1 kPa)) and <name>_stress.png. A frame that
 cannot be predicted (corrupt, no finger) is reported on stderr and skipped, the
 others are written (exit code 1); bad input stops with one line (exit code 2).
@@ -326,10 +328,12 @@ def _predict_parser(sub) -> None:
 
 
 def _force_line(row: dict) -> str:
-    """``<frame>\t[t 1.2345 s\t]fx 1.2345 N\tfy -0.2345 N`` of a predicted row."""
+    """``<frame>\t[t 1.2345 s\t]fx 1.2345 N\tfy -0.2345 N[\tcontact 34.12 mm]`` of a
+    predicted row."""
     t = [f"t {row['t_s']:.4f} s"] if row.get("t_s") is not None else []
+    c = [f"contact {row['contact_mm']:.2f} mm"] if "contact_mm" in row else []
     return "\t".join([row["frame"], *t, *(f"{k.removesuffix('_N')} {v:.4f} N"
-                                           for k, v in row.items() if k.endswith("_N"))])
+                                           for k, v in row.items() if k.endswith("_N")), *c])
 
 
 def _calibrated_line(row: dict) -> str:

@@ -13,6 +13,13 @@ Outputs: the log-scale stress map ``(B, 1, H, W)`` and the force ``(B, n_forces)
   output; sigmoid after the first, ReLU after the others, batch-norm after the
   first two. The force is predicted normalised; the mean and scale (N) are stored
   in the model's buffers, so ``forward`` returns newtons.
+- Contact head (``NetConfig.contact``; ours, not the paper's): ``h`` flattened through
+  fully connected layers 64-16 (ReLU) to one output, the height (mm, the finger's frame,
+  the clamped base at 0) of the force-weighted centroid of the contact; normalised like
+  the force (``contact_mean_mm``, ``contact_scale_mm``). A head of its own, not a third
+  output of the force head, so that :mod:`finray.adapt`, which re-fits the force head's
+  last layers, sees the force head it knows. Read with :meth:`FinRayNet.contact`,
+  :meth:`FinRayNet.force_contact` (no stress decoder) or :meth:`FinRayNet.forward_contact`.
 
 Initial weights (``NetConfig.init``; the paper does not say): ``"he"`` draws each
 convolution from N(0, gain^2 / fan_in) with zero bias (He et al. 2015; gain sqrt(2)
@@ -39,6 +46,7 @@ class NetConfig:
     n_forces: int = 1
     hidden: tuple[int, ...] = (128, 64, 32, 8)
     init: str = "he"  # initial weights: "he" or "torch" (PyTorch's default; module docstring)
+    contact: bool = False  # a contact-height head (module docstring); False: models before it
 
     def __post_init__(self):
         if self.init not in INITS:
@@ -51,6 +59,8 @@ class NetConfig:
 
 
 INITS = ("he", "torch")
+#: The contact head's hidden widths (module docstring).
+CONTACT_HIDDEN = (64, 16)
 
 
 def he_init(module: nn.Module) -> None:
@@ -121,6 +131,13 @@ class FinRayNet(nn.Module):
         self.register_buffer("force_scale_N", torch.ones(cfg.n_forces))
         if cfg.init == "he":
             he_init(self)
+        if cfg.contact:  # drawn last: the other layers' initial weights are a model's without it
+            self.contact_head = nn.Sequential(
+                nn.Flatten(), nn.Linear(n_latent, CONTACT_HIDDEN[0]), nn.ReLU(inplace=True),
+                nn.Linear(CONTACT_HIDDEN[0], CONTACT_HIDDEN[1]), nn.ReLU(inplace=True),
+                nn.Linear(CONTACT_HIDDEN[1], 1))
+            self.register_buffer("contact_mean_mm", torch.zeros(1))
+            self.register_buffer("contact_scale_mm", torch.ones(1))
 
     def encode(self, x: torch.Tensor) -> tuple[torch.Tensor, list[torch.Tensor]]:
         skips = []
@@ -152,6 +169,44 @@ class FinRayNet(nn.Module):
         (about 40 % of the full network's cost; for control loops)."""
         h, _ = self.encode(x)
         return self.force_head(h) * self.force_scale_N + self.force_mean_N
+
+    def contact(self, x: torch.Tensor) -> torch.Tensor:
+        """Contact height (B,) in mm (the finger's frame, the clamped base at 0): the
+        encoder and the contact head only. Meaningful where the finger is pushed
+        (training's frames above ``train.contact_min_force_N``)."""
+        h, _ = self.encode(x)
+        return self._contact_mm(h)
+
+    def force_contact(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Force (B, n_forces) in N and contact height (B,) in mm, without the stress
+        decoder (one encoder pass)."""
+        h, _ = self.encode(x)
+        return self.force_head(h) * self.force_scale_N + self.force_mean_N, self._contact_mm(h)
+
+    def forward_contact(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Stress map (log scale), force (B, n_forces) in N and contact height (B,) in mm."""
+        stress, f, c = self.forward_normalised_all(x)
+        return (stress, f * self.force_scale_N + self.force_mean_N,
+                c * self.contact_scale_mm + self.contact_mean_mm)
+
+    def forward_normalised_all(self, x: torch.Tensor):
+        """Stress map, force and contact height (B,) in normalised units (what the loss
+        sees); the contact is None for a model without the contact head."""
+        h, skips = self.encode(x)
+        c = self.contact_head(h)[:, 0] if self.cfg.contact else None
+        return self.decode(h, skips), self.force_head(h), c
+
+    def _contact_mm(self, h: torch.Tensor) -> torch.Tensor:
+        if not self.cfg.contact:
+            raise RuntimeError("this model has no contact head (NetConfig.contact is False)")
+        return self.contact_head(h)[:, 0] * self.contact_scale_mm + self.contact_mean_mm
+
+    def set_contact_normalisation(self, mean_mm: float, scale_mm: float) -> None:
+        self.contact_mean_mm.fill_(float(mean_mm))
+        self.contact_scale_mm.fill_(float(scale_mm))
+
+    def normalise_contact(self, c_mm: torch.Tensor) -> torch.Tensor:
+        return (c_mm - self.contact_mean_mm) / self.contact_scale_mm
 
     def set_force_normalisation(self, mean_N, scale_N) -> None:
         self.force_mean_N.copy_(torch.as_tensor(mean_N, dtype=torch.float32).reshape(-1))

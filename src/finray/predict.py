@@ -139,11 +139,13 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
     """Predict every frame of ``source`` (image, folder of images, video, or a live source:
     :func:`finray.media.is_live`, read until it ends or Ctrl-C) into
     ``out_dir``: ``forces.csv`` (``frame,fx_N``; also ``fy_N`` for a model that predicts
-    it; while it runs ``forces.csv.part``, a row appended and flushed as each frame
+    it, and ``contact_mm``, the contact height in mm, for a model with the contact head
+    (:attr:`Predictor.has_contact`); while it runs ``forces.csv.part``, a row appended and flushed as each frame
     completes; for a video also ``t_s``, each frame's time) and, per frame unless
     ``force_only``, the stress map as EXR and as a coloured PNG. ``annotate``
     (:mod:`finray.annotate`): each frame with its stress map drawn over the finger, the
-    force arrow and values (``<name>_annotated.png``; a video's frames go into
+    force arrow and values, the contact height's mark on the finger's front edge
+    (``<name>_annotated.png``; a video's frames go into
     ``annotated.mp4`` instead, at its frame rate) and, for more than one frame, the
     force against time (``forces.png``). ``maps=False``: no per-frame stress map files
     (a long video or a stream; the annotated frames still show the maps).
@@ -151,7 +153,7 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
 
     A frame that cannot be predicted (unreadable, not an image, no finger) is skipped:
     ``on_skip(name, message)`` is called and the run goes on. ``on_frame(row)`` gets
-    each row ``{"frame", "fx_N"[, "fy_N"]}`` as it completes. Returns ``{"rows": [...],
+    each row ``{"frame", "fx_N"[, "fy_N"][, "contact_mm"]}`` as it completes. Returns ``{"rows": [...],
     "skipped": [(name, message), ...], "interrupted"}`` (a live source ended by Ctrl-C),
     for a live source also ``received`` and ``dropped`` (frames it sent; frames that
     came while the network was busy). With ``calibration`` (a ``calibration.json`` of
@@ -287,7 +289,8 @@ def _predict_loop(p, run: _Run, writer) -> dict:
     with open(run.part, "w") as table:
         cal_cols = ["force_N", "lo_N", "hi_N"] if calibration is not None else []
         time_cols = ["t_s"] if video else []
-        table.write(",".join(["frame", *time_cols, *p.force_names, *cal_cols]) + "\n")
+        out_cols = [*p.force_names, *(["contact_mm"] if p.has_contact else [])]
+        table.write(",".join(["frame", *time_cols, *out_cols, *cal_cols]) + "\n")
         table.flush()
         try:
             for name, frame, t_s in frames:
@@ -297,11 +300,11 @@ def _predict_loop(p, run: _Run, writer) -> dict:
                     mask = segment_frame(frame)
                     x = p.network_input(mask)
                     if run.force_only:
-                        fvec = p.run_force(x)[0]
+                        fvec, cvec = p.run_force_contact(x)
                     else:
-                        stress, fvec = p.run(x)
-                        stress, fvec = stress[0, 0], fvec[0]
-                    force = float(fvec[0])
+                        stress, fvec, cvec = p.run_contact(x)
+                        stress = stress[0, 0]
+                    fvec, force, contact = fvec[0], float(fvec[0, 0]), float(cvec[0])
                 except FrameError as exc:
                     msg = f"{name}: {exc}"
                     if run.one_image:
@@ -318,7 +321,8 @@ def _predict_loop(p, run: _Run, writer) -> dict:
                     s = np.clip(stress / max(float(stress.max()), 1e-6), 0, 1)
                     write_png(written[-1], (cm.inferno(s)[..., :3] * 255).astype(np.uint8))
                 row = {"frame": name, **({"t_s": t_s} if video else {}),
-                       **{n: float(v) for n, v in zip(p.force_names, fvec)}}
+                       **{n: float(v) for n, v in zip(p.force_names, fvec)},
+                       **({"contact_mm": contact} if p.has_contact else {})}
                 if calibration is not None:
                     from .calibration import predictive, spread
 
@@ -332,7 +336,9 @@ def _predict_loop(p, run: _Run, writer) -> dict:
 
                     cal = {k: row[k] for k in ("force_N", "lo_N", "hi_N", "level")} if calibration else None
                     label = name + (f"  t = {t_s:.3f} s" if t_s is not None else "")
-                    img = annotate_frame(frame, mask, p.crop_box(mask), stress, row, cal, label)
+                    img = annotate_frame(frame, mask, p.crop_box(mask), stress, row, cal, label,
+                                         crop_y_mm=p.crop_y_mm,
+                                         contact_min_force_N=p.contact_min_force_N)
                     if run.on_annotated is not None:
                         run.on_annotated(img)
                     if writer is not None:
@@ -342,7 +348,7 @@ def _predict_loop(p, run: _Run, writer) -> dict:
                         write_png(written[-1], img)
                 times = ["" if t_s is None else f"{t_s:.6f}"] if video else []
                 table.write(",".join([name, *times,
-                                      *(f"{row[n]:.6g}" for n in [*p.force_names, *cal_cols])]) + "\n")
+                                      *(f"{row[n]:.6g}" for n in [*out_cols, *cal_cols])]) + "\n")
                 table.flush()  # a long video's forces can be read while it runs
                 rows.append(row)
                 if run.on_frame is not None:

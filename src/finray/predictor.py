@@ -4,6 +4,7 @@
     predict = Predictor("results/train/plain/model.ts")
     force_N, stress_log = predict(frame)        # frame: (H, W, 3) uint8 numpy array
     force_N = predict.force(frame)              # force only: no stress decoder, faster
+    out = predict.forces(frame)                 # {"fx_N", "fy_N"[, "contact_mm"]}
 
 Preprocessing is the dataset stage's: segment the finger (threshold + morphology),
 crop, area-resample to the network's input. The crop is anchored on the finger
@@ -18,6 +19,12 @@ beside ``model.ts`` (faster than TorchScript at batch 1 on one thread: both are 
 (``device="cuda"``, or ``"auto"`` where torch sees one) it runs in TorchScript, or in
 ONNX Runtime's CUDAExecutionProvider when ``backend="onnx"`` is asked for and the
 installed ONNX Runtime has it; preprocessing stays on the CPU.
+
+A model trained with the contact head (``train.contact_weight`` > 0) also gives the
+contact height (mm, in the finger's frame: the clamped base at 0, up the finger), the
+height of the force-weighted centroid of the contact; :attr:`Predictor.has_contact`
+says whether it does (else the height is NaN). It was trained on frames with ``|fx|``
+above :attr:`Predictor.contact_min_force_N`; below, it is a guess.
 """
 from __future__ import annotations
 
@@ -137,6 +144,15 @@ class Predictor:
                 raise InputError(f"{model_path} is not a TorchScript model ({one_line(exc)})"
                                  ) from None
             self._has_force = hasattr(self.model, "force")  # exports before the force path
+        #: Whether the model predicts the contact height (mm): its TorchScript has
+        #: ``force_contact`` (an adapted ensemble has not), its ONNX files ``contact_mm``.
+        if backend == "onnx":
+            self.has_contact = all("contact_mm" in [o.name for o in sess.get_outputs()]
+                                   for sess in (self._full, self._force))
+        else:
+            self.has_contact = hasattr(self.model, "force_contact")
+        #: The smallest |fx| (N) the contact height was trained on.
+        self.contact_min_force_N = float(self.meta.get("contact_min_force_N") or 0.0)
 
     def crop_box(self, mask: np.ndarray) -> tuple[float, float, float, float]:
         """Training window in pixel edges ``(col0, row0, col1, row1)`` from the mask
@@ -171,26 +187,55 @@ class Predictor:
         frame = np.zeros((96, 48, 3), np.uint8)
         frame[8:88, 8:40] = 255
         x = self.network_input(self.segment(frame))
-        self.run(x)
-        self.run_force(x)
+        self.run_contact(x)
+        self.run_force_contact(x)
 
     def run(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The network on inputs (B, 1, H, W) float32: log-stress maps (B, 1, H, W) and
         forces (B, n_forces) in N."""
         x = np.ascontiguousarray(x, dtype=np.float32)
         if self.backend == "onnx":
-            stress, force = self._full.run(None, {"image": x})
+            stress, force = self._full.run(["stress_log", "force_N"], {"image": x})
             return stress, force
         with torch.inference_mode():
             stress, force = self.model(torch.from_numpy(x).to(self.device))
         return stress.cpu().numpy(), force.cpu().numpy()
+
+    def run_contact(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`run` and the contact height (B,) in mm, in one pass (NaN for a model
+        without the contact head)."""
+        if not self.has_contact:
+            stress, force = self.run(x)
+            return stress, force, np.full(len(force), np.nan, np.float32)
+        x = np.ascontiguousarray(x, dtype=np.float32)
+        if self.backend == "onnx":
+            stress, force, contact = self._full.run(["stress_log", "force_N", "contact_mm"],
+                                                    {"image": x})
+            return stress, force, contact
+        with torch.inference_mode():
+            out = self.model.forward_contact(torch.from_numpy(x).to(self.device))
+        return tuple(t.cpu().numpy() for t in out)
+
+    def run_force_contact(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`run_force` and the contact height (B,) in mm, without the stress decoder
+        (NaN for a model without the contact head)."""
+        if not self.has_contact:
+            force = self.run_force(x)
+            return force, np.full(len(force), np.nan, np.float32)
+        x = np.ascontiguousarray(x, dtype=np.float32)
+        if self.backend == "onnx":
+            force, contact = self._force.run(["force_N", "contact_mm"], {"image": x})
+            return force, contact
+        with torch.inference_mode():
+            force, contact = self.model.force_contact(torch.from_numpy(x).to(self.device))
+        return force.cpu().numpy(), contact.cpu().numpy()
 
     def run_force(self, x: np.ndarray) -> np.ndarray:
         """Forces (B, n_forces) in N of inputs (B, 1, H, W) float32, without the stress
         decoder."""
         x = np.ascontiguousarray(x, dtype=np.float32)
         if self.backend == "onnx":
-            return self._force.run(None, {"image": x})[0]
+            return self._force.run(["force_N"], {"image": x})[0]
         with torch.inference_mode():
             xt = torch.from_numpy(x).to(self.device)
             f = self.model.force(xt) if self._has_force else self.model(xt)[1]
@@ -216,9 +261,16 @@ class Predictor:
 
     def forces(self, frame: np.ndarray) -> dict[str, float]:
         """Every force output (N) of one frame by name (:attr:`force_names`, e.g.
-        ``fx_N``, ``fy_N``), without the stress map."""
-        f = self.run_force(self.network_input(self.segment(frame)))[0]
-        return {n: float(v) for n, v in zip(self.force_names, f)}
+        ``fx_N``, ``fy_N``) and, for a model with the contact head, ``contact_mm`` (the
+        contact height, mm), without the stress map."""
+        f, c = self.run_force_contact(self.network_input(self.segment(frame)))
+        out = {n: float(v) for n, v in zip(self.force_names, f[0])}
+        return out | ({"contact_mm": float(c[0])} if self.has_contact else {})
+
+    def contact(self, frame: np.ndarray) -> float:
+        """Contact height (mm, the clamped base at 0) of one frame, without the stress
+        map; NaN for a model without the contact head."""
+        return float(self.run_force_contact(self.network_input(self.segment(frame)))[1][0])
 
     def force(self, frame: np.ndarray) -> float:
         """Force (N, along the push) of one frame, without the stress map (faster)."""

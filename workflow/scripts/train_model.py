@@ -10,7 +10,9 @@ with log_to(snakemake.log[0]):
     net = NetConfig(in_channels=1, base_channels=t["base_channels"], height=h, width=w,
                     init=t["init"])
     cfg = TrainConfig(epochs=t["epochs"], batch_size=t["batch_size"], lr=t["lr"],
-                      alpha_stress=t["alpha_stress"], alpha_force=t["alpha_force"], seed=t["seed"],
+                      alpha_stress=t["alpha_stress"], alpha_force=t["alpha_force"],
+                      contact_weight=t["contact_weight"],
+                      contact_min_force_N=t["contact_min_force_N"], seed=t["seed"],
                       split_seed=t["split_seed"],
                       threads=snakemake.threads, bf16=t["bf16"], device=t["device"],
                       channels_last=t["channels_last"], progress=False, schedule=t["schedule"],

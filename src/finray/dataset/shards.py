@@ -18,7 +18,9 @@ a render directory's files (:func:`build_shard`):
      from the simulation's front view (also for pitched images); at pitch 0 its
      support agrees with ``mask_HxW``.
 
-Also per frame: ``frame``, ``fea_frame``, ``displacement_mm``, ``fx_N``, ``fy_N``;
+Also per frame: ``frame``, ``fea_frame``, ``displacement_mm``, ``fx_N``, ``fy_N``,
+``contact_y_mm`` (the height of the contact's force-weighted centroid in the finger's
+frame, the clamped base at 0; NaN without contact, and in shards of results without it);
 and ``meta`` (JSON): the scene (object, material, height_mm, split, splits,
 pitch_deg, scene_id), sizes, crop, render and dataset parameters, and
 ``support_iou_min``: the lowest IoU over the frames of the segmented image and the
@@ -27,7 +29,8 @@ stress support at render resolution (pixel alignment, >= 0.98 at pitch 0).
 A lab recording's shard (:func:`finray.recording.ingest`) has the same ``input_HxW``,
 ``mask_HxW`` and per-frame values (``fx_N``: the sensor's push force; ``fea_frame``,
 ``displacement_mm``, ``fy_N``: NaN; also ``t_s`` and ``crop_box_px``) but no stress
-map: ``meta["has_stress"]`` is false and :func:`load_shard` fills ``stress_HxW`` with NaN.
+map: ``meta["has_stress"]`` is false and :func:`load_shard` fills ``stress_HxW`` with NaN
+(and ``contact_y_mm``, which it has not, with NaN too).
 
 Corruptions (noise, occlusion) are not baked in: they are drawn at use time
 from :func:`~finray.dataset.augment.augment_seed` so any sample can be replayed.
@@ -45,7 +48,7 @@ from .imageops import _axis_weights
 from .params import SHARD_KEYS, DatasetParams, scene_id, size_key
 
 MANIFEST_COLUMNS = ["shard", "scene_id", "object", "material", "height_mm", "split", "pitch_deg",
-                    "frame", "fea_frame", "displacement_mm", "fx_N", "fy_N"]
+                    "frame", "fea_frame", "displacement_mm", "fx_N", "fy_N", "contact_y_mm"]
 
 
 #: "Covers at least half the pixel", robust to rounding: area averages of binary
@@ -185,6 +188,7 @@ def _write_shard(out_npz, index: dict, prep: FramePreparer, scene: dict | None,
         displacement_mm=np.array([f["displacement_mm"] for f in fr], dtype=np.float64),
         fx_N=np.array([f["fx_N"] for f in fr], dtype=np.float64),
         fy_N=np.array([f["fy_N"] for f in fr], dtype=np.float64),
+        contact_y_mm=np.array([f.get("contact_y_mm", np.nan) for f in fr], dtype=np.float64),
         meta=np.array(json.dumps(meta)),
     )
     save_npz(out_npz, out)
@@ -280,6 +284,7 @@ def load_shard(path: str | Path) -> dict:
         d = {k: f[k] for k in f.files}
     d["meta"] = json.loads(str(d["meta"]))
     d["has_stress"] = bool(d["meta"].get("has_stress", True))
+    d.setdefault("contact_y_mm", np.full(len(d["frame"]), np.nan))  # shards before it, recordings
     if not d["has_stress"]:
         for name in [k for k in d if k.startswith("input_")]:
             d["stress_" + name[len("input_"):]] = np.full(d[name].shape, np.nan, np.float32)
@@ -288,7 +293,7 @@ def load_shard(path: str | Path) -> dict:
 
 #: The per-frame table of :func:`load_frames`.
 FRAME_COLUMNS = ["scene_id", "object", "material", "height_mm", "pitch_deg", "frame",
-                 "displacement_mm", "fx_N", "fy_N"]
+                 "displacement_mm", "fx_N", "fy_N", "contact_y_mm"]
 
 
 def load_frames(shard_paths, size: tuple[int, int], every: int = 1, require_stress: bool = False,
@@ -298,7 +303,9 @@ def load_frames(shard_paths, size: tuple[int, int], every: int = 1, require_stre
 
     Arrays, as stored: ``images`` (N, H, W) uint8 (the soft silhouette x255),
     ``stress`` (N, H, W) float32 log-stress, ``mask`` (N, H, W) bool, ``fx_N`` and
-    ``fy_N`` (N,) in N (along the push and across it; NaN where a recording has none).
+    ``fy_N`` (N,) in N (along the push and across it; NaN where a recording has none),
+    ``contact_y_mm`` (N,) the contact height in mm (NaN without contact, in a recording
+    and in shards built before it).
     Table (pandas): :data:`FRAME_COLUMNS`. ``every``: keep every ``every``-th frame of
     each shard (evenly over the push). Only the arrays of ``size`` are read. A shard
     without a stress map (a lab recording) gives NaN stress, or a ``ValueError`` with
@@ -308,7 +315,8 @@ def load_frames(shard_paths, size: tuple[int, int], every: int = 1, require_stre
 
     k = size_key(size)
     sel = slice(0, None, max(1, int(every)))
-    arrays: dict[str, list] = {"images": [], "stress": [], "mask": [], "fx_N": [], "fy_N": []}
+    arrays: dict[str, list] = {"images": [], "stress": [], "mask": [], "fx_N": [], "fy_N": [],
+                               "contact_y_mm": []}
     rows = []
     for path in shard_paths:
         with np.load(path, allow_pickle=False) as f:
@@ -331,12 +339,14 @@ def load_frames(shard_paths, size: tuple[int, int], every: int = 1, require_stre
             arrays["mask"].append(f[f"mask_{k}"][sel].astype(bool))
             arrays["fx_N"].append(f["fx_N"][sel])
             arrays["fy_N"].append(f["fy_N"][sel])
+            arrays["contact_y_mm"].append(f["contact_y_mm"][sel] if "contact_y_mm" in f.files
+                                          else np.full(len(x), np.nan))
             frame, disp = f["frame"][sel], f["displacement_mm"][sel]
         rows.append(pd.DataFrame({
             "scene_id": sc["scene_id"], "object": sc.get("object"), "material": sc.get("material"),
             "height_mm": float(sc.get("height_mm", np.nan)), "pitch_deg": float(sc["pitch_deg"]),
             "frame": frame, "displacement_mm": disp, "fx_N": arrays["fx_N"][-1],
-            "fy_N": arrays["fy_N"][-1]},
+            "fy_N": arrays["fy_N"][-1], "contact_y_mm": arrays["contact_y_mm"][-1]},
             columns=FRAME_COLUMNS))
     if not rows:
         raise ValueError("no shards given")
@@ -349,7 +359,8 @@ def write_manifest(shard_paths, out_csv: str | Path, relative_to: str | Path | N
     appears under its own split and under ``pitch``); returns the DataFrame.
 
     Columns: ``shard`` (path, relative to ``relative_to`` if given), scene_id, object,
-    material, height_mm, split, pitch_deg, frame, fea_frame, displacement_mm, fx_N, fy_N.
+    material, height_mm, split, pitch_deg, frame, fea_frame, displacement_mm, fx_N, fy_N,
+    contact_y_mm.
     """
     import pandas as pd
 
@@ -358,6 +369,8 @@ def write_manifest(shard_paths, out_csv: str | Path, relative_to: str | Path | N
         with np.load(p, allow_pickle=False) as f:
             meta = json.loads(str(f["meta"]))
             per_frame = {k: f[k] for k in ("frame", "fea_frame", "displacement_mm", "fx_N", "fy_N")}
+            n = len(per_frame["frame"])
+            per_frame["contact_y_mm"] = f["contact_y_mm"] if "contact_y_mm" in f.files else np.full(n, np.nan)
         sc = meta["scene"]
         name = str(Path(p).resolve().relative_to(Path(relative_to).resolve())) if relative_to else p
         for split in sc["splits"]:

@@ -3,7 +3,8 @@
 Force: MSE (N^2, the paper's metric), RMSE (N), NRMSE (% of the largest |true force|
 of the set, so that sets of different force scales compare), R^2; of fx (along the
 push, the headline), and of fy and the magnitude for a two-output model. Stress: MSE of the
-log-stress inside the finger mask and SSIM (scikit-image) of the maps.
+log-stress inside the finger mask and SSIM (scikit-image) of the maps. Contact height:
+RMSE and MAE (mm) over the frames pushed harder than a threshold.
 """
 from __future__ import annotations
 
@@ -39,6 +40,20 @@ def force_vector_metrics(fx_true, fy_true, fx_pred, fy_pred) -> dict:
     mag = force_metrics(np.hypot(fx_true, fy_true), np.hypot(fx_pred, fy_pred))
     keys = ("mse_N2", "rmse_N", "nrmse_pct", "r2", "max_true_N")
     return {**{f"fy_{k}": fy[k] for k in keys}, **{f"mag_{k}": mag[k] for k in keys}}
+
+
+def contact_metrics(true_mm, pred_mm, fx_N, min_force_N: float = 0.5) -> dict:
+    """Contact-height errors over the frames with a true height and ``|fx_N| >
+    min_force_N`` (N): ``rmse_mm``, ``mae_mm`` (NaN where there are none) and ``n``, the
+    frames counted. Heights in mm (the finger's frame), one per frame."""
+    t, p, f = (np.asarray(a, dtype=float).ravel() for a in (true_mm, pred_mm, fx_N))
+    if not (t.shape == p.shape == f.shape):
+        raise ValueError(f"need one height and one force per frame, got {t.shape}, {p.shape}, {f.shape}")
+    keep = np.isfinite(t) & (np.abs(f) > min_force_N)
+    err = p[keep] - t[keep]
+    n = int(keep.sum())
+    return {"n": n, "rmse_mm": float(np.sqrt(np.mean(err ** 2))) if n else float("nan"),
+            "mae_mm": float(np.mean(np.abs(err))) if n else float("nan")}
 
 
 def stress_metrics(true_maps, pred_maps, masks) -> dict:

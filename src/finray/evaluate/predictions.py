@@ -30,15 +30,23 @@ def occlude(images: np.ndarray, table: pd.DataFrame, level: str, seed: int,
     return out
 
 
-def predict_images(predictor, images: np.ndarray, batch: int = 256) -> tuple[np.ndarray, np.ndarray]:
+def predict_images(predictor, images: np.ndarray, batch: int = 256, contact: bool = False):
     """Forces (N, n_forces) in N (the predictor's ``force_names``: ``fx_N`` first) and
     log-stress maps (N, H, W) of network inputs (N, H, W), uint8 or [0, 1] floats,
-    through :meth:`finray.predict.Predictor.run` in batches."""
+    through :meth:`finray.predict.Predictor.run` in batches. ``contact``: also the
+    contact heights (N,) in mm, a third array (NaN for a model without the contact
+    head, :attr:`~finray.predict.Predictor.has_contact`)."""
     x = np.asarray(images)
     scale = 255.0 if x.dtype == np.uint8 else 1.0
-    forces, maps = [], []
+    forces, maps, heights = [], [], []
     for i in range(0, len(x), batch):
-        stress, force = predictor.run(x[i:i + batch, None].astype(np.float32) / scale)
+        xb = x[i:i + batch, None].astype(np.float32) / scale
+        if contact:
+            stress, force, c = predictor.run_contact(xb)
+            heights.append(c)
+        else:
+            stress, force = predictor.run(xb)
         forces.append(force)
         maps.append(stress[:, 0])
-    return np.concatenate(forces), np.concatenate(maps)
+    out = np.concatenate(forces), np.concatenate(maps)
+    return (*out, np.concatenate(heights)) if contact else out

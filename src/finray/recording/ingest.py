@@ -237,6 +237,7 @@ def ingest(take: str | Path, out_dir: str | Path, params: IngestParams | None = 
         frame=sel["frame"].to_numpy(dtype=np.int32), t_s=sel["t_s"].to_numpy(dtype=np.float64),
         fea_frame=np.full(n, np.nan), displacement_mm=np.full(n, np.nan),
         fx_N=sel["force_N"].to_numpy(dtype=np.float64), fy_N=np.full(n, np.nan),
+        contact_y_mm=np.full(n, np.nan),  # the contact height: not measured on a rig
         crop_box_px=np.asarray(boxes, dtype=np.float64)[keep],
         meta=np.array(json.dumps(shard_meta)))
     save_npz(out_dir / "shard.npz", arrays)

@@ -14,6 +14,11 @@ class TrainConfig:
     lr: float = 4e-4  # the peak of the cosine (the paper: a constant 1e-4)
     alpha_stress: float = 1.0
     alpha_force: float = 10.0
+    # the contact-height term's weight (0: no contact head, the models before it); its
+    # MSE (normalised like the force) over the frames with a contact height whose |fx|
+    # is above contact_min_force_N (N)
+    contact_weight: float = 0.0
+    contact_min_force_N: float = 0.2
     seed: int = 0  # the training's draws: initial weights, batch order, augmentation
     # the validation scenes (part of the data, not of the training's draw: a seed study
     # varies the training on the same data)
@@ -54,6 +59,14 @@ class History:
     val_force_rmse_running_bn_N: list = field(default_factory=list)  # TrainConfig.compare_running_bn
     force_mean_N: list = field(default_factory=list)  # the force normalisation (training frames)
     force_std_N: list = field(default_factory=list)
+    # the contact head's (TrainConfig.contact_weight > 0): the masked normalised MSE per
+    # epoch, the validation RMSE (mm) on the masked frames, the normalisation (mm) and the
+    # number of training frames in the mask
+    train_contact_mse: list = field(default_factory=list)
+    val_contact_rmse_mm: list = field(default_factory=list)
+    contact_mean_mm: float | None = None
+    contact_std_mm: float | None = None
+    n_contact_frames: int = 0
 
 
 @dataclass

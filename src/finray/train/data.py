@@ -15,6 +15,7 @@ def load_split(shards, size: tuple[int, int], every: int = 1,
     """The frames of shards at one input size as network tensors (arrays): ``images``
     (N, 1, H, W) in [0, 1], ``stress`` (N, 1, H, W), ``mask`` (N, H, W) bool, ``fx_N``
     (N, 1), ``force_N`` (N, len(forces)): the components ``forces`` (``fx``, ``fy``) in N,
+    ``contact_mm`` (N,) the contact height in mm (NaN without contact or label),
     and per-frame ``scene_id``, ``displacement_mm``; with ``camera`` also
     ``camera_images`` (N, 1, H, W) in [0, 1]: each frame seen by its randomised camera.
     ``every``: keep every ``every``-th frame of each shard (see
@@ -31,6 +32,7 @@ def load_split(shards, size: tuple[int, int], every: int = 1,
             "stress": a["stress"][:, None].astype(np.float32), "mask": a["mask"],
             "fx_N": a["fx_N"][:, None].astype(np.float32),
             "force_N": np.column_stack([a[FORCE_COMPONENTS[c]] for c in forces]).astype(np.float32),
+            "contact_mm": a["contact_y_mm"].astype(np.float32),
             "scene_id": np.array(table["scene_id"].tolist()),
             "displacement_mm": table["displacement_mm"].to_numpy()}
 

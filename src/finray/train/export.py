@@ -32,26 +32,38 @@ def load_checkpoint(path: str | Path) -> tuple[FinRayNet, dict]:
     return model, ck
 
 
-def export_torchscript(model: FinRayNet, path: str | Path, preprocess: dict | None = None,
-                       forces: list[str] | None = None) -> None:
-    """Trace the model (eval mode, float32) to TorchScript: ``forward`` gives (stress,
-    force N), ``force`` the force (N) alone (no stress decoder); frozen.
+#: The traced methods of a model with the contact head, besides ``forward`` and ``force``.
+CONTACT_METHODS = ("contact", "force_contact", "forward_contact")
 
-    ``path + '.json'`` keeps the network's settings, the names of the force outputs
-    (``forces``, e.g. ``["fx_N", "fy_N"]``; default ``fx_N`` and on) and the preprocessing
-    (crop window, base width, segmentation) that :class:`finray.predict.Predictor` needs."""
+
+def export_torchscript(model: FinRayNet, path: str | Path, preprocess: dict | None = None,
+                       forces: list[str] | None = None,
+                       contact_min_force_N: float | None = None) -> None:
+    """Trace the model (eval mode, float32) to TorchScript: ``forward`` gives (stress,
+    force N), ``force`` the force (N) alone (no stress decoder); frozen. A model with the
+    contact head also has ``contact`` (contact height (B,) mm), ``force_contact`` (force
+    N, contact mm) and ``forward_contact`` (stress, force N, contact mm).
+
+    ``path + '.json'`` keeps the network's settings (``contact``: whether it has the
+    head), the names of the force outputs (``forces``, e.g. ``["fx_N", "fy_N"]``; default
+    ``fx_N`` and on), ``contact_min_force_N`` (the smallest |fx| the contact height was
+    trained on) and the preprocessing (crop window, base width, segmentation) that
+    :class:`finray.predict.Predictor` needs."""
     model = copy.deepcopy(model).cpu().float().eval().to(memory_format=torch.contiguous_format)
     c = model.cfg
     example = torch.rand(1, c.in_channels, c.height, c.width)
+    methods = ["force", *(CONTACT_METHODS if c.contact else ())]
     with torch.no_grad():
-        ts = torch.jit.trace_module(model, {"forward": example, "force": example})
-        ts = torch.jit.freeze(ts, preserved_attrs=["force"])
+        ts = torch.jit.trace_module(model, {"forward": example, **{m: example for m in methods}})
+        ts = torch.jit.freeze(ts, preserved_attrs=methods)
     ts.save(str(path))
     names = list(forces or list(FORCE_COMPONENTS.values())[:c.n_forces])
     if len(names) != c.n_forces:
         raise ValueError(f"{len(names)} force names for a model with {c.n_forces} force outputs")
+    extra = {"contact_min_force_N": contact_min_force_N} if c.contact else {}
     Path(str(path) + ".json").write_text(json.dumps({**model.config_dict(), "forces": names,
-                                                      "preprocess": preprocess or {}}, indent=1))
+                                                      **extra, "preprocess": preprocess or {}},
+                                                     indent=1))
 
 
 class _ForceOnly(nn.Module):
@@ -59,8 +71,17 @@ class _ForceOnly(nn.Module):
         super().__init__()
         self.model = model
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return self.model.force(x)
+    def forward(self, x: torch.Tensor):
+        return self.model.force_contact(x) if self.model.cfg.contact else self.model.force(x)
+
+
+class _Full(nn.Module):
+    def __init__(self, model: FinRayNet):
+        super().__init__()
+        self.model = model
+
+    def forward(self, x: torch.Tensor):
+        return self.model.forward_contact(x) if self.model.cfg.contact else self.model(x)
 
 
 def export_onnx(model: FinRayNet, path: str | Path) -> None:
@@ -68,23 +89,24 @@ def export_onnx(model: FinRayNet, path: str | Path) -> None:
     faster than TorchScript at batch 1 on one CPU thread (``inference_latency.json``
     times both): ``path`` (input
     ``image``, outputs ``stress_log`` and ``force_N``) and ``path`` with suffix
-    ``.force.onnx`` (the encoder and force head only, output ``force_N``)."""
+    ``.force.onnx`` (the encoder and force head only, output ``force_N``). A model with
+    the contact head has one more output in each, ``contact_mm`` (B,)."""
     import warnings
 
     model = copy.deepcopy(model).cpu().float().eval().to(memory_format=torch.contiguous_format)
     c = model.cfg
     example = torch.rand(1, c.in_channels, c.height, c.width)
     path = Path(path)
+    contact = ["contact_mm"] if c.contact else []
     with warnings.catch_warnings(), torch.no_grad():
         warnings.simplefilter("ignore")  # the TorchScript-based exporter is deprecated
-        torch.onnx.export(model, (example,), str(path), input_names=["image"],
-                          output_names=["stress_log", "force_N"], opset_version=17,
-                          dynamic_axes={"image": {0: "batch"}, "stress_log": {0: "batch"},
-                                        "force_N": {0: "batch"}}, dynamo=False)
-        torch.onnx.export(_ForceOnly(model), (example,), str(force_onnx_path(path)),
-                          input_names=["image"], output_names=["force_N"], opset_version=17,
-                          dynamic_axes={"image": {0: "batch"}, "force_N": {0: "batch"}},
-                          dynamo=False)
+        for module, file, outputs in ((_Full(model), path, ["stress_log", "force_N", *contact]),
+                                      (_ForceOnly(model), force_onnx_path(path),
+                                       ["force_N", *contact])):
+            torch.onnx.export(module, (example,), str(file), input_names=["image"],
+                              output_names=outputs, opset_version=17,
+                              dynamic_axes={n: {0: "batch"} for n in ["image", *outputs]},
+                              dynamo=False)
 
 
 def force_onnx_path(path: str | Path) -> Path:

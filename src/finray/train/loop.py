@@ -6,6 +6,12 @@ head) normalised by the training set's mean and standard deviation (stored in th
 model, so that its outputs are in N), the MSE taken over the components. Adam, seeded
 and deterministic: two runs with the same data and seed give identical losses.
 
+With ``contact_weight`` > 0 (ours) the loss also has ``contact_weight * MSE(contact)``:
+the contact height (mm), normalised by the mean and standard deviation of the frames it
+is taken over (:func:`contact_mask`: a finite height and ``|fx| > contact_min_force_N``;
+at first touch the FEA's contact is a node or two and the image barely changes, so the
+height there is neither well defined nor visible). A batch without such frames adds 0.
+
 Where training differs from the paper (whose rate is a constant 1e-4 and whose kept
 weights are not said), and why: at a constant rate a model's validation error wandered
 from epoch to epoch, and the kept weights were one draw of that wander.
@@ -106,6 +112,21 @@ def recalibrate_batchnorm(model: FinRayNet, batches, device: torch.device, chann
     return n
 
 
+def contact_mask(contact_mm: torch.Tensor, fx_N: torch.Tensor, min_force_N: float) -> torch.Tensor:
+    """Frames whose contact height trains and scores the contact head (bool (N,)): a finite
+    height (mm) and ``|fx_N| > min_force_N`` (N)."""
+    return torch.isfinite(contact_mm) & (fx_N.abs() > min_force_N)
+
+
+def _masked_mse(pred: torch.Tensor, target: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """Mean squared error over ``mask``'s frames (0 where there are none); NaN targets
+    outside the mask touch neither the value nor the gradient."""
+    m = mask.to(pred.dtype)
+    err = torch.where(mask, pred - torch.where(mask, target, torch.zeros_like(target)),
+                      torch.zeros_like(pred))
+    return (err ** 2 * m).sum() / m.sum().clamp_min(1.0)
+
+
 def _use_bf16(cfg: TrainConfig, device: torch.device) -> bool:
     return resolve_bf16(cfg.bf16, device=device)[0] if isinstance(cfg.bf16, str) else bool(cfg.bf16)
 
@@ -127,24 +148,30 @@ def _prep(x: torch.Tensor, channels_last: bool) -> torch.Tensor:
 
 
 def evaluate(model: FinRayNet, images: torch.Tensor, stress: torch.Tensor, force_N: torch.Tensor,
-             cfg: TrainConfig, batch_size: int = 256) -> dict:
+             cfg: TrainConfig, batch_size: int = 256, contact_mm: torch.Tensor | None = None) -> dict:
     """Losses and force errors (N) of ``model`` on a set, in eval mode, on the model's
-    device (the set's batches go there; the predicted forces come back to the CPU)."""
+    device (the set's batches go there; the predicted forces come back to the CPU).
+    A model with the contact head, given ``contact_mm`` (N,): also ``contact_pred_mm``
+    (N,), and ``contact_rmse_mm`` and the loss's contact term over :func:`contact_mask`'s
+    frames (NaN and 0 where there are none)."""
     model.eval()
     device = next(model.parameters()).device
     n = len(images)
-    s_se, f_se, f_pred = 0.0, 0.0, []
+    contact = model.cfg.contact and contact_mm is not None
+    s_se, f_se, f_pred, c_pred = 0.0, 0.0, [], []
     with torch.no_grad(), _autocast(_use_bf16(cfg, device), device):
         for i in range(0, n, batch_size):
             x = _prep(images[i:i + batch_size].to(device), cfg.channels_last)
-            s, f = model.forward_normalised(x)
+            s, f, c = model.forward_normalised_all(x)
             s_se += float(((s.float() - stress[i:i + batch_size].to(device)) ** 2).mean()) * len(x)
             fn = model.normalise_force(force_N[i:i + batch_size].to(device))
             f_se += float(((f.float() - fn) ** 2).mean()) * len(x)
             f_pred.append((f.float() * model.force_scale_N + model.force_mean_N).cpu())
+            if contact:
+                c_pred.append((c.float() * model.contact_scale_mm + model.contact_mean_mm).cpu())
     f_pred = torch.cat(f_pred)
     s_mse, f_mse = s_se / n, f_se / n
-    return {
+    out = {
         "loss": cfg.alpha_stress * s_mse + cfg.alpha_force * f_mse,
         "stress_mse": s_mse, "force_mse_normalised": f_mse,
         # the first component (fx, the headline force); every component's beside it
@@ -152,6 +179,15 @@ def evaluate(model: FinRayNet, images: torch.Tensor, stress: torch.Tensor, force
         "force_rmse_components_N": ((f_pred - force_N) ** 2).mean(0).sqrt().tolist(),
         "force_pred_N": f_pred,
     }
+    if contact:
+        c_pred = torch.cat(c_pred)
+        mask = contact_mask(contact_mm, force_N[:, 0], cfg.contact_min_force_N)
+        se = _masked_mse(c_pred, contact_mm, mask)
+        scale = float(model.contact_scale_mm.cpu())
+        out.update(contact_pred_mm=c_pred, contact_mse_normalised=float(se) / scale ** 2,
+                   contact_rmse_mm=float(se.sqrt()) if mask.any() else float("nan"))
+        out["loss"] += cfg.contact_weight * out["contact_mse_normalised"]
+    return out
 
 
 def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
@@ -160,7 +196,8 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
           augment: Callable[[torch.Tensor, torch.Tensor, torch.Generator], tuple] | None = None,
           log: Callable[[str], None] = print,
           camera_images: np.ndarray | None = None,
-          init_state: dict | None = None) -> tuple[FinRayNet, History]:
+          init_state: dict | None = None,
+          contact_mm: np.ndarray | None = None) -> tuple[FinRayNet, History]:
     """Train a network; returns the kept model (``cfg.keep``) and the history.
 
     ``images`` (N, C, H, W) float in [0, 1]; ``stress`` (N, 1, H, W) log-stress maps;
@@ -171,6 +208,9 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
     Runs on ``cfg.device`` (:func:`~finray.precision.resolve_device`: ``cuda`` without a
     GPU stops here, before any work); the model is returned on the CPU. ``init_state``:
     a state dict of the same network to start from instead of new weights.
+    ``contact_mm`` (N,): each frame's contact height (mm, NaN where none), for a network
+    with the contact head (``net_cfg.contact``, which goes with ``cfg.contact_weight`` >
+    0); ``val`` then has a fourth array, the validation frames' heights.
     """
     if cfg.keep not in KEEP:
         raise ValueError(f"train.keep: {cfg.keep!r} is not one of {list(KEEP)}")
@@ -198,10 +238,29 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
         raise ValueError(f"camera images {tuple(c_all.shape)} do not match the images {tuple(x_all.shape)}")
     if not (torch.isfinite(x_all).all() and torch.isfinite(s_all).all() and torch.isfinite(f_all).all()):
         raise ValueError("training data contain NaN or infinite values")
+    contact = net_cfg.contact
+    if contact != (cfg.contact_weight > 0):
+        raise ValueError(f"train.contact_weight {cfg.contact_weight:g} and a network "
+                         f"{'with' if contact else 'without'} the contact head do not go together")
+    if contact:
+        if contact_mm is None:
+            raise ValueError("train.contact_weight > 0 needs the frames' contact heights")
+        y_all = torch.as_tensor(contact_mm, dtype=torch.float32).reshape(-1)
+        if len(y_all) != len(x_all):
+            raise ValueError(f"{len(y_all)} contact heights for {len(x_all)} frames")
+        ym_all = contact_mask(y_all, f_all[:, 0], cfg.contact_min_force_N)
+        if not ym_all.any():
+            raise ValueError(f"train.contact_weight > 0, but no training frame has a contact "
+                             f"height with |fx| above {cfg.contact_min_force_N:g} N (shards built "
+                             "before the FEA wrote contact_y_mm?); rebuild them or set "
+                             "train.contact_weight: 0")
     model = FinRayNet(net_cfg)
     mean = f_all.mean(0)
     scale = f_all.std(0).clamp_min(1e-6)
     model.set_force_normalisation(mean, scale)
+    if contact:
+        y_in = y_all[ym_all]
+        model.set_contact_normalisation(y_in.mean(), y_in.std().clamp_min(1e-3) if len(y_in) > 1 else 1.0)
     if init_state is not None:  # fine-tuning: the start's weights, its force scale too
         model.load_state_dict(init_state)
         mean, scale = model.force_mean_N.clone(), model.force_scale_N.clone()
@@ -210,12 +269,21 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
         model = model.to(memory_format=torch.channels_last)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
     mse = nn.MSELoss()
+    vc = None
     if val is not None:
-        vx, vs, vf = (torch.as_tensor(a, dtype=torch.float32) for a in val)
+        vx, vs, vf, *rest = (torch.as_tensor(a, dtype=torch.float32) for a in val)
         vf = vf.reshape(len(vx), -1)
+        vc = rest[0].reshape(-1) if contact and rest else None
     hist = History(precision="bfloat16" if bf16 else "float32", precision_reason=why,
                    device=device_name(device), force_mean_N=mean.tolist(),
                    force_std_N=scale.tolist())
+    if contact:
+        hist.contact_mean_mm = float(model.contact_mean_mm)
+        hist.contact_std_mm = float(model.contact_scale_mm)
+        hist.n_contact_frames = int(ym_all.sum())
+        log(f"contact height: {hist.n_contact_frames} of {len(x_all)} training frames "
+            f"(|fx| > {cfg.contact_min_force_N:g} N), mean {hist.contact_mean_mm:.1f} mm, "
+            f"sd {hist.contact_std_mm:.1f} mm; loss weight {cfg.contact_weight:g}")
     best, best_loss = None, math.inf
     n = len(x_all)
     n_batches = max(1, n // cfg.batch_size)  # drop the last partial batch (batch-norm)
@@ -248,7 +316,7 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
     for epoch in range(1, cfg.epochs + 1):
         model.train()
         perm = torch.randperm(n, generator=gen)
-        tot = {"loss": 0.0, "s": 0.0, "f": 0.0}
+        tot = {"loss": 0.0, "s": 0.0, "f": 0.0, "c": 0.0}
         it = range(n_batches)
         bar = tqdm(it, desc=f"epoch {epoch}/{cfg.epochs}", leave=False,
                    disable=not cfg.progress) if tqdm else it
@@ -262,10 +330,15 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
             x = _prep(x.to(device), cfg.channels_last)
             s, f = s.to(device), f.to(device)
             with _autocast(bf16, device):
-                s_pred, f_pred = model.forward_normalised(x)
+                s_pred, f_pred, c_pred = model.forward_normalised_all(x)
             ls = mse(s_pred.float(), s)
             lf = mse(f_pred.float(), model.normalise_force(f))
             loss = cfg.alpha_stress * ls + cfg.alpha_force * lf
+            if contact:
+                lc = _masked_mse(c_pred.float(), model.normalise_contact(y_all[idx].to(device)),
+                                 ym_all[idx].to(device))
+                loss = loss + cfg.contact_weight * lc
+                tot["c"] += float(lc.detach())
             if not torch.isfinite(loss):
                 raise FloatingPointError(f"loss became {float(loss)} at epoch {epoch}, batch {b}")
             opt.zero_grad(set_to_none=True)
@@ -295,6 +368,8 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
         hist.train_loss.append(tot["loss"] / n_batches)
         hist.train_stress_mse.append(tot["s"] / n_batches)
         hist.train_force_mse.append(tot["f"] / n_batches)
+        if contact:
+            hist.train_contact_mse.append(tot["c"] / n_batches)
         hist.lr.append(float(opt.param_groups[0]["lr"]))
         if cfg.compare_running_bn and val is not None:
             hist.val_force_rmse_running_bn_N.append(evaluate(model, vx, vs, vf, cfg)["force_rmse_N"])
@@ -303,11 +378,14 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
         hist.wall_time_s.append(time.perf_counter() - t0)
         msg = f"epoch {epoch}/{cfg.epochs}: train loss {hist.train_loss[-1]:.5f}"
         if val is not None:
-            ev = evaluate(model, vx, vs, vf, cfg)
+            ev = evaluate(model, vx, vs, vf, cfg, contact_mm=vc)
             hist.val_loss.append(ev["loss"])
             hist.val_force_rmse_N.append(ev["force_rmse_N"])
             hist.val_force_rmse_components_N.append(ev["force_rmse_components_N"])
             msg += f", val loss {ev['loss']:.5f}, val force RMSE {ev['force_rmse_N']:.4f} N"
+            if "contact_rmse_mm" in ev:
+                hist.val_contact_rmse_mm.append(ev["contact_rmse_mm"])
+                msg += f", val contact RMSE {ev['contact_rmse_mm']:.2f} mm"
             if hist.val_force_rmse_running_bn_N:
                 msg += f" ({hist.val_force_rmse_running_bn_N[-1]:.4f} N with training's batch-norm averages)"
             score = {"val_force_rmse": ev["force_rmse_N"], "val_loss": ev["loss"]}.get(cfg.keep, -epoch)

@@ -25,7 +25,9 @@ def train_from_shards(shards, out_dir: str | Path, net_cfg: NetConfig, cfg: Trai
                       forces: tuple[str, ...] = ("fx",), frame_every: int = 1, log=print,
                       init: str | Path | None = None) -> dict:
     """Train on the shards (force components ``forces``, ``fx`` first; ``net_cfg.n_forces``
-    is set to match), keep the epoch ``cfg.keep`` chooses and write
+    is set to match; with ``cfg.contact_weight`` > 0 also the contact height, the shards'
+    ``contact_y_mm``, and ``net_cfg.contact`` follows), keep the epoch ``cfg.keep`` chooses
+    and write
     ``model.pt``, ``model.ts`` (TorchScript), ``model.onnx`` and ``model.force.onnx``
     (ONNX), ``history.json`` and ``curves.png``. ``frame_every``: train and validate on
     every ``frame_every``-th frame of each scene (the rendered frames are interpolated
@@ -41,7 +43,7 @@ def train_from_shards(shards, out_dir: str | Path, net_cfg: NetConfig, cfg: Trai
     forces = tuple(forces)
     if not forces or forces[0] != "fx":
         raise ValueError(f"train.forces must start with fx (the headline force), got {list(forces)}")
-    net_cfg = replace(net_cfg, n_forces=len(forces))
+    net_cfg = replace(net_cfg, n_forces=len(forces), contact=cfg.contact_weight > 0)
     init_state = None
     if init is not None:
         start, _ = load_checkpoint(init)
@@ -60,13 +62,15 @@ def train_from_shards(shards, out_dir: str | Path, net_cfg: NetConfig, cfg: Trai
     log(f"training frames {len(tr['images'])} from {len(set(tr['scene_id']))} scenes, "
         f"validation frames {len(va['images'])} from {len(val_ids)} scenes")
     aug = TrainAugment(augment, occlusion_levels) if augment is not None else None
-    val = (va["images"], va["stress"], va["force_N"]) if len(va["images"]) else None
+    labels = ["stress", "force_N", *(["contact_mm"] if net_cfg.contact else [])]
+    val = (va["images"], *(va[k] for k in labels)) if len(va["images"]) else None
     if camera and val is not None:  # validate on both views of the validation frames
-        val = (np.concatenate([va["images"], va["camera_images"]]), np.concatenate([va["stress"]] * 2),
-               np.concatenate([va["force_N"]] * 2))
+        val = (np.concatenate([va["images"], va["camera_images"]]),
+               *(np.concatenate([va[k]] * 2) for k in labels))
     t0, c0 = time.perf_counter(), time.process_time()
     model, hist = train(tr["images"], tr["stress"], tr["force_N"], val, net_cfg, cfg, aug, log=log,
-                        camera_images=tr.get("camera_images"), init_state=init_state)
+                        camera_images=tr.get("camera_images"), init_state=init_state,
+                        contact_mm=tr["contact_mm"] if net_cfg.contact else None)
     seconds, cpu_seconds = time.perf_counter() - t0, time.process_time() - c0
     extra = {"train_config": asdict(cfg), "augment": asdict(augment) if augment else None,
              "cpu": cpu_name(), "device": hist.device, "torch_threads": torch.get_num_threads(),
@@ -76,7 +80,8 @@ def train_from_shards(shards, out_dir: str | Path, net_cfg: NetConfig, cfg: Trai
              "forces": [FORCE_COMPONENTS[c] for c in forces],
              "start_from": None if init is None else str(init)}
     save_checkpoint(model, hist, out_dir / "model.pt", extra)
-    export_torchscript(model, out_dir / "model.ts", preprocess, extra["forces"])
+    export_torchscript(model, out_dir / "model.ts", preprocess, extra["forces"],
+                       contact_min_force_N=cfg.contact_min_force_N)
     export_onnx(model, out_dir / "model.onnx")
     (out_dir / "history.json").write_text(json.dumps({**asdict(hist), **extra}, indent=1))
     training_curves(hist, out_dir / "curves.png")
