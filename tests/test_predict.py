@@ -830,3 +830,22 @@ def test_annotate_marks_the_contact_height_on_the_front_edge():
     assert (marked[140, 18:26] == CONTACT_RGB).all(axis=1).any()  # the tick left of the edge
     with pytest.raises(ValueError, match="crop_y_mm"):
         annotate_frame(frame, mask, box, stress, {"fx_N": 1.0, "contact_mm": 40.0})
+
+
+def test_predict_images_gives_the_contact_heights_on_request(exported_contact, exported):
+    """The evaluation's batched predictions: a third array of heights (mm) with
+    ``contact=True``, the same forces and maps as without; NaN for a model without the head."""
+    from finray.evaluate.predictions import predict_images
+
+    rng = np.random.default_rng(0)
+    images = rng.integers(0, 256, (5, 64, 32), dtype=np.uint8)
+    net, d = exported_contact
+    p = Predictor(d / "model.ts", backend="torchscript")
+    f, m, c = predict_images(p, images, batch=2, contact=True)
+    f0, m0 = predict_images(p, images, batch=2)
+    np.testing.assert_allclose(f, f0, atol=1e-5)
+    np.testing.assert_allclose(m, m0, atol=1e-5)
+    with torch.no_grad():
+        want = net.contact(torch.from_numpy(images[:, None].astype(np.float32) / 255)).numpy()
+    assert c.shape == (5,) and np.abs(c - want).max() < 1e-3
+    assert np.isnan(predict_images(Predictor(exported[1] / "model.ts"), images, contact=True)[2]).all()

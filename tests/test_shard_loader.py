@@ -87,3 +87,23 @@ def test_no_context_frames_in_each_view(shards, tmp_path):
         _frames(shards, (16, 8), views="both")
     with pytest.raises(ValueError, match="sim_views: 'side' is not one of"):
         _frames(cam, (16, 8), views="side")
+
+
+def test_contact_heights_are_read_and_nan_where_a_shard_has_none(shards, tmp_path):
+    """A shard's contact_y_mm (mm) reaches load_frames, load_split (contact_mm), the
+    manifest and load_shard; a shard without it (built before it, a recording) gives NaN."""
+    from finray.dataset import write_manifest
+
+    d = dict(np.load(shards[1]))
+    d["contact_y_mm"] = np.array([np.nan, 20.0, 30.0, 40.0])
+    save_npz(shards[1], d)
+    a, t = load_frames(shards, (8, 4))
+    assert np.isnan(a["contact_y_mm"][:5]).all()
+    np.testing.assert_array_equal(a["contact_y_mm"][5:], d["contact_y_mm"])
+    np.testing.assert_array_equal(t["contact_y_mm"], a["contact_y_mm"])
+    tr = load_split(shards, (8, 4))
+    assert tr["contact_mm"].dtype == np.float32
+    np.testing.assert_array_equal(tr["contact_mm"], a["contact_y_mm"].astype(np.float32))
+    assert np.isnan(load_shard(shards[0])["contact_y_mm"]).all()
+    m = write_manifest(shards, tmp_path / "manifest.csv")
+    assert m.loc[m["scene_id"] == "circle_d5", "contact_y_mm"].tolist()[1:] == [20.0, 30.0, 40.0]

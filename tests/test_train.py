@@ -5,7 +5,7 @@ import torch
 
 from finray.model import NetConfig
 from finray.train import (TrainConfig, evaluate, export_torchscript, load_checkpoint, save_checkpoint,
-                          train)
+                          train, training_curves)
 
 
 def toy(n=96, seed=0):
@@ -267,7 +267,9 @@ def test_contact_checkpoint_torchscript_and_onnx_parity(tmp_path):
 
     x, s, f, c = toy_contact(64)
     cfg = TrainConfig(**{**CFG, "contact_weight": 1.0, "contact_min_force_N": 0.3})
-    model, hist = train(x, s, f, None, CONTACT_NET, cfg, log=lambda m: None, contact_mm=c)
+    model, hist = train(x, s, f, toy_contact(16, seed=1), CONTACT_NET, cfg, log=lambda m: None,
+                        contact_mm=c)
+    training_curves(hist, tmp_path / "curves.png")  # a third panel: the contact RMSE
     save_checkpoint(model, hist, tmp_path / "m.pt")
     back, ck = load_checkpoint(tmp_path / "m.pt")
     assert back.cfg.contact and ck["history"]["contact_mean_mm"] == hist.contact_mean_mm

@@ -94,7 +94,8 @@ def training_curves(hist: History, path: str | Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(1, 2, figsize=(8, 3.2))
+    contact = bool(hist.val_contact_rmse_mm)
+    fig, ax = plt.subplots(1, 3 if contact else 2, figsize=(12 if contact else 8, 3.2))
     ax[0].semilogy(hist.epoch, hist.train_loss, "o-", label="train")
     if hist.val_loss:
         ax[0].semilogy(hist.epoch, hist.val_loss, "s-", label="validation")
@@ -110,6 +111,10 @@ def training_curves(hist: History, path: str | Path) -> None:
         ax[1].legend(fontsize=7)
     ax[1].set_xlabel("epoch")
     ax[1].set_ylabel("validation force RMSE (N)")
+    if contact:
+        ax[2].plot(hist.epoch, hist.val_contact_rmse_mm, "s-")
+        ax[2].set_xlabel("epoch")
+        ax[2].set_ylabel("validation contact-height RMSE (mm)")
     fig.tight_layout()
     fig.savefig(path, dpi=130)
     plt.close(fig)
