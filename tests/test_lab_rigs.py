@@ -43,8 +43,11 @@ def test_rigs_are_drawn_within_their_ranges_and_replay(lab):
             key = next((k for k in ("diameter_mm", "side_mm") if k in base), None)
             if key:
                 assert 0.8 * base[key] - 0.01 <= obj[key] <= 1.2 * base[key] + 0.01
-        jit = spec["height_jitter_mm"]
-        assert np.all(np.abs(np.subtract(rig["heights_mm"], lab["heights_mm"])) <= jit)
+        # the heights over the face: one in each third of the span, sorted, distinct
+        lo, hi = spec["height_span_mm"]
+        assert len(rig["heights_mm"]) == len(lab["heights_mm"]) == len(set(rig["heights_mm"]))
+        assert rig["heights_mm"] == sorted(rig["heights_mm"]) and lo <= rig["heights_mm"][0]
+        assert rig["heights_mm"][-1] <= hi
         assert rig["seed"] != lab["seed"]  # its own noise
 
 
