@@ -127,3 +127,17 @@ def test_face_summary_splits_unseen_from_trained_heights(tmp_path):
     # no unseen height: no face node
     pd.DataFrame(_height_rows(fr, "all", ["camera"], [15.0, 20.0])).to_csv(tmp_path / "heights.csv", index=False)
     assert face_summary(tmp_path) is None
+
+
+def test_height_rows_score_the_contact_height_on_loaded_frames_only():
+    """With a contact head, each height's row has the contact height's RMSE (mm) over the
+    frames pushed harder than CONTACT_MIN_FORCE_N (at rest the height means nothing)."""
+    from finray.evaluate.experiments import CONTACT_MIN_FORCE_N, _height_rows
+
+    fr = pd.DataFrame({"height_mm": 30.0, "fx_N": [0.0, 0.2, 2.0, 4.0],
+                       "pred_camera": [0.0, 0.2, 2.0, 4.0],
+                       "contact_y_mm": [np.nan, 31.0, 30.0, 29.0],
+                       "contact_pred_camera": [50.0, 40.0, 31.0, 28.0]})
+    assert CONTACT_MIN_FORCE_N == 0.5
+    (row,) = _height_rows(fr, "all", ["camera"], [30.0])
+    assert row["contact_n"] == 2 and row["contact_rmse_mm"] == pytest.approx(1.0)

@@ -35,7 +35,7 @@ import pandas as pd
 
 from .baseline import RidgeBaseline
 from .camera import camera_test_set, rendered_subset, shared_preprocessing
-from .metrics import force_metrics, force_vector_metrics, stress_metrics
+from .metrics import contact_metrics, force_metrics, force_vector_metrics, stress_metrics
 from ..dataset import scene_id
 from ..errors import FrameError
 from ..predictor import Predictor
@@ -43,21 +43,38 @@ from .predictions import load_test_set, occlude, predict_images
 from .tables import PATH_KEYS
 
 def _predict_all(images_u8, models: dict[str, Predictor], baseline: RidgeBaseline | None):
-    """``({predictor: forces (N, k) N, fx first}, {network: stress maps})``."""
-    preds, maps = {}, {}
+    """``({predictor: forces (N, k) N, fx first}, {network: stress maps}, {network:
+    contact heights (N,) mm, of the networks with a contact head})``."""
+    preds, maps, contact = {}, {}, {}
     for name, m in models.items():
-        preds[name], maps[name] = predict_images(m, images_u8)
+        if m.has_contact:
+            preds[name], maps[name], contact[name] = predict_images(m, images_u8, contact=True)
+        else:
+            preds[name], maps[name] = predict_images(m, images_u8)
     if baseline is not None:
         preds["baseline"] = baseline.predict_images(images_u8.astype(np.float32) / 255.0)[:, None]
-    return preds, maps
+    return preds, maps, contact
 
 
-def _add_predictions(frames: pd.DataFrame, preds: dict) -> None:
-    """``pred_<p>`` (fx, N) per predictor, and ``pred_fy_<p>`` for those predicting fy."""
+def _add_predictions(frames: pd.DataFrame, preds: dict, contact: dict | None = None) -> None:
+    """``pred_<p>`` (fx, N) per predictor, ``pred_fy_<p>`` for those predicting fy and
+    ``contact_pred_<p>`` (mm) for those predicting the contact height."""
     for p, v in preds.items():
         frames[f"pred_{p}"] = v[:, 0]
         if v.shape[1] > 1:
             frames[f"pred_fy_{p}"] = v[:, 1]
+    for p, v in (contact or {}).items():
+        frames[f"contact_pred_{p}"] = v
+
+
+def _contact_row(frames: pd.DataFrame, p: str, sel) -> dict:
+    """Contact-height metrics (mm) of predictor ``p`` on the selected frames with
+    |Fx| > CONTACT_MIN_FORCE_N, where it predicts the height and the frames know it."""
+    if f"contact_pred_{p}" not in frames or "contact_y_mm" not in frames:
+        return {}
+    m = contact_metrics(frames["contact_y_mm"][sel], frames[f"contact_pred_{p}"][sel],
+                        frames["fx_N"][sel], CONTACT_MIN_FORCE_N)
+    return {"contact_rmse_mm": m["rmse_mm"], "contact_mae_mm": m["mae_mm"], "contact_n": m["n"]}
 
 
 def _metric_rows(frames: pd.DataFrame, group_col: str | None, condition: str,
@@ -73,6 +90,7 @@ def _metric_rows(frames: pd.DataFrame, group_col: str | None, condition: str,
             row = {"condition": condition, "path": path, "frames": subset, "group": gname,
                    "predictor": p,
                    **force_metrics(frames["fx_N"][sel], frames[f"pred_{p}"][sel])}
+            row.update(_contact_row(frames, p, sel))
             if f"pred_fy_{p}" in frames:
                 row.update(force_vector_metrics(frames["fx_N"][sel], frames["fy_N"][sel],
                                                 frames[f"pred_{p}"][sel], frames[f"pred_fy_{p}"][sel]))
@@ -97,9 +115,14 @@ def _height_rows(frames: pd.DataFrame, condition: str, predictors,
             rows.append({"condition": condition, "height_mm": float(h),
                          "band_mm": float(10 * np.floor(h / 10)),
                          "unseen": round(float(h), 6) not in seen, "predictor": p,
-                         **force_metrics(frames["fx_N"][sel], frames[f"pred_{p}"][sel])})
+                         **force_metrics(frames["fx_N"][sel], frames[f"pred_{p}"][sel]),
+                         **_contact_row(frames, p, sel)})
     return rows
 
+
+#: N: contact heights are scored on frames pushed harder than this (at rest, and just
+#: touching, the contact height is barely defined and barely matters)
+CONTACT_MIN_FORCE_N = 0.5
 
 #: Columns that name a metrics row (the rest are metrics).
 ID_COLUMNS = ("condition", "path", "frames", "group", "predictor")
@@ -121,11 +144,11 @@ def _camera_rows(render_indices, nets, base, tab, fr, stress, maps, group_col, c
     t0 = time.perf_counter()
     arrays, ctab = camera_test_set(render_indices, shared_preprocessing(nets))
     sel = rendered_subset(tab, ctab)
-    preds, cmaps = _predict_all(arrays["images"], nets, base)
+    preds, cmaps, ccontact = _predict_all(arrays["images"], nets, base)
     cfr = ctab.copy()
     cfr.insert(0, fr.columns[0], cname)  # the condition column
     cfr.insert(1, "path", "camera")
-    _add_predictions(cfr, preds)
+    _add_predictions(cfr, preds, ccontact)
     frames_out.append(cfr)
     rows = _metric_rows(fr[sel].reset_index(drop=True), group_col, cname, predictors,
                         {"true": stress["true"][sel], "mask": stress["mask"][sel],
@@ -200,10 +223,10 @@ def run_experiment(out_dir, shard_paths, size, models: dict[str, str], baseline_
         if cond.get("occlusion", "none") != "none":
             images = occlude(images, tab, cond["occlusion"], seed, occlusion_levels)
         log(f"{cname}: {len(tab)} frames, predictors {predictors}")
-        preds, maps = _predict_all(images, nets, base)
+        preds, maps, contact = _predict_all(images, nets, base)
         fr = tab.copy()
         fr.insert(0, condition_col, cname)
-        _add_predictions(fr, preds)
+        _add_predictions(fr, preds, contact)
         stress = {"true": arrays["stress"][sel], "mask": arrays["mask"][sel], "pred": maps}
         rows += _metric_rows(fr, group_col, cname, predictors, stress)
         height_rows += _height_rows(fr, cname, predictors, train_heights_mm)
@@ -279,7 +302,7 @@ def run_viewpoint(out_dir, index_paths, shard_paths, size, models: dict[str, str
     t0 = time.perf_counter()
     arrays, table = viewpoint_test_set(index_paths, shard_paths, shared_preprocessing(nets), size)
     log(f"viewpoint: {len(table)} rendered frames through the predictor in {time.perf_counter() - t0:.1f} s")
-    preds, maps = _predict_all(arrays["images"], nets, base)
+    preds, maps, _ = _predict_all(arrays["images"], nets, base)
     rows, frames_out, examples = [], [], {}
     for p in sorted(table["pitch_deg"].unique()):
         sel = (table["pitch_deg"] == p).to_numpy()

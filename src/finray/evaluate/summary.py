@@ -220,9 +220,12 @@ def face_summary(exp_dir, condition: str = "all") -> dict | None:
     """Contacts over the finger's face in one experiment's condition (shard path): per
     predictor, the force metrics at each test height (``heights.csv``: RMSE in N, NRMSE
     in % of that height's largest |Fx|) and over the frames at heights no training scene
-    used (``unseen``) and at the others (``seen``), from ``frames.csv``. None where every
-    test height is a training height (no face heights)."""
-    from .metrics import force_metrics
+    used (``unseen``) and at the others (``seen``), from ``frames.csv``; with a contact
+    head, the contact height's RMSE (mm) on the frames with |Fx| above
+    ``CONTACT_MIN_FORCE_N`` too. None where every test height is a training height (no
+    face heights)."""
+    from .experiments import CONTACT_MIN_FORCE_N
+    from .metrics import contact_metrics, force_metrics
 
     h = pd.read_csv(Path(exp_dir) / "heights.csv")
     h = h[h["condition"].astype(str) == condition]
@@ -235,12 +238,18 @@ def face_summary(exp_dir, condition: str = "all") -> dict | None:
     out = {"heights_mm": sorted({float(x) for x in h["height_mm"]}), "unseen_heights_mm": unseen,
            "by_height": {}, "unseen": {}, "seen": {}}
     for p, g in h.groupby("predictor", sort=False):
-        out["by_height"][p] = [{k: (bool(r[k]) if k == "unseen" else float(r[k])) for k in HEIGHT_KEEP}
+        keep = HEIGHT_KEEP + (("contact_rmse_mm",) if "contact_rmse_mm" in g and
+                              g["contact_rmse_mm"].notna().any() else ())
+        out["by_height"][p] = [{k: (bool(r[k]) if k == "unseen" else float(r[k])) for k in keep}
                                for r in g.sort_values("height_mm").to_dict("records")]
         for key, sel in (("unseen", is_unseen), ("seen", ~is_unseen)):
             if sel.any():
                 m = force_metrics(f["fx_N"][sel], f[f"pred_{p}"][sel])
                 out[key][p] = {k: m[k] for k in ("n", "rmse_N", "nrmse_pct", "max_true_N")}
+                if f"contact_pred_{p}" in f and "contact_y_mm" in f:
+                    c = contact_metrics(f["contact_y_mm"][sel], f[f"contact_pred_{p}"][sel],
+                                        f["fx_N"][sel], CONTACT_MIN_FORCE_N)
+                    out[key][p] |= {"contact_rmse_mm": c["rmse_mm"], "contact_n": c["n"]}
     return out
 
 
