@@ -122,6 +122,7 @@ READERS: list[tuple[str, set[str]]] = [
     ("train.frame_every", {"train_model"}),  # (the network study reads its own benchmarks.train_every)
     ("train.lr", {"train_model"}),
     ("train.alpha_*", {"train_model", "summary"}),  # the manuscript states the loss
+    ("train.contact_*", {"train_model"}),  # the contact head (the studies train without it)
     ("train.batch_size", {"train_model", "train_pareto", "summary"}),
     ("train.forces", {"train_model"}),
     ("train.device", {"train_model"}),  # not the CPU study (train_pareto)
