@@ -849,3 +849,15 @@ def test_predict_images_gives_the_contact_heights_on_request(exported_contact, e
         want = net.contact(torch.from_numpy(images[:, None].astype(np.float32) / 255)).numpy()
     assert c.shape == (5,) and np.abs(c - want).max() < 1e-3
     assert np.isnan(predict_images(Predictor(exported[1] / "model.ts"), images, contact=True)[2]).all()
+
+
+def test_force_time_figure_adds_the_contact_height(tmp_path):
+    from finray.annotate import force_time_figure
+
+    rows = [{"frame": f"f{k}", "t_s": 0.1 * k, "fx_N": 0.5 * k, "contact_mm": 30.0 + k}
+            for k in range(5)]
+    force_time_figure(rows, tmp_path / "c.png")
+    force_time_figure([{k: v for k, v in r.items() if k != "contact_mm"} for r in rows],
+                      tmp_path / "f.png")
+    h = [Image.open(tmp_path / n).size[1] for n in ("c.png", "f.png")]
+    assert h[0] > 1.5 * h[1]  # a second panel

@@ -451,7 +451,8 @@ class VideoWriter:
 
 def force_time_figure(rows: list[dict], path: str | Path, title: str = "") -> None:
     """Force against time (or frame) of a run's rows (``t_s`` where known): each force
-    output, and the calibrated force with its interval where the rows have one."""
+    output, and the calibrated force with its interval where the rows have one; below
+    it the contact height (mm) where the rows have one (``contact_mm``)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -459,7 +460,10 @@ def force_time_figure(rows: list[dict], path: str | Path, title: str = "") -> No
 
     t = np.array([r.get("t_s") if r.get("t_s") is not None else np.nan for r in rows], float)
     x, xlabel = (t, "time (s)") if np.isfinite(t).all() else (np.arange(len(rows)), "frame")
-    fig, ax = plt.subplots(figsize=(7, 3))
+    contact = bool(rows) and "contact_mm" in rows[0]
+    fig, axes = plt.subplots(2 if contact else 1, 1, figsize=(7, 5 if contact else 3),
+                             sharex=True, squeeze=False)
+    ax = axes[0, 0]
     for name in ("fx_N", "fy_N"):
         if rows and name in rows[0]:
             ax.plot(x, [r[name] for r in rows], lw=1, label=name.replace("_N", " (network)"))
@@ -467,10 +471,13 @@ def force_time_figure(rows: list[dict], path: str | Path, title: str = "") -> No
         ax.fill_between(x, [r["lo_N"] for r in rows], [r["hi_N"] for r in rows], alpha=0.3,
                         color="C2", label=f"{100 * rows[0]['level']:.0f} % interval")
         ax.plot(x, [r["force_N"] for r in rows], color="C2", lw=1, label="calibrated")
-    ax.set_xlabel(xlabel)
     ax.set_ylabel("force (N)")
     ax.legend(fontsize=7)
     ax.set_title(title, fontsize=9)
+    if contact:
+        axes[1, 0].plot(x, [r["contact_mm"] for r in rows], color="C3", lw=1)
+        axes[1, 0].set_ylabel("contact height (mm)")
+    axes[-1, 0].set_xlabel(xlabel)
     fig.tight_layout()
     fig.savefig(path, dpi=130)
     plt.close(fig)
