@@ -53,6 +53,17 @@ def test_rigid_circle_push_equilibrium_every_frame(finger):
     np.testing.assert_allclose(d, np.broadcast_to(d[0], d.shape), atol=1e-12)
 
 
+def test_contact_height_is_where_the_circle_presses(finger):
+    """The centroid of the contact forces of a circle pressed at height h lies at h:
+    the face deflects about the clamped base, so over a 2 mm push it moves by less
+    than half the 1 mm boundary element (the nodes sample the contact patch at that
+    spacing); NaN at rest (0.1 mm gap, beyond the 0.02 mm barrier)."""
+    obj = front_contact_circle(FingerParams(), 30.0, 10.0, gap_mm=0.1)
+    r = simulate(finger, obj, FINGER, SimulationOptions(push_mm=2.0, frame_step_mm=1.0))
+    assert r.contact_y_mm.shape == (3,) and np.isnan(r.contact_y_mm[0])
+    np.testing.assert_allclose(r.contact_y_mm[1:], 30.0, atol=0.5)
+
+
 def test_frame_short_of_equilibrium_tolerance_is_solved_again(finger):
     """A frame whose force and clamp reaction differ by more than equilibrium_tol after
     the Newton tolerance is met is solved again to a tenth of that tolerance, not

@@ -212,6 +212,24 @@ def test_resample_frames_interpolates_in_displacement(result):
     assert resample_frames(result, None) is result
 
 
+def test_contact_height_is_optional_and_resampled(result, result_path, tmp_path):
+    """A file without ``contact_y_mm`` reads as all NaN; one with it is interpolated
+    like the forces, NaN where a bracketing frame has no contact."""
+    assert result.contact_y_mm.shape == (result.n_frames,)
+    assert np.isnan(result.contact_y_mm).all()
+    with np.load(result_path) as f:
+        d = dict(f)
+    y = np.r_[np.nan, 30.0 + np.arange(result.n_frames - 1)]
+    np.savez(tmp_path / "y.npz", **d, contact_y_mm=y)
+    r = load_fea_result(tmp_path / "y.npz")
+    np.testing.assert_array_equal(r.contact_y_mm, y)
+    r2 = resample_frames(r, 2 * r.n_frames - 1)  # frame k at 2k, midpoints between
+    assert np.isnan(r2.contact_y_mm[:2]).all()  # rest frame, and half way to it
+    np.testing.assert_allclose(r2.contact_y_mm[2::2], y[1:])
+    np.testing.assert_allclose(r2.contact_y_mm[3::2], 0.5 * (y[1:-1] + y[2:]))
+    np.testing.assert_array_equal(r.frames([0, 2]).contact_y_mm, y[[0, 2]])
+
+
 def test_malformed_result_is_rejected(result_path, tmp_path):
     with np.load(result_path) as f:
         d = dict(f)

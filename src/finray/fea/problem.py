@@ -221,6 +221,15 @@ class Model:
         (bool mask or ids), ``-sum d(B + D)/dx`` over them."""
         if self.contact is None:
             return np.zeros(2)
+        return self.contact_nodal_forces(q, nodes, friction_only).sum(axis=0)
+
+    def contact_nodal_forces(self, q: np.ndarray, nodes: np.ndarray,
+                             friction_only: bool = False) -> np.ndarray:
+        """Contact force (barrier + friction, N/mm) on each of the given nodes (bool
+        mask or ids), ``-d(B + D)/dx`` (n, 2)."""
+        if self.contact is None:
+            return np.zeros((int(np.count_nonzero(nodes)) if np.asarray(nodes).dtype == bool
+                             else len(nodes), 2))
         U = self.U(q)
         if friction_only:
             gc = self.contact.friction_gradient(U, self.U_step_start) \
@@ -229,7 +238,7 @@ class Model:
             gc = self.contact.evaluate(U, self.U_step_start, order=1)[1]
         g = np.zeros(2 * self.N)
         g[self.coll_full] += gc
-        return -g.reshape(-1, 2)[nodes].sum(axis=0)
+        return -g.reshape(-1, 2)[nodes]
 
     def elastic_force(self, q: np.ndarray, nodes: np.ndarray) -> np.ndarray:
         """Sum of the elastic internal forces dE/du (N/mm) at the given nodes; at

@@ -92,6 +92,7 @@ def write_result_npz(path: Path, finger: TriMesh, obj, result: SimulationResult)
         object_points_mm=obj_pts.astype(np.float32), object_edges=obj_segs,
         n_pairs_self=result.n_pairs_self, n_pairs_object=result.n_pairs_object,
         min_gap_self_mm=result.min_gap_self_mm, min_gap_object_mm=result.min_gap_object_mm,
+        contact_y_mm=result.contact_y_mm,
     )
 
 

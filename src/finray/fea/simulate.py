@@ -156,6 +156,9 @@ class SimulationResult:
     load_steps: np.ndarray  # (F,) cumulative
     wall_time_s: np.ndarray  # (F,) since the previous frame
     meta: dict
+    #: (F,) mm: height (y) of the centroid of the contact forces on the object, their
+    #: magnitudes the weights (the object's nodes at the frame); NaN without contact force
+    contact_y_mm: np.ndarray | None = None
 
     def as_dict(self) -> dict:
         d = {k: v for k, v in self.__dict__.items() if k != "meta" and v is not None}
@@ -266,7 +269,8 @@ def simulate(finger_mesh: TriMesh, obj: RigidObject | DeformableObject, material
 
     rec: dict[str, list] = {k: [] for k in (
         "displacement_mm", "target_mm", "force", "base", "friction", "Uf", "vmf", "Uo", "vmo",
-        "gap_obj", "gap_self", "n_obj", "n_self", "iters", "steps", "wall", "res", "eq")}
+        "gap_obj", "gap_self", "n_obj", "n_self", "iters", "steps", "wall", "res", "eq",
+        "contact_y")}
 
     def self_real(v0, v1):
         same = loop_id[v0] == loop_id[v1]
@@ -275,10 +279,13 @@ def simulate(finger_mesh: TriMesh, obj: RigidObject | DeformableObject, material
         return ~same | (ds > opts.self_neighbour_mm)
 
     def balance(q):
-        """Force on the object, clamp reaction (N/mm) and their relative difference."""
-        f_obj, f_base = model.contact_force(q, obj_nodes), model.elastic_force(q, base_mask)
+        """Force on the object, clamp reaction (N/mm), their relative difference and
+        the height (mm) of the object's contact-force centroid (NaN without force)."""
+        f_nodes = model.contact_nodal_forces(q, obj_nodes)
+        f_obj, f_base = f_nodes.sum(axis=0), model.elastic_force(q, base_mask)
         return f_obj, f_base, float(np.linalg.norm(f_obj - f_base) / max(
-            np.linalg.norm(f_obj), np.linalg.norm(f_base), opts.equilibrium_floor_N_per_mm))
+            np.linalg.norm(f_obj), np.linalg.norm(f_base), opts.equilibrium_floor_N_per_mm)), \
+            contact_centroid_y(points[Nf:, 1] + model.U(q)[Nf:, 1], f_nodes)
 
     def record(k, s, q, info):
         """Record frame k at load factor s; returns its state (q, or q polished to
@@ -287,7 +294,7 @@ def simulate(finger_mesh: TriMesh, obj: RigidObject | DeformableObject, material
         if not np.all(np.isfinite(q)):
             raise SimulationError(f"non-finite state at frame {k} (load factor {s:.4f})",
                                   step=info.get("steps"), load=s, cause="non-finite state")
-        f_obj, f_base, err = balance(q)
+        f_obj, f_base, err, y_c = balance(q)
         if k > 0 and not err <= opts.equilibrium_tol:  # frame 0: the rest state, not solved
             # the residual test (relative to all loads) passed, yet the object's force
             # and the clamp's reaction differ by more than the tolerance: the same
@@ -295,7 +302,7 @@ def simulate(finger_mesh: TriMesh, obj: RigidObject | DeformableObject, material
             res = newton(model, q, replace(opts.newton, tol_residual=opts.newton.tol_residual / 10))
             if res.converged:
                 q = res.q
-                f_obj, f_base, err = balance(q)
+                f_obj, f_base, err, y_c = balance(q)
                 model.counters["equilibrium_polishes"] += 1
                 U = model.U(q)
             if not err <= opts.equilibrium_tol:
@@ -307,6 +314,7 @@ def simulate(finger_mesh: TriMesh, obj: RigidObject | DeformableObject, material
         rec["displacement_mm"].append(float(t @ direction))
         rec["target_mm"].append(s * push)
         rec["eq"].append(err)
+        rec["contact_y"].append(y_c)
         rec["res"].append(info.get("residual_rel", 0.0))
         rec["force"].append(f_obj)
         rec["friction"].append(model.contact_force(q, obj_nodes, friction_only=True))
@@ -410,7 +418,17 @@ def simulate(finger_mesh: TriMesh, obj: RigidObject | DeformableObject, material
         n_pairs_object=np.array(rec["n_obj"]), n_pairs_self=np.array(rec["n_self"]),
         newton_iterations=np.array(rec["iters"]), residual_rel=np.array(rec["res"]),
         equilibrium_rel_error=np.array(rec["eq"]), load_steps=np.array(rec["steps"]),
-        wall_time_s=np.array(rec["wall"]), meta=meta)
+        wall_time_s=np.array(rec["wall"]), meta=meta,
+        contact_y_mm=np.array(rec["contact_y"], float))
+
+
+def contact_centroid_y(y_mm: np.ndarray, f_nodes: np.ndarray) -> float:
+    """Height (mm) of the centroid of nodal contact forces ``f_nodes`` (n, 2) at node
+    heights ``y_mm`` (n,), each weighted by its force's magnitude; NaN where no node
+    carries a force."""
+    w = np.hypot(f_nodes[:, 0], f_nodes[:, 1])
+    total = float(w.sum())
+    return float(w @ y_mm) / total if total > 0 else float("nan")
 
 
 def asdict_shallow(o) -> dict:

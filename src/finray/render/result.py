@@ -15,6 +15,10 @@ von_mises_MPa       (F, N) f32      nodal von Mises stress (>= 0)
 fx_N, fy_N          (F,) float      contact force on the finger
 object_points_mm    (F, K, 2)       the object's boundary nodes each frame (figures only)
 object_edges        (E_o, 2) int    segments between ``object_points_mm`` nodes
+contact_y_mm        (F,) float      optional: height y (mm, clamped base at y=0) of the
+                                    centroid of the object's contact forces, weighted by
+                                    their magnitudes; NaN without contact force (a file
+                                    without it reads as all NaN)
 ==================  ==============  ====================================================
 """
 from __future__ import annotations
@@ -46,10 +50,15 @@ class FEAResult:
     object_edges: np.ndarray  # (E_o, 2)
     #: Index of each frame in the solver's output (fractional for interpolated frames).
     fea_frame: np.ndarray | None = None
+    #: (F,) mm: height of the contact-force centroid (NaN without contact; all NaN
+    #: when the file predates the key)
+    contact_y_mm: np.ndarray | None = None
 
     def __post_init__(self):
         if self.fea_frame is None:
             self.fea_frame = np.arange(self.n_frames, dtype=float)
+        if self.contact_y_mm is None:
+            self.contact_y_mm = np.full(self.n_frames, np.nan)
 
     @property
     def n_frames(self) -> int:
@@ -71,7 +80,7 @@ class FEAResult:
         return replace(self, displacement_mm=self.displacement_mm[idx], u_mm=self.u_mm[idx],
                        von_mises_MPa=self.von_mises_MPa[idx], fx_N=self.fx_N[idx],
                        fy_N=self.fy_N[idx], object_points_mm=self.object_points_mm[idx],
-                       fea_frame=self.fea_frame[idx])
+                       fea_frame=self.fea_frame[idx], contact_y_mm=self.contact_y_mm[idx])
 
 
 def _check(res: FEAResult, path) -> None:
@@ -92,6 +101,7 @@ def _check(res: FEAResult, path) -> None:
     need(res.von_mises_MPa.shape == (f, n),
          f"von_mises_MPa has shape {res.von_mises_MPa.shape}, expected {(f, n)}")
     need(res.fx_N.shape == (f,) and res.fy_N.shape == (f,), "fx_N and fy_N need one value per frame")
+    need(res.contact_y_mm.shape == (f,), "contact_y_mm needs one value per frame")
     need(res.object_points_mm.ndim == 3 and res.object_points_mm.shape[0] == f
          and res.object_points_mm.shape[2] == 2,
          f"object_points_mm has shape {res.object_points_mm.shape}, expected ({f}, K, 2)")
@@ -111,6 +121,7 @@ def load_fea_result(path: str | Path) -> FEAResult:
         if missing:
             raise ResultError(f"{path}: missing keys {missing}")
         d = {k: f[k] for k in REQUIRED_KEYS}
+        contact_y = f["contact_y_mm"].astype(np.float64).ravel() if "contact_y_mm" in f.files else None
     res = FEAResult(
         points=d["points"].astype(np.float64), triangles=d["triangles"].astype(np.int64),
         boundary_edges=d["boundary_edges"].astype(np.int64),
@@ -120,6 +131,7 @@ def load_fea_result(path: str | Path) -> FEAResult:
         fx_N=d["fx_N"].astype(np.float64).ravel(), fy_N=d["fy_N"].astype(np.float64).ravel(),
         object_points_mm=d["object_points_mm"].astype(np.float64),
         object_edges=d["object_edges"].astype(np.int64).reshape(-1, 2),
+        contact_y_mm=contact_y,
     )
     _check(res, path)
     return res
@@ -131,7 +143,9 @@ def resample_frames(res: FEAResult, n_frames: int | None) -> FEAResult:
     The first and last frames are kept exactly. ``None`` (or the number of frames
     the solver wrote, when their displacements are already even) returns ``res``.
     Nodal displacements, nodal stresses, forces and object positions are
-    interpolated between the two solver frames that bracket each displacement.
+    interpolated between the two solver frames that bracket each displacement
+    (``contact_y_mm`` too: NaN where a bracketing frame has none). A truncated push
+    (fewer frames, shorter travel) resamples its own travel.
     """
     if n_frames is None:
         return res
@@ -156,9 +170,13 @@ def resample_frames(res: FEAResult, n_frames: int | None) -> FEAResult:
         out = (1 - wa) * a[i].astype(np.float64) + wa * a[i + 1].astype(np.float64)
         return out.astype(a.dtype)
 
+    def lerp_nan(a):
+        """lerp, a frame met exactly (w 0 or 1) kept even where its neighbour is NaN."""
+        return np.where(w <= 0, a[i], np.where(w >= 1, a[i + 1], (1 - w) * a[i] + w * a[i + 1]))
+
     return replace(res, displacement_mm=target, u_mm=lerp(res.u_mm),
                    von_mises_MPa=lerp(res.von_mises_MPa), fx_N=lerp(res.fx_N), fy_N=lerp(res.fy_N),
-                   object_points_mm=lerp(res.object_points_mm),
+                   object_points_mm=lerp(res.object_points_mm), contact_y_mm=lerp_nan(res.contact_y_mm),
                    fea_frame=(1 - w) * res.fea_frame[i] + w * res.fea_frame[i + 1])
 
 
