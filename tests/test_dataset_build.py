@@ -223,3 +223,23 @@ def test_written_frames():
     assert RenderParams(files_per_scene=1).written_frames(444).tolist() == [443]
     assert RenderParams(files_per_scene=0).written_frames(444).tolist() == []
     assert RenderParams(files_per_scene=9).written_frames(3).tolist() == [0, 1, 2]
+
+
+def test_a_shard_carries_the_contact_height_of_its_result(tmp_path):
+    """The FEA result's contact_y_mm (mm, NaN without contact) reaches the render index
+    and the shard per rendered frame, resampled with the frames; a result without it
+    gives NaN."""
+    src = write_synthetic_fea_result(tmp_path / "plain.npz", n_frames=5)
+    d = dict(np.load(src))
+    d["contact_y_mm"] = np.array([np.nan, 30.0, 31.0, 32.0, 33.0])
+    np.savez(tmp_path / "result.npz", **d)
+    rp = RenderParams(frames_per_scene=3, files_per_scene=0)
+    scene = {"object": "ellipse_16x9", "material": "steel", "height_mm": 30.0, "split": "shape"}
+    render_shard(tmp_path / "result.npz", tmp_path / "r", tmp_path / "s.npz", 0.0,
+                 render_params=rp, scene=scene)
+    want = [np.nan, 31.0, 33.0]  # displacements 0, 2.5, 5 mm: solver frames 0, 2, 4
+    np.testing.assert_array_equal(load_shard(tmp_path / "s.npz")["contact_y_mm"], want)
+    np.testing.assert_array_equal([f["contact_y_mm"] for f in load_render_index(tmp_path / "r")["frames"]],
+                                  want)
+    render_shard(src, tmp_path / "r0", tmp_path / "s0.npz", 0.0, render_params=rp, scene=scene)
+    assert np.isnan(load_shard(tmp_path / "s0.npz")["contact_y_mm"]).all()

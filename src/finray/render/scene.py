@@ -14,6 +14,7 @@ few and hands every frame in memory to the dataset shard, see
                       0 (= stress x coverage where coverage >= 0.5; exact to downsample)
     ...
     index.json        written last: frames (index, solver frame, displacement, forces,
+                      contact height (mm, NaN without contact),
                       file names, null for frames without files), the render
                       parameters, pitch, renderer, scene
 
@@ -161,6 +162,7 @@ def render_scene(result_npz: str | Path, out_dir: str | Path, pitch_deg: float =
                 "frame": k, "fea_frame": float(res.fea_frame[k]),
                 "displacement_mm": float(res.displacement_mm[k]),
                 "fx_N": float(res.fx_N[k]), "fy_N": float(res.fy_N[k]),
+                "contact_y_mm": float(res.contact_y_mm[k]),  # NaN without contact
                 "max_von_mises_MPa": float(max_vm[k]),
                 "image": _image_name(k) if written[k] else None,
                 "stress": _stress_name(k) if written[k] else None,

@@ -79,7 +79,8 @@ def render_viewpoint(result_npz, out_dir, view: dict, pitches_deg, *,
                 write_png(out_dir / name, renderer.render(res.deformed_points(int(k)), cam))
                 rows.append({"image": name, "distance_mm": d, "pitch_deg": p, "frame": int(k),
                              "displacement_mm": float(res.displacement_mm[k]),
-                             "fx_N": float(res.fx_N[k]), "fy_N": float(res.fy_N[k])})
+                             "fx_N": float(res.fx_N[k]), "fy_N": float(res.fy_N[k]),
+                             "contact_y_mm": float(res.contact_y_mm[k])})
                 progress(len(rows), f"{d:g} mm, pitch {p:g} deg")
     finally:
         renderer.close()
