@@ -1,5 +1,6 @@
 """The Fin Ray scene: equilibrium, no interpenetration, failures reported by step."""
 import os
+from dataclasses import replace
 import subprocess
 import sys
 from pathlib import Path
@@ -62,6 +63,30 @@ def test_contact_height_is_where_the_circle_presses(finger):
     r = simulate(finger, obj, FINGER, SimulationOptions(push_mm=2.0, frame_step_mm=1.0))
     assert r.contact_y_mm.shape == (3,) and np.isnan(r.contact_y_mm[0])
     np.testing.assert_allclose(r.contact_y_mm[1:], 30.0, atol=0.5)
+
+
+def test_push_stops_at_the_force_cap_and_keeps_its_frames(finger):
+    """A cap the push reaches ends it at the first load step at the cap (at most 5 %
+    above: steps past it are cut), that state the last frame, the frames before kept
+    as without a cap; a cap it never reaches changes no array."""
+    obj = front_contact_circle(FingerParams(), 30.0, 10.0, gap_mm=0.1)
+    opts = SimulationOptions(push_mm=4.0, frame_step_mm=1.0)
+    free = simulate(finger, obj, FINGER, opts)
+    mag = np.hypot(*free.force_N.T)
+    cap = 0.5 * (mag[2] + mag[3])  # between the frames at 2 and 3 mm
+    r = simulate(finger, obj, FINGER, replace(opts, force_cap_N=cap))
+    assert r.meta["stop"]["reason"] == "force_cap"
+    assert free.meta["stop"] == {"reason": "complete", "push_reached_mm": free.displacement_mm[-1],
+                                 "force_cap_N": None}
+    assert len(r.displacement_mm) == 4 and 2.0 < r.displacement_mm[-1] < 3.0
+    assert r.meta["stop"]["push_reached_mm"] == r.displacement_mm[-1]
+    assert cap <= np.hypot(*r.force_N[-1]) <= 1.05 * cap
+    np.testing.assert_array_equal(r.force_N[:3], free.force_N[:3])
+    check_frames(r)
+    same = simulate(finger, obj, FINGER, replace(opts, force_cap_N=10 * mag.max()))
+    assert same.meta["stop"]["reason"] == "complete"
+    for k in ("force_N", "finger_displacement_mm", "finger_von_mises_MPa", "contact_y_mm"):
+        np.testing.assert_array_equal(getattr(same, k), getattr(free, k))
 
 
 def test_frame_short_of_equilibrium_tolerance_is_solved_again(finger):

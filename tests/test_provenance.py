@@ -241,6 +241,10 @@ UNREAD = {
     "lab.rigs.selection": "read by the selection rigs' target only (results/evaluate/sim2real/rigs/selection/)",
     "benchmarks.training_budget.seeds": "read by the training-budget study only (its own target)",
     "benchmarks.training_budget.points": "read by the training-budget study only (its own target)",
+    **{f"benchmarks.fea_sweep.{k}": "read by the FEA sweep only (its own target, "
+                                    "results/benchmarks/fea_sweep/summary.md)"
+       for k in ("count", "seed", "batches", "circle_diameter_mm", "square_side_mm",
+                 "ellipse_axis_mm", "polygon_radius_mm", "height_max_mm")},
     # (tests/test_config.py::test_generated_keys_are_in_every_blob_spec: each reaches the
     # objects entry of every generated object, whose provenance is that of objects.*)
     **{f"generated.{k}": "the smoke config generates no objects (generated.count 0)"

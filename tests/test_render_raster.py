@@ -228,6 +228,10 @@ def test_contact_height_is_optional_and_resampled(result, result_path, tmp_path)
     np.testing.assert_allclose(r2.contact_y_mm[2::2], y[1:])
     np.testing.assert_allclose(r2.contact_y_mm[3::2], 0.5 * (y[1:-1] + y[2:]))
     np.testing.assert_array_equal(r.frames([0, 2]).contact_y_mm, y[[0, 2]])
+    # a push ended early (fea.force_cap_N): fewer frames, a shorter travel, resampled over it
+    cut = resample_frames(r.frames([0, 1, 2]), 9)
+    np.testing.assert_allclose(cut.displacement_mm, np.linspace(0, r.displacement_mm[2], 9))
+    np.testing.assert_array_equal(cut.fx_N[-1], r.fx_N[2])
 
 
 def test_malformed_result_is_rejected(result_path, tmp_path):

@@ -51,6 +51,21 @@ STABILITY_CASES: dict[str, tuple[dict, dict, object]] = {
     "finger_nu_0.499": ({"materials.@finger.poisson_ratio": 0.499}, {}, "converge"),
     "circle_d5_tip_h70": ({}, {"spec": {"type": "circle", "diameter_mm": 5.0},
                               "height_mm": 70.0, "name": "circle_d5"}, "converge"),
+    # the whole face: just above the clamped base (the push ends at fea.force_cap_N,
+    # its frames kept: these three failed at 200-1000 N before the cap) and at the tip
+    "circle_d10_base_h5.2": ({}, {"spec": {"type": "circle", "diameter_mm": 10.0},
+                                 "height_mm": 5.2, "name": "circle_d10"}, "converge"),
+    "square_s14_base_h8.7": ({}, {"spec": {"type": "square", "side_mm": 14.0, "fillet_mm": 0.5},
+                                 "height_mm": 8.7, "name": "square_s14"}, "converge"),
+    "ellipse_16x9_base_h8.3": ({}, {"spec": {"type": "ellipse", "width_mm": 16.0, "height_mm": 9.0,
+                                             "angle_deg": 30.0},
+                                    "height_mm": 8.3, "name": "ellipse_16x9"}, "converge"),
+    "neoprene_ring_base_h8": ({}, {"spec": {"type": "ring", "diameter_mm": 15.0, "wall_mm": 2.0},
+                                   "material": "neoprene", "height_mm": 8.0, "name": "ring_d15"},
+                              "converge"),
+    "square_s10_a45_tip_h74": ({}, {"spec": {"type": "square", "side_mm": 10.0, "angle_deg": 45.0,
+                                             "fillet_mm": 0.5},
+                                    "height_mm": 74.0, "name": "square_s10_a45"}, "converge"),
     "neoprene_ring_h20": ({}, {"spec": {"type": "ring", "diameter_mm": 15.0, "wall_mm": 2.0},
                               "material": "neoprene", "height_mm": 20.0, "name": "ring_d15"},
                           "converge"),
@@ -104,7 +119,8 @@ def stability_suite(cfg: dict, out_csv, out_md=None, cases: dict | None = None, 
                "wall_time_s": np.nan, "newton_iterations": None, "fx_10mm_N": np.nan,
                "min_gap_mm": np.nan, "any_nan": False, "line_search_failures": None,
                "gradient_fallbacks": None, "residual_max_rel": np.nan,
-               "equilibrium_max_rel_error": np.nan, "expected": str(expected),
+               "equilibrium_max_rel_error": np.nan, "stop": "", "push_reached_mm": np.nan,
+               "max_force_N": np.nan, "expected": str(expected),
                "unexpected_error": False}
         case_clock = Stopwatch()
         exc = None
@@ -118,6 +134,9 @@ def stability_suite(cfg: dict, out_csv, out_md=None, cases: dict | None = None, 
                        any_nan=any_nan(res),
                        line_search_failures=res.meta["line_search_failures"],
                        gradient_fallbacks=res.meta["gradient_fallbacks"],
+                       stop=res.meta["stop"]["reason"],
+                       push_reached_mm=round(res.meta["stop"]["push_reached_mm"], 4),
+                       max_force_N=float(np.hypot(*res.force_N.T).max()),
                        residual_max_rel=res.meta["residual_max_rel"],
                        equilibrium_max_rel_error=float(
                            res.equilibrium_rel_error[1:].max(initial=0.0)))
@@ -155,7 +174,9 @@ def stability_suite(cfg: dict, out_csv, out_md=None, cases: dict | None = None, 
     md.write_text(
         "# FEA stability suite\n\n"
         f"Steel circle Ø20 mm at contact height 30 mm, 10 mm push, P2 mesh {mesh_size_mm:g} mm, "
-        "unless the case says otherwise. A case is `ok` when it converges without NaN and "
+        "unless the case says otherwise. A push may end at fea.force_cap_N (column `stop`: "
+        "force_cap, `push_reached_mm` how far; its frames kept): that converges too. "
+        "A case is `ok` when it converges without NaN and "
         "with every gap (object and self contact, all frames) > 0, or, where a refusal is "
         "expected, stops with the expected error type and message (column `expected`). "
         f"{int(df['ok'].sum())}/{len(df)} ok; whole suite {total:.0f} s.\n\n"

@@ -6,7 +6,8 @@ stresses MPa):
 - ``result.npz``: the compact result the render stage reads (see
   :mod:`finray.render.result` for the keys); forces are those the object applies to
   the finger (positive along the push), equal and opposite to the force on the
-  object and to the clamp's reaction;
+  object and to the clamp's reaction; ``stop_reason`` ("complete", or "force_cap":
+  the push ended at ``fea.force_cap_N``, its frames kept) and ``push_reached_mm``;
 - ``forces.csv``: ``displacement_mm,fx_N,fy_N`` per frame;
 - ``summary.json``: convergence checks (Newton residual, per-frame equilibrium error,
   line-search failures, gradient fallbacks), timings, peak stress, smallest gap,
@@ -52,7 +53,8 @@ def simulation_options(cfg: dict) -> SimulationOptions:
                              max_retries=f["max_retries"],
                              newton=NewtonOptions(tol_residual=f["residual_tol"]),
                              equilibrium_tol=f["equilibrium_tol"],
-                             extrusion_mm=cfg["finger"]["extrusion_mm"])
+                             extrusion_mm=cfg["finger"]["extrusion_mm"],
+                             force_cap_N=f["force_cap_N"])
 
 
 def scene_object(obj_mesh: TriMesh, material: str, cfg: dict):
@@ -93,6 +95,8 @@ def write_result_npz(path: Path, finger: TriMesh, obj, result: SimulationResult)
         n_pairs_self=result.n_pairs_self, n_pairs_object=result.n_pairs_object,
         min_gap_self_mm=result.min_gap_self_mm, min_gap_object_mm=result.min_gap_object_mm,
         contact_y_mm=result.contact_y_mm,
+        stop_reason=np.str_(result.meta["stop"]["reason"]),
+        push_reached_mm=result.meta["stop"]["push_reached_mm"],
     )
 
 
@@ -172,7 +176,7 @@ def summary(result: SimulationResult, wall_time_s: float, scene: dict) -> dict:
     gaps = gaps[np.isfinite(gaps)]
     m = result.meta
     return {
-        **scene, "converged": True, "wall_time_s": round(wall_time_s, 3),
+        **scene, "converged": True, "stop": m["stop"], "wall_time_s": round(wall_time_s, 3),
         "n_frames": int(len(result.displacement_mm)),
         "n_steps": int(result.load_steps[-1]),
         "newton_iterations": int(result.newton_iterations.sum()),

@@ -102,6 +102,10 @@ class SimulationOptions:
         (:class:`~finray.fea.linear.LinearSolver`).
     psd : "auto" (exact Hessian, projected when not positive definite), True, False.
     stress : compute nodal von Mises stresses.
+    force_cap_N : a physical limit on the contact force (N, for the extruded finger):
+        the push ends at the first load step whose force magnitude reaches it (within
+        :attr:`StepOptions.limit_overshoot` above), that state the last frame, and
+        ``meta["stop"]`` says so; None: the whole push.
     log_every_s : a progress line (frame k/n, travel mm, load steps, elapsed s) in the
         ``finray.fea`` log at most this often (s), and at the last frame.
     """
@@ -126,6 +130,7 @@ class SimulationOptions:
     psd: object = "auto"
     stress: bool = True
     log_every_s: float = 30.0
+    force_cap_N: float | None = None
 
 
 @dataclass
@@ -353,7 +358,11 @@ def simulate(finger_mesh: TriMesh, obj: RigidObject | DeformableObject, material
     log.info(f"{what}: push {push:g} mm in {n_frames} frames, {model.n} DOFs")
     progress = Progress(log, what, n_frames, opts.log_every_s)
 
+    stopped = []
+
     def on_frame(k, s, q, info):
+        if info.get("stop"):
+            stopped.append(s)
         q = record(k + 1, s, q, info)
         progress(k + 1, f"travel {rec['displacement_mm'][-1]:.2f}/{push:g} mm, "
                         f"{info.get('steps', 0)} load steps")
@@ -362,10 +371,16 @@ def simulate(finger_mesh: TriMesh, obj: RigidObject | DeformableObject, material
     so = StepOptions(initial_step=opts.initial_step_mm / L, max_step=opts.max_step_mm / L,
                      min_step=opts.min_step_mm / L, max_retries=opts.max_retries,
                      friction_lag_iterations=opts.friction_lag_iterations)
+    limit = None
+    if opts.force_cap_N is not None:
+        if not opts.force_cap_N > 0:
+            raise ValueError(f"force_cap_N must be > 0 N, got {opts.force_cap_N}")
+        # the driving spring's force: the object's contact force at equilibrium, free
+        limit = lambda q: float(np.linalg.norm(model.driver_force(q))) * extrusion / opts.force_cap_N  # noqa: E731
     try:
         march(model, q0, lambda s: s * push * direction, frames_s[1:], so, opts.newton,
               on_frame=on_frame,
-              friction=opts.contact.mu > 0)
+              friction=opts.contact.mu > 0, limit=limit)
     except SimulationError as e:
         e.args = (f"{e.args[0]} at object displacement {e.load * push:.4f} mm "
                   f"(push {push} mm)",)
@@ -406,6 +421,10 @@ def simulate(finger_mesh: TriMesh, obj: RigidObject | DeformableObject, material
                       "analyse": round(model.linsolve.time_analyse, 4),
                       "total": round(time.perf_counter() - t_start, 4)},
         "sign_convention": "force_*: finger on object; base_reaction_*: clamp on finger",
+        # "complete": the whole push; "force_cap": ended at force_cap_N (frames kept)
+        "stop": {"reason": "force_cap" if stopped else "complete",
+                 "push_reached_mm": float(rec["displacement_mm"][-1]),
+                 "force_cap_N": opts.force_cap_N},
     }
     return SimulationResult(
         displacement_mm=np.array(rec["displacement_mm"]), target_mm=np.array(rec["target_mm"]),

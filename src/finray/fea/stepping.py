@@ -39,11 +39,14 @@ class StepOptions:
     # moved by 1-10 % of their largest Fx at late frames, so it is not the default
     predictor: str = "secant"
     max_driver_lag: float | None = 1e-3  # mm; a larger lag means the object is blocked
+    # a converged step whose limit ratio (march's ``limit``) exceeds 1 + this is cut in
+    # half and retried, so that a stop at the limit lands within this fraction of it
+    limit_overshoot: float = 0.05
 
 
 def march(model: Model, q: np.ndarray, targets, frames: np.ndarray,
           step_opts: StepOptions | None = None, newton_opts: NewtonOptions | None = None,
-          on_frame=None, friction: bool = True):
+          on_frame=None, friction: bool = True, limit=None):
     """Advance the load factor s from its current 0 to each value in ``frames``.
 
     ``targets(s)`` gives the driver target (2,) at load factor s (also sets
@@ -51,8 +54,12 @@ def march(model: Model, q: np.ndarray, targets, frames: np.ndarray,
     at every frame with the Newton iterations and wall time since the previous one
     and ``residual_rel``, the residual of the solve that reached the frame
     (:meth:`Model.residual_norm`); a q it returns replaces the frame's state.
-    Raises :class:`SimulationError` naming the step and the cause on failure.
-    Returns the final q.
+    ``limit(q)``, when given, is a physical limit's ratio (e.g. force / cap) at each
+    converged step: the first step that reaches 1 ends the march there, its state
+    recorded as a last frame (``info["stop"]`` True) at its own load factor; a step
+    past ``1 + limit_overshoot`` is cut in half and retried first (down to
+    ``min_step``). Raises :class:`SimulationError` naming the step and the cause on
+    failure. Returns the final q.
     """
     so = step_opts or StepOptions()
     no = newton_opts or NewtonOptions()
@@ -102,6 +109,15 @@ def march(model: Model, q: np.ndarray, targets, frames: np.ndarray,
                             f"driven object lags its prescribed position by {lag:.3g} mm; it "
                             f"is blocked (e.g. pressed against the clamped base)",
                             step=step, load=s_new, cause="object blocked")
+                stop = False
+                if res.converged and limit is not None:
+                    ratio = limit(res.q)
+                    stop = ratio >= 1.0
+                    if ratio > 1.0 + so.limit_overshoot and (s_new - s) / 2 >= so.min_step:
+                        # past the limit by more than the overshoot: a shorter step
+                        ds = (s_new - s) / 2
+                        s_new = s + ds
+                        continue
                 if res.converged:
                     break
                 retries += 1
@@ -116,6 +132,14 @@ def march(model: Model, q: np.ndarray, targets, frames: np.ndarray,
             residual = res.residual
             if iters <= so.easy_iterations:
                 ds = min(so.max_step, ds * so.grow)
+            if stop:
+                if on_frame is not None:
+                    q_frame = on_frame(k, s, q, {"newton_iterations": iters_frame,
+                                                 "wall_time_s": time.perf_counter() - t_frame,
+                                                 "steps": step, "residual_rel": residual,
+                                                 "stop": True})
+                    q = q if q_frame is None else q_frame
+                return q
         if on_frame is not None:
             q_frame = on_frame(k, s, q, {"newton_iterations": iters_frame,
                                          "wall_time_s": time.perf_counter() - t_frame,
