@@ -94,11 +94,16 @@ def test_smoke_dataset_and_training(smoke_run):
     assert set(man.split) == {"train", "shape", "material", "pitch"}
     assert sorted(man[man.split == "pitch"].pitch_deg.unique()) == [0, 5, 10, 15, 20, 25, 30]
     assert man.fx_N.notna().all()
+    # the FEA's contact heights reach the shards (NaN at rest), on the finger's face
+    assert man.contact_y_mm.notna().any() and man.contact_y_mm.dropna().between(0, 85).all()
     # train.epochs is 2; the occlusion model is fine-tuned from plain's weights for its own 1
     for model, epochs, start in (("plain", 2, None), ("occlusion", 1, "plain"), ("camera", 2, None)):
         d = smoke_run / "results" / "train" / model
         hist = json.loads((d / "history.json").read_text())
         assert len(hist["train_loss"]) == epochs and np.isfinite(hist["train_loss"]).all()
+        # the contact head (train.contact_weight's default) trained on pushed frames
+        assert hist["n_contact_frames"] > 0 and np.isfinite(hist["val_contact_rmse_mm"]).all()
+        assert json.loads((d / "model.ts.json").read_text())["contact"] is True
         assert hist["start_from"] == (None if start is None else f"results/train/{start}/model.pt")
         assert (d / "model.ts").is_file() and (d / "curves.png").is_file()
 
