@@ -256,3 +256,12 @@ def test_configfile_trap_detection():
     assert misread_configfile(["--configfile=a.yaml", "fig.pdf"]) is None
     assert misread_configfile(["--configfile", "a.yaml", "--cores", "2", "fig.pdf"]) is None
     assert misread_configfile(["--cores", "2"]) is None
+
+
+def test_configfile_guard_logger_works_when_chosen():
+    """The module must be a valid Snakemake logger plugin (or every snakemake call
+    would fail on it); chosen by name it logs a dry run as the default does."""
+    r = subprocess.run([str(BIN / "snakemake"), "--logger", "finray-args", "-n", "--cores", "1",
+                        "results/geometry/finger.json", "--configfile=config/smoke.yaml"],
+                       cwd=ROOT, capture_output=True, text=True, env=_env(), timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]

@@ -74,6 +74,9 @@ class LogHandler(LogHandlerBase, logging.StreamHandler):
     def __post_init__(self) -> None:
         logging.StreamHandler.__init__(self, sys.stderr)
 
+    def emit(self, record: logging.LogRecord) -> None:
+        logging.StreamHandler.emit(self, record)
+
     @property
     def writes_to_stream(self) -> bool:
         return True
