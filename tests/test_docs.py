@@ -265,3 +265,11 @@ def test_configfile_guard_logger_works_when_chosen():
                         "results/geometry/finger.json", "--configfile=config/smoke.yaml"],
                        cwd=ROOT, capture_output=True, text=True, env=_env(), timeout=300)
     assert r.returncode == 0, r.stderr[-2000:]
+
+
+def test_readme_holds_no_lab_notebook():
+    """Measurements, version comparisons and trials not taken go to the issue notes and
+    docs/studies/ (issue 53): no commit hashes, no 'not taken' in the README."""
+    text = README.read_text()
+    assert not re.findall(r"\b(?=[0-9a-f]*[a-f])(?=[0-9a-f]*[0-9])[0-9a-f]{7,40}\b", text)
+    assert "tried and not taken" not in text.lower() and "tried, not taken" not in text.lower()
