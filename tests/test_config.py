@@ -277,7 +277,7 @@ def test_spread_config_is_the_paper_config_with_the_spread_in_the_manuscript():
 
 def test_fast_config_is_the_paper_config_at_the_budget_point_w8x2():
     """config/fast.yaml: config/config.yaml with the train keys of the training-budget
-    point w8x2 (whose measured errors the README gives) and nothing else changed."""
+    point w8x2 (whose measured errors docs/studies/training-budget.md gives) and nothing else changed."""
     cfg = load_config(ROOT / "config" / "fast.yaml")
     paper = validate_config(FULL)
     point = paper["benchmarks"]["training_budget"]["points"]["w8x2"]

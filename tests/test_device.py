@@ -99,7 +99,7 @@ def test_config_key_defaults_to_auto_and_refuses_others():
     with pytest.raises(ConfigError, match="train.device"):
         validate_config(cfg, base_dir=ROOT)
     # the config's settings on every device (the paper's batch and epochs; the cosine's
-    # peak at 4x the paper's constant rate, README "Seeds, numeric types and what to expect")
+    # peak at 4x the paper's constant rate, docs/studies/seeds.md "Seeds, numeric types and what to expect")
     full = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())["train"]
     assert (full["device"], full["batch_size"], full["lr"], full["epochs"]) == ("auto", 16, 4e-4, 10)
 

@@ -121,7 +121,7 @@ def test_60_fps_take_and_4_2_0_chroma(tmp_path, capsys):
     assert abs(sync["offset_s"] - truth["offset_s"]) < 1 / 60
     assert load_shard(tmp_path / "out" / "shard.npz")["fx_N"].shape == (150,)
     # 4:2:0 chroma (half resolution) blurs the colour edges: with walls ~6 px the masks
-    # lose IoU (README, "Lab recordings"); the finger must still be whole
+    # lose IoU (docs/guide/recordings.md, "Lab recordings"); the finger must still be whole
     frames = [f.to_ndarray(format="rgb24") for f in av.open(str(tmp_path / "take" / "take.mp4")).decode(video=0)]
     colour = learn_colour(frames[:5])
     assert min(iou(segment_finger(f, colour), m) for f, m in zip(frames[::10], truth["masks"][::10])) > 0.8

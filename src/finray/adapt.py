@@ -44,7 +44,7 @@ class HeadFit:
     Why ``epochs``: at a fixed step count, two context objects' frames were each seen
     half as often as one object's, and on one training of six the adapted error rose from
     one context object to two (3.22 to 3.42 % NRMSE before calibration); at the same
-    passes over the frames it fell on all six (README, "Seeds, numeric types and what to
+    passes over the frames it fell on all six (docs/studies/seeds.md, "Seeds, numeric types and what to
     expect").
 
     Fitting the whole head made it worse than the simulation's own, even on frames like
@@ -97,7 +97,7 @@ class SimAnchor:
     the range of objects from the simulation. A fixed count, not a share of the context
     frames: like a prior's weight, it counts for less as a rig gives more frames. Off in
     the default config: over three trainings it lowered the error on the rig that
-    presses at the finger's base and raised it on the others (README, "Sim-to-real")."""
+    presses at the finger's base and raised it on the others (docs/studies/sim2real.md, "Sim-to-real")."""
 
     features: torch.Tensor
     force_N: np.ndarray

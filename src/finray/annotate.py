@@ -71,7 +71,7 @@ def _overlay_into(rgb: np.ndarray, mask: np.ndarray, box, stress: np.ndarray, al
     sub = np.s_[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1]  # the window's part of the frame
     # 8-bit fixed point (alpha in 256ths): the map's cells coloured once, each masked
     # pixel of the window blended with its cell's colour in one compiled pass (a third
-    # of the time of numpy's passes over the whole window: README, the live loop)
+    # of the time of numpy's passes over the whole window: docs/studies/realtime.md, the live loop)
     a = int(round(alpha * 256))
     cells = _lut()[np.clip(np.rint(stress / vmax * 255), 0, 255).astype(np.int64)]
     _blend_cells(rgb[sub], np.asarray(mask, bool)[sub], cells.astype(np.uint16) * a + 128,

@@ -66,7 +66,7 @@ class RigPrior:
     Normal(gain_log_mean, gain_log_sd)``, :mod:`finray.evaluate.rig_prior`) and its
     offset (N; ``b_rig ~ Normal(0, offset_sd_N)``). With no context frames the
     calibration is fitted on the simulation's own frames, which know neither: its
-    intervals then covered 3-6 % of the emulated rig's frames (README, "Sim-to-real")."""
+    intervals then covered 3-6 % of the emulated rig's frames (docs/studies/sim2real.md, "Sim-to-real")."""
 
     gain_log_sd: float = 0.0
     offset_sd_N: float = 0.0

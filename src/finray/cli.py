@@ -407,7 +407,7 @@ def _predict(args) -> int:
 
 INGEST_HELP = """\
 Ingest a lab take (one folder: a video or frames/ + frames.csv, the sensor's
-forces.csv, take.json; see the README's "Lab recordings") into a dataset shard.
+forces.csv, take.json; see docs/guide/recordings.md) into a dataset shard.
 The finger is colour-segmented (take.json's finger_colour, or learned from the
 first frames), cropped in the same base-anchored window as predict, and the
 sensor clock is aligned to the camera's by cross-correlating the push force with

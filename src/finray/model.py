@@ -27,7 +27,7 @@ before a ReLU, 1 before none), so that the activations keep their scale through 
 encoder's eight convolutions; ``"torch"`` keeps PyTorch's default (uniform, a third of
 that variance), under which the latent came out ~1e-4 of the input's scale and the
 force head's first batch-norm saw sigmoid outputs that differed by less than bfloat16
-resolves (README, "Seeds, numeric types and what to expect").
+resolves (docs/studies/seeds.md, "Seeds, numeric types and what to expect").
 """
 from __future__ import annotations
 

@@ -4,7 +4,7 @@ runs it natively, float32 elsewhere.
 
 bfloat16 autocast makes a training step faster only on CPUs whose convolutions run it in
 hardware (AVX-512 BF16 or AMX); on the others oneDNN emulates it and the step is many
-times slower than in float32 (the step times per CPU are in the README and in each
+times slower than in float32 (the step times per CPU are in docs/studies/run-cost.md and in each
 model's ``history.json``). ``train.bf16: auto`` picks from what the CPU offers to the
 kernels torch will really use: the ATen dispatch level (``ATEN_CPU_CAPABILITY`` lowers
 it) and oneDNN's instruction set (``ONEDNN_MAX_CPU_ISA`` caps it), beside the

@@ -3,7 +3,7 @@
 # seed of evaluate.spread.seeds and each numeric type of evaluate.spread.types, every
 # experiment and sim-to-real run on each such variant, and each headline figure given as
 # the default seed's value, mean and range (results/evaluate/spread/). Not in the default
-# run: it trains len(seeds) x len(bf16) x 4 models (README, "Seeds and numeric types").
+# run: it trains len(seeds) x len(bf16) x 4 models (docs/studies/seeds.md, "Seeds and numeric types").
 #
 # A variant is s<seed>_<type>: type auto (train.bf16: auto, the machine's native type),
 # fp32 (false) or bf16 (true). Its models, experiments and sim-to-real live in

@@ -8,7 +8,7 @@ def drop_default_rate_limit(wf):
     the scheduler again, and every finished job adds a pass: while ready jobs wait for a
     core the timers pile up, and after N jobs the scheduler runs about N passes a second,
     each re-reading the size of every ready job's inputs. On the full run that took about
-    half a core while the trainings ran beside it on two cores (README, "Snakemake's own
+    half a core while the trainings ran beside it on two cores (docs/studies/snakemake-process.md, "Snakemake's own
     process"). A local run starts a job only when one ends, so it needs no rate limit; a
     cluster run (not local) and a limit a user sets keep theirs."""
     limit = getattr(wf.scheduling_settings, "max_jobs_per_timespan", None)
@@ -28,7 +28,7 @@ def sample_benchmarks_every(seconds):
 
     Why: Snakemake 9.27 samples every 30 s after a job's first 15 s and keeps the last
     sample, so a longer job's CPU time read up to 30 s low (an emulated lab take: 14.7 s
-    in its benchmark file, 24.4 s by /usr/bin/time; README, "Snakemake's own process").
+    in its benchmark file, 24.4 s by /usr/bin/time; docs/studies/snakemake-process.md, "Snakemake's own process").
     A longer interval would cost shorter jobs their accuracy: at 2 s a 5 s job read 3 s.
     The interval is the default argument of ``snakemake.benchmark.benchmarked``, which
     times every benchmarked job from this process."""
