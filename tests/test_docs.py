@@ -273,3 +273,20 @@ def test_readme_holds_no_lab_notebook():
     text = README.read_text()
     assert not re.findall(r"\b(?=[0-9a-f]*[a-f])(?=[0-9a-f]*[0-9])[0-9a-f]{7,40}\b", text)
     assert "tried and not taken" not in text.lower() and "tried, not taken" not in text.lower()
+
+
+def test_readme_commands_parse_or_dry_run(tmp_path):
+    """The README's other commands: finray lines parse, snakemake lines plan (-n)."""
+    skip = {FULL_RUN, _ci_test_command()}
+    cmds = [c for _, block in _blocks(README) for c in block if c not in skip]
+    assert cmds
+    for cmd in cmds:
+        argv = shlex.split(_resolve(cmd, tmp_path))
+        name = Path(argv[0]).name
+        if name == "finray":
+            _parse_finray(cmd)
+        elif name == "snakemake":
+            argv.insert(1, "-n")
+            r = subprocess.run(argv + ["--quiet", "rules"], cwd=ROOT, capture_output=True,
+                               text=True, env=_env(), timeout=600)
+            assert r.returncode == 0, f"{cmd}\n{r.stderr[-2000:]}"
