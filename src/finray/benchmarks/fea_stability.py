@@ -1,6 +1,7 @@
 """The FEA robustness study (results/benchmarks/fea_stability.*): :func:`stability_suite`
-runs hard scenes (sharp corners, long push, near-incompressible finger, small object at
-the tip, soft deformable ring, friction extremes, initial contact, extreme meshes) and
+runs hard scenes (sharp corners, long push, near-incompressible finger, objects just
+above the clamped base and at the tip, soft deformable ring, friction extremes, initial
+contact, extreme meshes) and
 records whether each converges or stops with the expected error (type and message).
 
 Units: lengths mm, forces N on the 20 mm finger, times s (wall clock, one thread).
