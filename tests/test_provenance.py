@@ -44,7 +44,8 @@ snakemake_api = pytest.importorskip("snakemake.api")
 from snakemake.settings.types import (ConfigSettings, DAGSettings, ExecutionSettings,  # noqa: E402
                                       OutputSettings, Quietness, ResourceSettings)
 
-from finray.config import load_schema, validate_config  # noqa: E402
+from finray.config import (load_schema, merge_config, object_heights, read_config_file,  # noqa: E402
+                           validate_config)
 
 ROOT = Path(__file__).resolve().parents[1]
 SMOKE = ROOT / "config" / "smoke.yaml"
@@ -89,6 +90,13 @@ READERS: list[tuple[str, set[str]]] = [
     # reads the camera model's training shards)
     ("extra_train_heights_mm", {"geometry_object", "fea_scene", "render_scene", "dataset_manifest",
                                 "fea_figures", "train_model", "sim2real_no_context", "inference_latency"}),
+    # the face heights: new scenes of that split (new jobs, and every list of scenes or
+    # shards); the experiments tell their heights from the training's (train)
+    ("face_heights_mm.train", {"geometry_object", "fea_scene", "render_scene", "evaluate_experiment"}
+     | _LISTS),
+    ("face_heights_mm.shape", {"geometry_object", "fea_scene", "render_scene", "evaluate_experiment",
+                               "dataset_manifest", "fea_figures", "sim2real_no_context",
+                               "inference_latency"}),
     # (the rig prior: its wall variants' friction, and the nominal its gains are against)
     ("fea.friction", {"fea_scene", "summary", "rig_prior_fea", "rig_prior"} | _STUDIES),
     ("fea.push_mm", {"fea_scene", "summary", "rig_prior_fea"} | _STUDIES),
@@ -211,6 +219,9 @@ READERS: list[tuple[str, set[str]]] = [
     ("lab.rigs.colours.*", {"rig_take"}),
     ("lab.rigs.object_scale", {"rig_object"}),
     ("lab.rigs.height_jitter_mm", {"sim2real_rigs"}),
+    # (heights over the face: the rig's objects, FEA, takes and their sim-to-real anew)
+    ("lab.rigs.height_span_mm", {"rig_object", "rig_fea", "rig_take", "rig_ingest", "rig_sim2real",
+                                 "sim2real_rigs"}),
     ("lab.rigs.*", {"rig_take", "sim2real_rigs"}),  # seed, uniform, choice: the camera's draws
     ("lab.camera.model", {"lab_take", "summary"}),  # a drawn rig names its own
     ("lab.seed", {"lab_take"}),
@@ -266,6 +277,7 @@ def _with_wall(spec):
 #: config (a key the schema then requires comes with it)
 NEW_VALUES = {
     "extra_train_heights_mm": {"camera": [16.0]},
+    "lab.rigs.height_span_mm": [12.0, 70.0],
     "finger.material": "neoprene",
     "finger.ribs.count": 10,
     "mesh.order": 1,
@@ -654,7 +666,13 @@ def test_diversity_comparison_is_planned_with_generated_objects_only(tmp_path):
         assert train["plain_paper_objects"] == paper["plain"], files
         shards = train["plain"][1]
         blobs = [f for f in shards if f.startswith("results/dataset/shards/blob_s")]
-        assert len(blobs) == 3 * n_blobs and sorted(set(shards) - set(blobs)) == paper["plain"][1]
+        # each blob at the paper's 3 heights and at the training's face heights where it
+        # clears the base (finray.config.face_heights)
+        cfg = validate_config(merge_config(read_config_file(DIVERSE), {"generated": {"count": n_blobs}}))
+        names = [n for n in cfg["objects"] if n.startswith("blob_s")]
+        assert len(names) == n_blobs
+        assert len(blobs) == sum(len(object_heights(cfg, n)) for n in names) > 3 * n_blobs
+        assert sorted(set(shards) - set(blobs)) == paper["plain"][1]
         assert train["plain"][0] == paper["plain"][0]  # the same settings, more objects
         assert "results/evaluate/diversity/table.csv" in diversity
         assert "results/evaluate/diversity/summary.json" in diversity

@@ -10,15 +10,6 @@ FIGURES = ["shape_generalisation", "material_generalisation", "occlusion", "view
 FIGURES += ["face"] if config["face_heights_mm"].get("shape") else []  # contacts over the face
 
 
-def face_figure_runs():
-    """Label -> the shape experiment's heights.csv of each training the face figure draws:
-    the run's, and each spread variant's where the manuscript quotes the spread study."""
-    runs = {"this run": f"{EVALUATE}/shape/heights.csv"}
-    if config["evaluate"]["spread"]["manuscript"]:
-        runs.update({v: f"{SPREAD}/{v}/shape/heights.csv" for v in spread_variants()})
-    return runs
-
-
 rule figure_face:
     input:
         heights=list(face_figure_runs().values()),

@@ -170,3 +170,13 @@ def rig_prior_geometry(wildcards):
         base = GEOMETRY
     return {"finger": f"{base}/finger.npz",
             "object": f"{base}/objects/{wildcards.object}_h{wildcards.height}.npz"}
+
+
+def face_figure_runs():
+    """Label -> the shape experiment's heights.csv of each training the face figure
+    (paper.smk) draws: the run's, and each spread variant's where the manuscript quotes
+    the spread study."""
+    runs = {"this run": f"{EVALUATE}/shape/heights.csv"}
+    if config["evaluate"]["spread"]["manuscript"]:
+        runs.update({v: f"{SPREAD}/{v}/shape/heights.csv" for v in spread_variants()})
+    return runs
