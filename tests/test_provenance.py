@@ -88,8 +88,10 @@ READERS: list[tuple[str, set[str]]] = [
                     "render_benchmark", "summary"} | _LISTS),
     # new training scenes, and the model that trains on them (sim-to-real's no-context fit
     # reads the camera model's training shards)
+    # (and the experiments, which tell the training's heights from the unseen ones)
     ("extra_train_heights_mm", {"geometry_object", "fea_scene", "render_scene", "dataset_manifest",
-                                "fea_figures", "train_model", "sim2real_no_context", "inference_latency"}),
+                                "fea_figures", "train_model", "sim2real_no_context", "inference_latency",
+                                "evaluate_experiment"}),
     # the face heights: new scenes of that split (new jobs, and every list of scenes or
     # shards); the experiments tell their heights from the training's (train)
     ("face_heights_mm.train", {"geometry_object", "fea_scene", "render_scene", "evaluate_experiment"}
@@ -158,8 +160,9 @@ READERS: list[tuple[str, set[str]]] = [
     ("evaluate.sim2real.level", {"sim2real_no_context", "sim2real"}),
     ("evaluate.sim2real.*", {"sim2real"}),
     # the manuscript quotes the spread study: the summary waits for it, so its jobs join the DAG
+    # (and the face figure draws a line per variant)
     ("evaluate.spread.manuscript", {"summary", "spread_train", "spread_experiment", "spread_sim2real",
-                                    "spread_sim2real_no_context", "spread_summary"}),
+                                    "spread_sim2real_no_context", "spread_summary", "figure_face"}),
     ("benchmarks.fea_*", _STUDIES),
     ("benchmarks.latency_model", {"inference_latency"}),
     # the live-stream benchmark's model also draws the annotated figure, at its pitch
@@ -178,7 +181,8 @@ READERS: list[tuple[str, set[str]]] = [
     # where an object's scenes go: its scenes, and what lists the splits' shards; into or
     # out of training, its scenes at the smoke config's extra training height come or go
     # (what lists every scene, and the camera model's shards)
-    ("objects.circle_d10.split", _EXTRA_HEIGHT | {"fea_scene", "render_scene", "geometry_gallery",
+    # (a split's face heights: its objects at other heights, new geometry too)
+    ("objects.circle_d10.split", _EXTRA_HEIGHT | {"geometry_object", "fea_scene", "render_scene", "geometry_gallery",
                                   "dataset_examples", "dataset_manifest", "evaluate_baseline",
                                   "evaluate_experiment", "render_benchmark", "train_model",
                                   "train_pareto", "viewpoint_render",
@@ -191,7 +195,8 @@ READERS: list[tuple[str, set[str]]] = [
     ("objects.ring_d15.split", _EXTRA_HEIGHT | {"geometry_object", "fea_scene", "render_scene", "geometry_gallery",
                                 "evaluate_baseline", "evaluate_experiment", "train_model",
                                 "train_pareto", "figure_material_generalisation", "sim2real_no_context"}),
-    ("objects.ellipse_16x9.split", {"fea_scene", "render_scene", "geometry_gallery",
+    ("objects.ellipse_16x9.split", {"fea_scene", "render_scene", "geometry_gallery", "dataset_manifest",
+                                    "fea_figures", "inference_latency",
                                     "evaluate_experiment", "figure_material_generalisation",
                                     "sim2real_no_context", "realtime_benchmark", "figure_annotated"}),
     # its materials: a deformable one meshes the object; new scenes (train objects: in
