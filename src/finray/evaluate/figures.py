@@ -312,17 +312,13 @@ def face_figure(heights_csvs: dict[str, str], out_pdf, paper_band_mm=(20.0, 40.0
     for a in (ax, axf):
         a.axvspan(*paper_band_mm, color="0.92", zorder=0)
         a.set_xlabel("contact height (mm above the clamped base)")
-    ax.set_yscale("log")
-    from matplotlib.ticker import NullFormatter, ScalarFormatter
-
-    ax.yaxis.set_major_formatter(ScalarFormatter())
-    ax.yaxis.set_minor_formatter(NullFormatter())
+    ax.set_ylim(bottom=0)
     ax.set_ylabel("Fx NRMSE (% of the largest |Fx| at that height)")
     ax.set_title("held-out shapes (filled: heights no training scene used;\n"
                  "shaded: the paper's heights)", fontsize=8)
     ax.legend(fontsize=6)
     axf.plot(forces["height_mm"], forces["max_true_N"], "k.-")
-    axf.set_yscale("log")
+    axf.set_ylim(bottom=0)
     axf.set_ylabel("largest |Fx| of the held-out shapes (N)")
     fig.suptitle("Force error over the finger's front face", fontsize=10)
     fig.tight_layout()
