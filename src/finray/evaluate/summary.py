@@ -334,6 +334,7 @@ NAMED = [("experiments", "*"), ("experiments", "*", "*"), ("experiments", "*", "
          ("sim2real", "by_context"), ("sim2real", "by_context", "*", "per_object"),
          ("sim2real_rigs", "by_context"), ("sim2real_rigs", "per_rig"), ("sim2real_rigs", "settings"),
          ("diversity", "tests", "*", "groups"),
+         ("training",), ("setup", "model_start"),  # the models train.models lists
          ("face", "shape", "by_height"), ("face", "shape", "unseen"), ("face", "shape", "seen"),
          ("sim2real", "by_context", "*", "per_height"), ("sim2real_rigs", "per_height"),
          ("sim2real_rigs", "per_height", "*"), ("sim2real_rigs", "per_height", "*", "*")]
