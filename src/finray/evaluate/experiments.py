@@ -35,7 +35,7 @@ import pandas as pd
 
 from .baseline import RidgeBaseline
 from .camera import camera_test_set, rendered_subset, shared_preprocessing
-from .metrics import contact_metrics, force_metrics, force_vector_metrics, stress_metrics
+from .metrics import CONTACT_MIN_FORCE_N, contact_metrics, force_metrics, force_vector_metrics, stress_metrics
 from ..dataset import scene_id
 from ..errors import FrameError
 from ..predictor import Predictor
@@ -119,10 +119,6 @@ def _height_rows(frames: pd.DataFrame, condition: str, predictors,
                          **_contact_row(frames, p, sel)})
     return rows
 
-
-#: N: contact heights are scored on frames pushed harder than this (at rest, and just
-#: touching, the contact height is barely defined and barely matters)
-CONTACT_MIN_FORCE_N = 0.5
 
 #: Columns that name a metrics row (the rest are metrics).
 ID_COLUMNS = ("condition", "path", "frames", "group", "predictor")

@@ -42,7 +42,12 @@ def force_vector_metrics(fx_true, fy_true, fx_pred, fy_pred) -> dict:
     return {**{f"fy_{k}": fy[k] for k in keys}, **{f"mag_{k}": mag[k] for k in keys}}
 
 
-def contact_metrics(true_mm, pred_mm, fx_N, min_force_N: float = 0.5) -> dict:
+#: N: contact heights are scored on frames pushed harder than this (at rest, and just
+#: touching, the contact height is barely defined and barely matters)
+CONTACT_MIN_FORCE_N = 0.5
+
+
+def contact_metrics(true_mm, pred_mm, fx_N, min_force_N: float = CONTACT_MIN_FORCE_N) -> dict:
     """Contact-height errors over the frames with a true height and ``|fx_N| >
     min_force_N`` (N): ``rmse_mm``, ``mae_mm`` (NaN where there are none) and ``n``, the
     frames counted. Heights in mm (the finger's frame), one per frame."""
