@@ -224,8 +224,7 @@ def face_summary(exp_dir, condition: str = "all") -> dict | None:
     head, the contact height's RMSE (mm) on the frames with |Fx| above
     ``CONTACT_MIN_FORCE_N`` too. None where every test height is a training height (no
     face heights)."""
-    from .metrics import CONTACT_MIN_FORCE_N
-    from .metrics import contact_metrics, force_metrics
+    from .metrics import CONTACT_MIN_FORCE_N, contact_metrics, force_metrics
 
     h = pd.read_csv(Path(exp_dir) / "heights.csv")
     h = h[h["condition"].astype(str) == condition]
