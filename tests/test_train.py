@@ -293,3 +293,25 @@ def test_contact_checkpoint_torchscript_and_onnx_parity(tmp_path):
     f6, c6 = force.run(["force_N", "contact_mm"], {"image": x[:8]})
     for a, b in ((c0, c5), (c0, c6), (f0, f5), (f0, f6)):
         assert np.abs(a.numpy() - b).max() < 1e-3
+
+
+def test_relative_force_weights_divide_by_each_scenes_largest_force():
+    from finray.train.data import scene_force_weights
+
+    ids = ["a"] * 3 + ["b"] * 3 + ["c"] * 2
+    fx = np.array([0.0, 10.0, 40.0, 0.0, -1.0, 2.0, 0.1, 0.2])  # peaks 40, 2 and 0.2 N
+    w = scene_force_weights(ids, fx, floor_N=1.0)
+    assert w.mean() == pytest.approx(1.0)
+    raw = np.array([1 / 40**2] * 3 + [1 / 2**2] * 3 + [1.0] * 2)  # c: floored at 1 N
+    np.testing.assert_allclose(w, raw / raw.mean(), rtol=1e-6)
+
+
+def test_uniform_force_weights_train_as_the_plain_loss():
+    x, s, f = toy()
+    net = NetConfig(height=32, width=16, base_channels=4)
+    plain = train(x, s, f, None, net, TrainConfig(**CFG, bf16=False), log=lambda m: None)[1]
+    ones = train(x, s, f, None, net, TrainConfig(**CFG, bf16=False), log=lambda m: None,
+                 force_weight=np.ones(len(x), "f4"))[1]
+    np.testing.assert_allclose(ones.train_loss, plain.train_loss, rtol=1e-5)
+    with pytest.raises(ValueError, match="force weights"):
+        train(x, s, f, None, net, TrainConfig(**CFG), log=lambda m: None, force_weight=np.ones(3))

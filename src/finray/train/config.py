@@ -19,6 +19,12 @@ class TrainConfig:
     # is above contact_min_force_N (N)
     contact_weight: float = 0.0
     contact_min_force_N: float = 0.2
+    # the force term's frame weights: "absolute" (every frame alike: the error in N) or
+    # "relative" (each frame's squared error over its scene's largest |fx|, floored at
+    # force_floor_N, squared; weights of mean 1): near the clamped base a scene ends at
+    # 40 N, at the tip at 2 N, and an absolute loss spends the network on the first
+    force_loss: str = "absolute"
+    force_floor_N: float = 1.0
     seed: int = 0  # the training's draws: initial weights, batch order, augmentation
     # the validation scenes (part of the data, not of the training's draw: a seed study
     # varies the training on the same data)
@@ -109,3 +115,4 @@ SCHEDULES = ("cosine", "constant")
 
 
 KEEP = ("val_force_rmse", "val_loss", "last")
+FORCE_LOSS = ("absolute", "relative")

@@ -43,3 +43,14 @@ def validation_scenes(scene_ids, fraction: float, seed: int) -> set[str]:
     rng = np.random.default_rng(seed)
     n_val = max(1, int(round(fraction * len(ids)))) if len(ids) > 1 else 0
     return set(rng.permutation(ids)[:n_val].tolist())
+
+
+def scene_force_weights(scene_id, fx_N, floor_N: float) -> np.ndarray:
+    """Per-frame weights (N,) that make a squared force error relative to its scene's
+    largest |fx| (N, floored at ``floor_N``): ``1 / max(|fx|_scene, floor_N)**2``,
+    scaled to mean 1 over the frames."""
+    ids, inv = np.unique(np.asarray(scene_id), return_inverse=True)
+    peak = np.zeros(len(ids))
+    np.maximum.at(peak, inv, np.abs(np.asarray(fx_N, dtype=float).reshape(len(inv), -1)[:, 0]))
+    w = 1.0 / np.maximum(peak, floor_N)[inv] ** 2
+    return (w / w.mean()).astype(np.float32)

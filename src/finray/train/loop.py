@@ -197,7 +197,8 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
           log: Callable[[str], None] = print,
           camera_images: np.ndarray | None = None,
           init_state: dict | None = None,
-          contact_mm: np.ndarray | None = None) -> tuple[FinRayNet, History]:
+          contact_mm: np.ndarray | None = None,
+          force_weight: np.ndarray | None = None) -> tuple[FinRayNet, History]:
     """Train a network; returns the kept model (``cfg.keep``) and the history.
 
     ``images`` (N, C, H, W) float in [0, 1]; ``stress`` (N, 1, H, W) log-stress maps;
@@ -211,6 +212,8 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
     ``contact_mm`` (N,): each frame's contact height (mm, NaN where none), for a network
     with the contact head (``net_cfg.contact``, which goes with ``cfg.contact_weight`` >
     0); ``val`` then has a fourth array, the validation frames' heights.
+    ``force_weight`` (N,): each frame's weight in the force term (mean 1; None: 1 each;
+    :func:`~finray.train.data.scene_force_weights` for ``cfg.force_loss`` relative).
     """
     if cfg.keep not in KEEP:
         raise ValueError(f"train.keep: {cfg.keep!r} is not one of {list(KEEP)}")
@@ -236,6 +239,9 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
              if camera_images is not None else None)
     if c_all is not None and c_all.shape != x_all.shape:
         raise ValueError(f"camera images {tuple(c_all.shape)} do not match the images {tuple(x_all.shape)}")
+    w_all = None if force_weight is None else torch.as_tensor(force_weight, dtype=torch.float32).reshape(-1)
+    if w_all is not None and len(w_all) != len(x_all):
+        raise ValueError(f"{len(w_all)} force weights for {len(x_all)} frames")
     if not (torch.isfinite(x_all).all() and torch.isfinite(s_all).all() and torch.isfinite(f_all).all()):
         raise ValueError("training data contain NaN or infinite values")
     contact = net_cfg.contact
@@ -332,7 +338,11 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
             with _autocast(bf16, device):
                 s_pred, f_pred, c_pred = model.forward_normalised_all(x)
             ls = mse(s_pred.float(), s)
-            lf = mse(f_pred.float(), model.normalise_force(f))
+            if w_all is None:
+                lf = mse(f_pred.float(), model.normalise_force(f))
+            else:
+                se = ((f_pred.float() - model.normalise_force(f)) ** 2).mean(1)
+                lf = (se * w_all[idx].to(device)).mean()
             loss = cfg.alpha_stress * ls + cfg.alpha_force * lf
             if contact:
                 lc = _masked_mse(c_pred.float(), model.normalise_contact(y_all[idx].to(device)),

@@ -13,8 +13,8 @@ import torch
 from ..model import NetConfig
 from ..precision import cpu_name, resolve_device
 from .augment import TrainAugment
-from .config import AugmentConfig, History, TrainConfig
-from .data import FORCE_COMPONENTS, load_split, validation_scenes
+from .config import FORCE_LOSS, AugmentConfig, History, TrainConfig
+from .data import FORCE_COMPONENTS, load_split, scene_force_weights, validation_scenes
 from .export import export_onnx, export_torchscript, load_checkpoint, save_checkpoint
 from .loop import train
 
@@ -36,6 +36,8 @@ def train_from_shards(shards, out_dir: str | Path, net_cfg: NetConfig, cfg: Trai
     starts from instead of new ones; its network must be this one.
     ``cuda`` without a GPU stops before the data load."""
     resolve_device(cfg.device, "train.device")
+    if cfg.force_loss not in FORCE_LOSS:
+        raise ValueError(f"train.force_loss: {cfg.force_loss!r} is not one of {list(FORCE_LOSS)}")
     if int(frame_every) < 1:
         raise ValueError(f"train.frame_every must be >= 1, got {frame_every}")
     out_dir = Path(out_dir)
@@ -67,10 +69,13 @@ def train_from_shards(shards, out_dir: str | Path, net_cfg: NetConfig, cfg: Trai
     if camera and val is not None:  # validate on both views of the validation frames
         val = (np.concatenate([va["images"], va["camera_images"]]),
                *(np.concatenate([va[k]] * 2) for k in labels))
+    weight = (scene_force_weights(tr["scene_id"], tr["force_N"], cfg.force_floor_N)
+              if cfg.force_loss == "relative" else None)
     t0, c0 = time.perf_counter(), time.process_time()
     model, hist = train(tr["images"], tr["stress"], tr["force_N"], val, net_cfg, cfg, aug, log=log,
                         camera_images=tr.get("camera_images"), init_state=init_state,
-                        contact_mm=tr["contact_mm"] if net_cfg.contact else None)
+                        contact_mm=tr["contact_mm"] if net_cfg.contact else None,
+                        force_weight=weight)
     seconds, cpu_seconds = time.perf_counter() - t0, time.process_time() - c0
     extra = {"train_config": asdict(cfg), "augment": asdict(augment) if augment else None,
              "cpu": cpu_name(), "device": hist.device, "torch_threads": torch.get_num_threads(),
