@@ -41,6 +41,7 @@ RANK = {
     "dataset": 40, "recording": 40,
     "config": 45,
     "model": 50, "train": 50, "predictor": 50, "predict": 50, "adapt": 50, "calibration": 50,
+    "validity": 50,
     "evaluate": 60,
     "benchmarks": 70,
     "cli": 80,

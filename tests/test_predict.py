@@ -159,9 +159,14 @@ def test_cli_predict_on_a_render_and_a_never_seen_image(exported, render_png, tm
     assert not list(out2.glob("*_stress.png"))
 
 
+def err_lines(text: str) -> list[str]:
+    """stderr's lines, less the notes (how the finger is found, what an old export lacks)."""
+    return [line for line in text.strip().splitlines() if not line.startswith("finray predict: note: ")]
+
+
 def one_line_error(capsys, prefix):
     """One line on stderr, starting with ``prefix`` (main returned, no traceback)."""
-    lines = capsys.readouterr().err.strip().splitlines()
+    lines = err_lines(capsys.readouterr().err)
     assert len(lines) == 1 and lines[0].startswith(prefix), lines
     return lines[0]
 
@@ -190,7 +195,7 @@ def test_a_two_force_model_writes_fx_and_fy(render_png, tmp_path, capsys):
     assert main(["predict", str(render_png), "--model", str(tmp_path / "model.ts"), "--out",
                  str(tmp_path / "out"), "--backend", "torchscript"]) == 0
     rows = list(csv.DictReader(open(tmp_path / "out" / "forces.csv")))
-    assert list(rows[0]) == ["frame", "fx_N", "fy_N"]
+    assert list(rows[0]) == ["frame", "fx_N", "fy_N", "valid"]
     assert float(rows[0]["fy_N"]) == pytest.approx(f["fy_N"], abs=1e-4)
     assert f"fy {f['fy_N']:.4f} N" in capsys.readouterr().out
     with pytest.raises(ValueError, match="2 force names for a model with 1"):
@@ -244,7 +249,8 @@ def test_cli_predict_refuses_an_out_with_another_runs_results(exported, render_p
     assert sorted(f.name for f in out.iterdir()) == first  # untouched
     assert main(["predict", "--model", model, str(render_png), "--out", str(out), "--force-only",
                  "--overwrite", "--backend", "torchscript"]) == 0
-    assert sorted(f.name for f in out.iterdir()) == ["forces.csv"]  # the old maps went with it
+    # the old maps went with it
+    assert sorted(f.name for f in out.iterdir()) == ["forces.csv", "segmentation.json"]
 
 
 def three_frames(folder, render_png):
@@ -290,7 +296,7 @@ def test_cli_predict_skips_bad_frames_and_writes_the_others(exported, render_png
                  "--backend", "torchscript"]) == 1  # done, but not every frame
     io = capsys.readouterr()
     assert "Traceback" not in io.err
-    err = io.err.strip().splitlines()
+    err = err_lines(io.err)
     assert err[0].startswith("finray predict: skipped b_corrupt.png: not a readable image (")
     assert err[1] == ("finray predict: skipped c_blank.png: no finger found in the image "
                       "(empty segmentation)")
@@ -355,7 +361,7 @@ def test_cli_predict_on_a_video(exported, render_png, tmp_path, capsys):
     out = tmp_path / "out"
     assert main(["predict", "--model", str(d / "model.ts"), str(video), "--out", str(out),
                  "--backend", "torchscript"]) == 1
-    err = capsys.readouterr().err.strip().splitlines()
+    err = err_lines(capsys.readouterr().err)
     assert err[0] == "finray predict: skipped clip_00001: no finger found in the image " \
                      "(empty segmentation)" and len(err) == 2
     rows = list(csv.DictReader(open(out / "forces.csv")))
@@ -403,7 +409,7 @@ def test_cli_predict_on_a_video_with_a_corrupt_frame(exported, render_png, tmp_p
     out = tmp_path / "out"
     assert main(["predict", "--model", str(d / "model.ts"), str(video), "--out", str(out),
                  "--backend", "torchscript", "--force-only"]) == 1
-    err = capsys.readouterr().err.strip().splitlines()
+    err = err_lines(capsys.readouterr().err)
     assert err[0].startswith(f"finray predict: skipped clip_{rank:05d}: the frame does not decode")
     assert err[1].startswith("finray predict: 1 of 6 frames skipped") and len(err) == 2
     rows = list(csv.DictReader(open(out / "forces.csv")))
@@ -452,7 +458,7 @@ def test_show_without_a_display_says_so_and_writes_the_files(exported, render_pn
     out = tmp_path / "out"
     assert main(["predict", "--model", str(d / "model.ts"), str(video), "--out", str(out),
                  "--show", "--no-maps"]) == 0
-    err = capsys.readouterr().err.strip().splitlines()
+    err = err_lines(capsys.readouterr().err)
     assert err == ["finray predict: --show: no display (DISPLAY and WAYLAND_DISPLAY unset); "
                    "writing the annotated files only"]
     assert (out / "annotated.mp4").is_file() and (out / "forces.png").is_file()
@@ -591,7 +597,7 @@ def test_cli_predict_on_a_live_network_stream(exported, render_png, tmp_path, ca
         server.wait(timeout=60)
     assert rc == 0
     rows = list(csv.DictReader(open(out / "forces.csv")))
-    err = capsys.readouterr().err.strip().splitlines()[-1]
+    err = err_lines(capsys.readouterr().err)[-1]
     n = int(err.split("frames predicted of ")[1].split()[0])
     dropped = int(err.split("received (")[1].split()[0])
     assert 1 <= len(rows) and len(rows) + dropped == n <= 3 * len(pngs), err
@@ -789,7 +795,7 @@ def test_cli_predict_writes_the_contact_height(exported_contact, exported, rende
         assert main(["predict", str(render_png), "--model", str(d / "model.ts"), "--out",
                      str(out), *extra]) == 0
         rows = list(csv.DictReader(open(out / "forces.csv")))
-        assert list(rows[0]) == ["frame", "fx_N", "contact_mm"]
+        assert list(rows[0]) == ["frame", "fx_N", "contact_mm", "valid"]
         assert float(rows[0]["contact_mm"]) == pytest.approx(want, abs=1e-3)
         assert f"contact {want:.2f} mm" in capsys.readouterr().out
     assert (tmp_path / "out--annotate" / f"{render_png.stem}_annotated.png").is_file()
@@ -798,7 +804,7 @@ def test_cli_predict_writes_the_contact_height(exported_contact, exported, rende
     assert not p_old.has_contact and np.isnan(p_old.contact(np.asarray(Image.open(render_png))))
     assert main(["predict", str(render_png), "--model", str(old / "model.ts"), "--out",
                  str(tmp_path / "old")]) == 0
-    assert list(csv.DictReader(open(tmp_path / "old" / "forces.csv")))[0].keys() == {"frame", "fx_N"}
+    assert list(csv.DictReader(open(tmp_path / "old" / "forces.csv")))[0].keys() == {"frame", "fx_N", "valid"}
 
 
 def test_annotate_marks_the_contact_height_on_the_front_edge():

@@ -295,10 +295,11 @@ class HeadEnsemble(nn.Module):
 
 
 def export_ensemble(ensemble: HeadEnsemble, path: str | Path, preprocess: dict,
-                    info: dict | None = None) -> None:
+                    info: dict | None = None, base_meta: dict | None = None) -> None:
     """Trace the ensemble to TorchScript at ``path`` (``forward``, ``force``, ``members``)
     with ``path + '.json'`` as :func:`finray.train.export_torchscript` writes it, plus
-    ``ensemble`` (the number of heads) and ``adapted`` (``info``)."""
+    ``ensemble`` (the number of heads) and ``adapted`` (``info``); the base model's
+    ``stress_ref_MPa`` and ``trained`` (``base_meta``, its ``model.ts.json``) carried over."""
     ens = copy.deepcopy(ensemble).float().eval()
     c = ens.model.cfg
     example = torch.rand(1, c.in_channels, c.height, c.width)
@@ -310,4 +311,5 @@ def export_ensemble(ensemble: HeadEnsemble, path: str | Path, preprocess: dict,
     cfg = ens.model.config_dict() | {"n_forces": 1}
     Path(str(path) + ".json").write_text(json.dumps(
         {**cfg, "forces": ["fx_N"], "ensemble": len(ens.heads), "preprocess": preprocess,
+         **{k: base_meta[k] for k in ("stress_ref_MPa", "trained") if k in (base_meta or {})},
          "adapted": info or {}}, indent=1))

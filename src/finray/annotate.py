@@ -18,18 +18,30 @@ from pathlib import Path
 import numba as nb
 import numpy as np
 
-#: top of the colour scale, in the maps' unit log10(1 + sigma / 1 kPa): sigma = 1 MPa
-STRESS_LOG_MAX = math.log10(1.0 + 1000.0)
+#: the stress maps' reference (MPa) where a model does not say (exports before it was
+#: saved with the model: ``render.stress_ref_MPa``'s default, 1 kPa)
+STRESS_REF_MPA = 1e-3
+#: top of the colour scale (MPa)
+STRESS_TOP_MPA = 1.0
+#: top of the colour scale in the maps' unit at the default reference
+STRESS_LOG_MAX = math.log10(1.0 + STRESS_TOP_MPA / STRESS_REF_MPA)
 #: colour-bar ticks (MPa)
 TICKS_MPA = (0.0, 0.01, 0.1, 1.0)
 #: the arrow's scale: this many N span the input window's width
 ARROW_N_PER_WINDOW = 5.0
 BAR_PX = 96  # width of the colour-bar panel right of the frame
+INVALID_RGB = (255, 40, 40)  # the border and text of a flagged frame
 
 
-def stress_log(mpa):
-    """MPa -> the maps' unit, log10(1 + sigma / 1 kPa)."""
-    return np.log10(1.0 + np.asarray(mpa, dtype=float) * 1e3)
+def stress_log(mpa, stress_ref_MPa: float = STRESS_REF_MPA):
+    """MPa -> the maps' unit, log10(1 + sigma / stress_ref_MPa) (the model's
+    reference: :attr:`finray.predict.Predictor.stress_ref_MPa`)."""
+    return np.log10(1.0 + np.asarray(mpa, dtype=float) / stress_ref_MPa)
+
+
+def stress_log_max(stress_ref_MPa: float = STRESS_REF_MPA) -> float:
+    """The colour scale's top (:data:`STRESS_TOP_MPA`) in the maps' unit."""
+    return float(stress_log(STRESS_TOP_MPA, stress_ref_MPa))
 
 
 @functools.lru_cache(maxsize=4)
@@ -151,7 +163,8 @@ def _draw_contact(canvas: np.ndarray, point: tuple[int, int], H: int) -> None:
 def annotate_frame(frame: np.ndarray, mask: np.ndarray, box, stress: np.ndarray,
                    forces: dict[str, float], calibrated: dict | None = None,
                    label: str = "", crop_y_mm: tuple[float, float] | None = None,
-                   contact_min_force_N: float = 0.0) -> np.ndarray:
+                   contact_min_force_N: float = 0.0, stress_ref_MPa: float = STRESS_REF_MPA,
+                   flags: list[str] | tuple = ()) -> np.ndarray:
     """The annotated frame (H, W + BAR_PX, 3) uint8: the stress overlay
     (:func:`overlay_stress`), the force arrow at the front edge (``fx_N`` along the push,
     to the right; ``fy_N`` across it, up), its magnitude, the calibrated force and its
@@ -159,15 +172,18 @@ def annotate_frame(frame: np.ndarray, mask: np.ndarray, box, stress: np.ndarray,
     the frame's name and time) and a colour bar in MPa. With ``contact_mm`` in ``forces``
     (mm above the clamped base) and ``|fx_N|`` above ``contact_min_force_N`` (N): a ring
     on the front edge at that height (:func:`contact_point`; ``crop_y_mm``, the window's
-    heights in mm, places it) and the value. Text and arrow are drawn on the
-    patches they cover only, the colour bar is drawn once per frame height: a 1280x720
-    frame costs a few ms (``finray.benchmarks.realtime``)."""
+    heights in mm, places it) and the value. ``stress_ref_MPa``: the maps' reference (the
+    model's; the colour bar is labelled in MPa through it). ``flags``: the frame's
+    validity flags (:mod:`finray.validity`): a red border and a line naming them.
+    Text and arrow are drawn on the patches they cover only, the colour bar is drawn
+    once per frame height: a 1280x720 frame costs a few ms
+    (``finray.benchmarks.realtime``)."""
     rgb = np.asarray(frame)
     H, W = rgb.shape[:2]
     canvas = np.empty((H, W + BAR_PX, 3), np.uint8)
     canvas[:, :W] = rgb[..., None] if rgb.ndim == 2 else rgb[..., :3]
-    _overlay_into(canvas[:, :W], mask, box, stress, 0.65, STRESS_LOG_MAX)
-    canvas[:, W:] = _bar_panel(H)
+    _overlay_into(canvas[:, :W], mask, box, stress, 0.65, stress_log_max(stress_ref_MPa))
+    canvas[:, W:] = _bar_panel(H, float(stress_ref_MPa))
     fx, fy = forces.get("fx_N", 0.0), forces.get("fy_N", 0.0)
     mag = math.hypot(fx, fy)
     tip = peak_front_point(np.asarray(mask, bool), box, stress)
@@ -201,6 +217,11 @@ def annotate_frame(frame: np.ndarray, mask: np.ndarray, box, stress: np.ndarray,
         text.append(f"calibrated {calibrated['force_N']:.2f} N, "
                     f"{100 * calibrated['level']:.0f} % [{calibrated['lo_N']:.2f}, "
                     f"{calibrated['hi_N']:.2f}] N")
+    if flags:
+        b = max(3, H // 120)
+        for sub in (np.s_[:b, :W], np.s_[-b:, :W], np.s_[:, :b], np.s_[:, W - b:W]):
+            canvas[sub] = INVALID_RGB
+        text.append("NOT VALID: " + ", ".join(flags))
     draw_text(canvas, (8, 6), "\n".join(text), max(12, H // 40))
     return canvas
 
@@ -312,12 +333,13 @@ def _draw_on(canvas: np.ndarray, box, draw_fn) -> None:
 
 
 @functools.lru_cache(maxsize=4)
-def _bar_panel(H: int) -> np.ndarray:
-    """The colour-bar panel (H, BAR_PX, 3) uint8 right of a frame of height H."""
+def _bar_panel(H: int, stress_ref_MPa: float = STRESS_REF_MPA) -> np.ndarray:
+    """The colour-bar panel (H, BAR_PX, 3) uint8 right of a frame of height H, for maps
+    of reference ``stress_ref_MPa``."""
     from PIL import Image, ImageDraw
 
     img = Image.new("RGB", (BAR_PX, H))
-    _colour_bar(ImageDraw.Draw(img), img, 0, H, _font(max(12, H // 40)))
+    _colour_bar(ImageDraw.Draw(img), img, 0, H, _font(max(12, H // 40)), stress_ref_MPa)
     panel = np.asarray(img)
     panel.flags.writeable = False
     return panel
@@ -333,7 +355,16 @@ def _font(size: int):
         return ImageFont.load_default()
 
 
-def _colour_bar(draw, img, x0: int, H: int, font) -> None:
+def bar_tick_rows(H: int, stress_ref_MPa: float = STRESS_REF_MPA) -> dict[float, float]:
+    """Each tick's row (MPa -> row of the panel of a frame of height H): where the ramp
+    has the colour that :func:`overlay_stress` gives a map value of that stress."""
+    top, bottom = int(0.12 * H), int(0.88 * H)
+    vmax = stress_log_max(stress_ref_MPa)
+    return {t: bottom - float(stress_log(t, stress_ref_MPa)) / vmax * (bottom - top)
+            for t in TICKS_MPA}
+
+
+def _colour_bar(draw, img, x0: int, H: int, font, stress_ref_MPa: float = STRESS_REF_MPA) -> None:
     """The colour scale on the panel right of the frame: log stress, ticks in MPa."""
     from PIL import Image
 
@@ -341,8 +372,7 @@ def _colour_bar(draw, img, x0: int, H: int, font) -> None:
     n = bottom - top
     ramp = _lut()[np.rint(np.linspace(255, 0, n)).astype(np.int64)]
     img.paste(Image.fromarray(np.repeat(ramp[:, None], 18, axis=1)), (x0 + 10, top))
-    for t in TICKS_MPA:
-        y = bottom - float(stress_log(t)) / STRESS_LOG_MAX * n
+    for t, y in bar_tick_rows(H, stress_ref_MPa).items():
         draw.line([(x0 + 28, y), (x0 + 34, y)], fill=(255, 255, 255))
         draw.text((x0 + 37, y), f"{t:g}", fill=(255, 255, 255), font=font, anchor="lm")
     draw.text((x0 + 8, top - 8), "stress\n(MPa)", fill=(255, 255, 255), font=font, anchor="ld")
@@ -405,48 +435,6 @@ class Window:
         if self.open:
             self.open = False
             self._root.destroy()
-
-
-class VideoWriter:
-    """Annotated frames into a video file (PyAV, H.264 where the FFmpeg build has it,
-    else MPEG-4), at ``fps``; the size is the first frame's (rounded down to even)."""
-
-    def __init__(self, path: str | Path, fps: float = 30.0):
-        self.path, self.fps = Path(path), fps
-        self._container = self._stream = None
-
-    def write(self, rgb: np.ndarray) -> None:
-        import av
-        from fractions import Fraction
-
-        if self._container is None:
-            self._container = av.open(str(self.path), "w")
-            codec = "libx264" if "libx264" in av.codecs_available else "mpeg4"
-            # x264's fastest preset: the encoder shares the live loop's core (the default
-            # preset took most of a 1280x720 frame's time; results/benchmarks/realtime.md),
-            # one encoder thread: on that one core, x264's own threads cost 1 ms a frame more
-            self._stream = self._container.add_stream(
-                codec, rate=Fraction(self.fps).limit_denominator(1001),
-                options=({"preset": "ultrafast", "tune": "zerolatency", "threads": "1"}
-                         if codec == "libx264" else {}))
-            self._stream.height, self._stream.width = (rgb.shape[0] // 2) * 2, (rgb.shape[1] // 2) * 2
-            self._stream.pix_fmt = "yuv420p"
-        rgb = np.ascontiguousarray(rgb[:self._stream.height, :self._stream.width])
-        # the array's buffer as the frame's, not a copy (from_ndarray copied row by row:
-        # 3.5 ms of a 1280x816 frame); to yuv420p with each 2x2 block's chroma taken from
-        # one pixel (swscale's point sampling: a third less time than its default
-        # bilinear; the text is black and white, the overlay's cells are many px wide)
-        frame = av.VideoFrame.from_numpy_buffer(rgb, format="rgb24").reformat(
-            format="yuv420p", interpolation="POINT")
-        for packet in self._stream.encode(frame):
-            self._container.mux(packet)
-
-    def close(self) -> None:
-        if self._container is not None:
-            for packet in self._stream.encode():
-                self._container.mux(packet)
-            self._container.close()
-            self._container = None
 
 
 def force_time_figure(rows: list[dict], path: str | Path, title: str = "") -> None:

@@ -440,7 +440,7 @@ def calibrate_takes(takes, model_path, out_json, ingest_params, fit, folds: str 
                          anchor=anchor)
     ts_path = Path(f"{stem}.model.ts")
     export_ensemble(HeadEnsemble(model, heads), ts_path, meta.get("preprocess", {}),
-                    {"base_model": str(pt), "takes": [str(p) for p in takes]})
+                    {"base_model": str(pt), "takes": [str(p) for p in takes]}, meta)
     with np.load(shards[0]) as f:  # the takes' finger colour, to segment new frames alike
         colour = json.loads(str(f["meta"]))["colour"]
     cal.update(model=ts_path.name, base_model=str(pt), takes=[str(p) for p in takes],

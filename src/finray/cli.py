@@ -265,9 +265,15 @@ stage, anchored on its clamped base, so camera frames of any size work. Writes
 forces.csv (frame[,t_s],fx_N,fy_N[,contact_mm]: the model's force outputs and, for a
 model trained with the contact head, the contact height in mm (on the finger, from its
 clamped base), a video frame's time; a row as each frame completes) and, per frame,
-<name>_stress.exr (log10(1 + sigma / 1 kPa)) and <name>_stress.png. A frame that
-cannot be predicted (corrupt, no finger) is reported on stderr and skipped, the
-others are written (exit code 1); bad input stops with one line (exit code 2).
+<name>_stress.exr (log10(1 + sigma / stress_ref), the model's reference, 1 kPa by
+default) and <name>_stress.png. The finger is found by its colour, learned from the
+first frames (or --finger-colour), or by the renders' grey-level threshold where that
+finds the same finger (segmentation.json says which). Each frame is checked against
+what the model was trained on (column valid of forces.csv: ok, or its flags, e.g.
+off_frame, low_confidence, shape, force_range, contact_range; a warning counts them at
+the end). A frame that cannot be predicted (corrupt, no finger) is reported on stderr
+and skipped, the others are written (exit code 1); bad input, or a source where the
+finger is never found, stops with one line (exit code 2).
 The network runs in ONNX Runtime when model.onnx and model.force.onnx lie beside
 model.ts (faster), else in TorchScript; on a CUDA GPU (--device) in TorchScript.
 
@@ -283,6 +289,8 @@ examples:
   # a live camera (V4L2) until Ctrl-C, annotated; or a network stream
   finray predict --model results/train/camera/model.ts /dev/video0 --out live/ --annotate --no-maps
   finray predict --model results/train/camera/model.ts rtsp://192.168.1.20:8554/cam --out live/
+  # check a set-up first: the mask and the validity of 6 frames (check.png)
+  finray predict --model results/train/camera/model.ts take.mp4 --out check/ --check
 """
 
 
@@ -324,6 +332,19 @@ def _predict_parser(sub) -> None:
                         "scale), the force arrow (N) and the calibrated force: "
                         "<name>_annotated.png, for a video annotated.mp4; and forces.png, the "
                         "force against time")
+    p.add_argument("--segmentation", choices=["auto", "colour", "grey"], default="auto",
+                   help="how the finger is found: auto (its colour learned from the first "
+                        "frames, or the grey-level threshold of the renders where that finds "
+                        "the same finger; default), colour (learned), grey (the threshold)")
+    p.add_argument("--finger-colour", metavar="COLOUR",
+                   help="the finger's colour: a name (red, orange, yellow, green, cyan, blue, "
+                        "purple, magenta), a JSON range {\"space\": \"hsv\", \"lo\": [...], "
+                        "\"hi\": [...]}, or a saved segmentation (segmentation.json of an "
+                        "earlier run, ingest.json, calibration.json)")
+    p.add_argument("--check", nargs="?", type=int, const=6, metavar="N",
+                   help="check the set-up instead of predicting: N frames (default 6) spread "
+                        "over the source, each with its mask, the segmentation's confidence "
+                        "and its validity; check.png in --out (exit code 1 when a frame fails)")
     p.set_defaults(func=_run_predict)
 
 
@@ -382,6 +403,8 @@ def _predict(args) -> int:
         except RuntimeError as exc:
             print(f"finray predict: --show: {exc}; writing the annotated files only",
                   file=sys.stderr, flush=True)
+    if args.check is not None:
+        return _check(args, cal)
     line = _calibrated_line if cal is not None else _force_line
     out = predict_files(args.model, args.source, args.out, args.threads, args.backend,
                         args.force_only, calibration=cal,
@@ -389,9 +412,20 @@ def _predict(args) -> int:
                         on_skip=lambda name, msg: print(f"finray predict: skipped {msg}",
                                                         file=sys.stderr, flush=True),
                         device=args.device, overwrite=args.overwrite, annotate=args.annotate,
-                        maps=args.maps, on_annotated=window.show if window else None)
+                        maps=args.maps, on_annotated=window.show if window else None,
+                        segmentation=args.segmentation, finger_colour=args.finger_colour,
+                        on_note=lambda msg: print(f"finray predict: note: {msg}",
+                                                  file=sys.stderr, flush=True))
     if window is not None:
         window.close()
+    if out["flagged"]:
+        from .validity import FLAGS
+
+        n_bad = sum(r["valid"] != "ok" for r in out["rows"])
+        print(f"finray predict: warning: {n_bad} of {len(out['rows'])} frames flagged, not to be "
+              "trusted (column valid of forces.csv): "
+              + "; ".join(f"{k} {v} ({FLAGS.get(k, k)})" for k, v in out["flagged"].items()),
+              file=sys.stderr)
     if "received" in out:  # a live source: what it sent, what could be kept up with
         print(f"finray predict: {len(out['rows'])} frames predicted of {out['received']} received "
               f"({out['dropped']} dropped while the network was busy"
@@ -403,6 +437,24 @@ def _predict(args) -> int:
               f"{len(out['rows'])} are in {Path(args.out) / 'forces.csv'}", file=sys.stderr)
         return 1
     return 0
+
+
+def _check(args, cal) -> int:
+    """``finray predict --check``: the set-up's report (:func:`finray.predict.check_setup`)."""
+    from .predict import check_setup
+
+    rep = check_setup(args.model, args.source, args.out, args.check, args.segmentation,
+                      args.finger_colour, cal, args.backend, args.device)
+    print(f"finger found by {rep['finder']}")
+    for note in rep["notes"]:
+        print(f"note: {note}")
+    for r in rep["frames"]:
+        print(f"{r['frame']}\tmask {100 * r['mask_frac']:.1f} % of the frame\tconfidence "
+              f"{r['confidence']:.2f}\tfx {r['fx_N']:.3f} N\t{r['valid']}")
+    n_ok = sum(r["valid"] == "ok" for r in rep["frames"])
+    print(f"set-up {'OK' if rep['ok'] else 'NOT OK'}: {n_ok} of {len(rep['frames'])} frames "
+          f"valid; masks in {Path(args.out) / 'check.png'}")
+    return 0 if rep["ok"] else 1
 
 
 INGEST_HELP = """\

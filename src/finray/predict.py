@@ -48,6 +48,8 @@ class _Live:
 
     def __init__(self, source):
         self.source, self.frames = source, None
+        #: the frames still to come, where some were read ahead (:func:`choose_finder`)
+        self.iterator = None
 
     def open(self) -> None:
         try:
@@ -56,6 +58,9 @@ class _Live:
             raise InputError(str(exc)) from None
 
     def __iter__(self):
+        return self.iterator if self.iterator is not None else self._read()
+
+    def _read(self):
         if self.frames is None:
             self.open()
         for f in self.frames:
@@ -95,28 +100,53 @@ def _video_frames(path: Path):
     return named()
 
 
-def _colour_segmenter(spec: dict):
-    """The finger's mask of a frame as ``finray ingest`` found it in the calibration's
-    takes (their learned or given colour, :func:`finray.recording.segment_finger`)."""
-    from .recording.colour import ColourRange, segment_finger
+SEGMENTATIONS = ("auto", "colour", "grey")
 
-    colour = ColourRange.from_take(spec["colour"])
 
-    def seg(frame):
-        frame = np.asarray(frame)
-        if frame.ndim != 3:
-            raise FrameError(f"expected an (H, W, 3) colour frame, got shape {frame.shape}")
-        mask = segment_finger(frame[..., :3], colour, spec["stride"], spec["min_object_frac"],
-                              spec["max_hole_frac"])
-        if mask is None:
-            raise FrameError(f"no finger of the calibrated colour ({colour.describe()})")
-        return mask
+def choose_finder(p: Predictor, frames, segmentation: str = "auto", finger_colour=None,
+                  calibration: dict | None = None):
+    """How the finger is found in ``frames`` (:mod:`finray.recording.finder`), set as
+    ``p.finder``; returns the frames to predict (the first ones read here put back).
+    ``finger_colour`` (a name, a JSON range or a saved segmentation file): that colour;
+    else a calibration's (``segment``: its takes' colour, as ingest found it); else
+    ``segmentation``: ``"grey"`` the model's grey-level threshold, ``"colour"`` the
+    colour learned from the first frames, ``"auto"`` learned, or the grey threshold
+    where it finds the same finger (:func:`~finray.recording.finder.learn_finder`)."""
+    import itertools
 
-    return seg
+    from .recording.finder import LEARN_FRAMES, finder_from_spec, learn_finder
+
+    if segmentation not in SEGMENTATIONS:
+        raise InputError(f"segmentation must be one of {SEGMENTATIONS}, not {segmentation!r}")
+    if finger_colour is not None:
+        p.finder = finder_from_spec(finger_colour)
+        return frames
+    if calibration is not None and calibration.get("segment"):
+        p.finder = finder_from_spec(calibration["segment"])
+        return frames
+    if segmentation == "grey":
+        return frames
+    it = iter(frames)
+    head = []
+    for item in it:
+        head.append(item)
+        if sum(not isinstance(f, FrameError) for _, f, _ in head) >= LEARN_FRAMES:
+            break
+    images = [f for _, f, _ in head if not isinstance(f, FrameError)]
+    finder = learn_finder(images, p.finder)
+    if segmentation == "colour" and finder.mode != "colour":
+        raise InputError("no finger colour could be learned: nothing coloured in the first "
+                         f"{len(images)} frames (give --finger-colour)")
+    p.finder = finder
+    rest = itertools.chain(head, it)
+    if isinstance(frames, _Live):
+        frames.iterator = rest
+        return frames
+    return rest
 
 
 #: what a run of :func:`predict_files` leaves in its folder, besides the per-frame files
-RUN_FILES = ("forces.csv", "forces.png", "annotated.mp4")
+RUN_FILES = ("forces.csv", "forces.png", "annotated.mp4", "segmentation.json")
 
 
 def run_files(out_dir) -> list[Path]:
@@ -135,7 +165,8 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
                   force_only: bool = False, on_frame=None, on_skip=None,
                   device: str = "auto", calibration: dict | None = None,
                   overwrite: bool = False, annotate: bool = False, maps: bool = True,
-                  on_annotated=None) -> dict:
+                  on_annotated=None, segmentation: str = "auto", finger_colour=None,
+                  on_note=None) -> dict:
     """Predict every frame of ``source`` (image, folder of images, video, or a live source:
     :func:`finray.media.is_live`, read until it ends or Ctrl-C) into
     ``out_dir``: ``forces.csv`` (``frame,fx_N``; also ``fy_N`` for a model that predicts
@@ -151,6 +182,14 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
     (a long video or a stream; the annotated frames still show the maps).
     ``on_annotated(rgb)`` gets each annotated frame too (a window, ``--show``).
 
+    The finger is found by :func:`choose_finder` (``segmentation``, ``finger_colour``,
+    the calibration's colour; written to ``segmentation.json``, which
+    ``finger_colour`` reads back). Each row is checked (:meth:`Predictor.check`,
+    :mod:`finray.validity`): ``valid`` is ``ok`` or its flags joined by ``+`` (a column of
+    ``forces.csv``, drawn on the annotated frame); the result's ``flagged`` counts them
+    by flag. ``on_note(line)`` gets how the finger is found and what an old model's
+    export lacks, before the first frame.
+
     A frame that cannot be predicted (unreadable, not an image, no finger) is skipped:
     ``on_skip(name, message)`` is called and the run goes on. ``on_frame(row)`` gets
     each row ``{"frame", "fx_N"[, "fy_N"][, "contact_mm"]}`` as it completes. Returns ``{"rows": [...],
@@ -163,7 +202,7 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
     model or source, a ``device`` this machine does not have (:class:`Predictor`), a
     single image that cannot be predicted, and when no frame at all could be, and for an
     ``out_dir`` that holds another run's files (:func:`run_files`) unless ``overwrite``
-    (which removes them first). Nothing half-written is left: the table is written as
+    (which removes them first), and, in one line, where the finger is found in no frame. Nothing half-written is left: the table is written as
     ``forces.csv.part`` and moved into place at the end (also when interrupted, with the
     frames done so far); a run that predicts no frame leaves no table and no maps.
     """
@@ -180,7 +219,7 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
     one_image = not live and Path(source).is_file() and Path(source).suffix.lower() not in VIDEO_SUFFIXES
     video = live or (Path(source).is_file() and Path(source).suffix.lower() in VIDEO_SUFFIXES)
     run = _Run(frames, source, out_dir, one_image, video, force_only, on_frame, on_skip,
-               calibration, annotate, maps, on_annotated)
+               calibration, annotate, maps, on_annotated, segmentation, finger_colour, on_note)
     try:
         return _predict_files(run, model_path, old, threads, backend, device)
     finally:
@@ -204,6 +243,9 @@ class _Run:
     annotate: bool
     maps: bool
     on_annotated: object
+    segmentation: str = "auto"
+    finger_colour: object = None
+    on_note: object = None
     part: Path | None = None
     written: list = field(default_factory=list)  # files made so far (removed on failure)
 
@@ -211,17 +253,27 @@ class _Run:
 def _predict_files(run: _Run, model_path, old: list, threads, backend, device) -> dict:
     """:func:`predict_files` once its source is open: the model loaded, the table written
     as ``forces.csv.part`` and moved into place."""
-    frames, out_dir = run.frames, run.out_dir
+    out_dir = run.out_dir
     p = Predictor(model_path, threads, backend, device)
-    if isinstance(frames, _Live):  # opened once ready: no frames dropped while loading
+    if isinstance(run.frames, _Live):  # opened once ready: no frames dropped while loading
         import matplotlib  # noqa: F401 - the loop's imports, done before the stream runs
 
         from .render import imageio  # noqa: F401
         p.warm_up()
-        frames.open()
+        run.frames.open()
+    run.frames = choose_finder(p, run.frames, run.segmentation, run.finger_colour,
+                               run.calibration)
+    if run.on_note is not None:
+        for line in [f"finger found by {p.finder.describe()}", *p.notes]:
+            run.on_note(line)
     for f in old:
         f.unlink()
     out_dir.mkdir(parents=True, exist_ok=True)
+    import json
+
+    seg = out_dir / "segmentation.json"
+    run.written.append(seg)
+    seg.write_text(json.dumps(p.finder.to_dict(), indent=1))
     part = run.part = out_dir / "forces.csv.part"
     try:
         out = _predict_into(p, run)
@@ -235,6 +287,7 @@ def _predict_files(run: _Run, model_path, old: list, threads, backend, device) -
         _remove(part, *run.written)
         raise
     part.replace(out_dir / "forces.csv")
+    out["finder"] = p.finder.describe()
     return out
 
 
@@ -249,11 +302,13 @@ def _predict_into(p, run: _Run) -> dict:
     frames, out_dir, written = run.frames, run.out_dir, run.written
     writer = None
     if run.annotate and run.video:
-        from .annotate import VideoWriter
-        from .media import video_info
+        from .media import VideoWriter, video_info
 
         rate = frames.frames.rate_hz if isinstance(frames, _Live) else video_info(run.source).rate_hz
-        writer = VideoWriter(out_dir / "annotated.mp4", rate or 30.0)
+        # x264's fastest preset, no frame held back: the encoder shares the live loop's
+        # core; chroma by point sampling (docs/studies/realtime.md)
+        writer = VideoWriter(out_dir / "annotated.mp4", rate or 30.0, tune="zerolatency",
+                             interpolation="POINT")
         written.append(writer.path)
     try:
         out = _predict_loop(p, run, writer)
@@ -282,23 +337,25 @@ def _predict_loop(p, run: _Run, writer) -> dict:
 
     from .render.imageio import write_exr, write_png
 
-    segment_frame = p.segment
-    if calibration is not None and calibration.get("segment"):
-        segment_frame = _colour_segmenter(calibration["segment"])
-    rows, skipped, interrupted = [], [], False
+    rows, skipped, interrupted, no_finger = [], [], False, 0
     with open(run.part, "w") as table:
         cal_cols = ["force_N", "lo_N", "hi_N"] if calibration is not None else []
         time_cols = ["t_s"] if video else []
         out_cols = [*p.force_names, *(["contact_mm"] if p.has_contact else [])]
-        table.write(",".join(["frame", *time_cols, *out_cols, *cal_cols]) + "\n")
+        table.write(",".join(["frame", *time_cols, *out_cols, *cal_cols, "valid"]) + "\n")
         table.flush()
         try:
             for name, frame, t_s in frames:
                 try:
                     if isinstance(frame, FrameError):
                         raise frame
-                    mask = segment_frame(frame)
-                    x = p.network_input(mask)
+                    try:
+                        mask, confidence = p.find(frame)
+                    except FrameError:
+                        no_finger += 1
+                        raise
+                    box = p.crop_box(mask)
+                    x = p.network_input(mask, box)
                     if run.force_only:
                         fvec, cvec = p.run_force_contact(x)
                     else:
@@ -317,12 +374,16 @@ def _predict_loop(p, run: _Run, writer) -> dict:
                     stem = Path(name).stem
                     written += [out_dir / f"{stem}_stress.exr", out_dir / f"{stem}_stress.png"]
                     write_exr(written[-2], {"stress": stress.astype(np.float32)},
-                              {"source": str(name), "force_N": force})
+                              {"source": str(name), "force_N": force,
+                               "stress_transform": "log10(1 + von_mises_MPa / stress_ref_MPa)",
+                               "stress_ref_MPa": p.stress_ref_MPa})
                     s = np.clip(stress / max(float(stress.max()), 1e-6), 0, 1)
                     write_png(written[-1], (cm.inferno(s)[..., :3] * 255).astype(np.uint8))
                 row = {"frame": name, **({"t_s": t_s} if video else {}),
                        **{n: float(v) for n, v in zip(p.force_names, fvec)},
                        **({"contact_mm": contact} if p.has_contact else {})}
+                flags = p.check(mask, confidence, x, row, box)
+                row["valid"] = "+".join(flags) or "ok"
                 if calibration is not None:
                     from .calibration import predictive, spread
 
@@ -336,9 +397,10 @@ def _predict_loop(p, run: _Run, writer) -> dict:
 
                     cal = {k: row[k] for k in ("force_N", "lo_N", "hi_N", "level")} if calibration else None
                     label = name + (f"  t = {t_s:.3f} s" if t_s is not None else "")
-                    img = annotate_frame(frame, mask, p.crop_box(mask), stress, row, cal, label,
+                    img = annotate_frame(frame, mask, box, stress, row, cal, label,
                                          crop_y_mm=p.crop_y_mm,
-                                         contact_min_force_N=p.contact_min_force_N)
+                                         contact_min_force_N=p.contact_min_force_N,
+                                         stress_ref_MPa=p.stress_ref_MPa, flags=flags)
                     if run.on_annotated is not None:
                         run.on_annotated(img)
                     if writer is not None:
@@ -348,7 +410,8 @@ def _predict_loop(p, run: _Run, writer) -> dict:
                         write_png(written[-1], img)
                 times = ["" if t_s is None else f"{t_s:.6f}"] if video else []
                 table.write(",".join([name, *times,
-                                      *(f"{row[n]:.6g}" for n in [*out_cols, *cal_cols])]) + "\n")
+                                      *(f"{row[n]:.6g}" for n in [*out_cols, *cal_cols]),
+                                      row["valid"]]) + "\n")
                 table.flush()  # a long video's forces can be read while it runs
                 rows.append(row)
                 if run.on_frame is not None:
@@ -360,5 +423,105 @@ def _predict_loop(p, run: _Run, writer) -> dict:
     if not rows:
         if not skipped:
             raise InputError(f"{run.source} has no frames")
+        if no_finger == len(skipped):
+            raise InputError(f"the finger was found in none of the {no_finger} frames of "
+                             f"{run.source} ({p.finder.describe()}): give its colour "
+                             "(--finger-colour), or check the set-up (--check)")
         raise InputError(f"no frame of {run.source} could be predicted ({len(skipped)} skipped)")
-    return {"rows": rows, "skipped": skipped, "interrupted": interrupted}
+    from .validity import flag_counts
+
+    return {"rows": rows, "skipped": skipped, "interrupted": interrupted,
+            "flagged": flag_counts(rows)}
+
+
+def check_setup(model_path, source, out_dir, n_frames: int = 6, segmentation: str = "auto",
+                finger_colour=None, calibration: dict | None = None, backend: str = "auto",
+                device: str = "auto") -> dict:
+    """Check a set-up before trusting it: ``n_frames`` frames of ``source`` (spread over a
+    file source; a live source's first ones) through the finger finder
+    (:func:`choose_finder`) and the model, each with its mask's share of the frame, the
+    segmentation's confidence, the force and its validity flags; ``check.png`` in
+    ``out_dir`` shows the frames with their masks (green), windows (cyan) and flags.
+    Returns ``{"finder", "notes", "frames": [{"frame", "found", "mask_frac",
+    "confidence", "fx_N", "valid"}], "ok"}`` (``ok``: the finger found in every frame and
+    none flagged)."""
+    frames = read_frames(source)
+    live = isinstance(frames, _Live)
+    try:
+        p = Predictor(model_path, 1, backend, device)
+        frames = choose_finder(p, frames, segmentation, finger_colour, calibration)
+        picked = _pick(frames, n_frames, None if live else source)
+    finally:
+        if live:
+            frames.close()
+    rows, thumbs = [], []
+    for name, frame, _ in picked:
+        row = {"frame": name, "found": False, "mask_frac": 0.0, "confidence": 0.0,
+               "fx_N": float("nan"), "valid": "no_finger"}
+        mask = box = None
+        if isinstance(frame, FrameError):
+            row["valid"] = "unreadable"
+        else:
+            found, confidence = p.finder.find(frame)
+            if found is not None:
+                mask, box = found, p.crop_box(found)
+                x = p.network_input(mask, box)
+                f, c = p.run_force_contact(x)
+                out = {n: float(v) for n, v in zip(p.force_names, f[0])}
+                out |= {"contact_mm": float(c[0])} if p.has_contact else {}
+                row.update(found=True, mask_frac=float(mask.mean()), confidence=confidence,
+                           fx_N=out["fx_N"], valid="+".join(p.check(mask, confidence, x, out, box))
+                           or "ok")
+            thumbs.append((name, frame, mask, box, row["valid"]))
+        rows.append(row)
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    if thumbs:
+        _check_figure(out_dir / "check.png", thumbs, p.finder.describe())
+    return {"finder": p.finder.describe(), "notes": list(p.notes), "frames": rows,
+            "ok": bool(rows) and all(r["valid"] == "ok" for r in rows)}
+
+
+def _pick(frames, n: int, source) -> list:
+    """``n`` frames spread over a file source (every k-th of a video: its frame count
+    from its header), a live source's first ``n``."""
+    import itertools
+
+    step = 1
+    if source is not None and Path(source).suffix.lower() in VIDEO_SUFFIXES:
+        from .media import video_info
+
+        step = max(1, video_info(source).n_frames // max(n, 1))
+    elif source is not None and Path(source).is_dir():
+        step = max(1, len([f for f in Path(source).iterdir()
+                           if f.suffix.lower() in IMAGE_SUFFIXES]) // max(n, 1))
+    return list(itertools.islice(itertools.islice(frames, 0, None, step), n))
+
+
+def _check_figure(path, thumbs, finder: str) -> None:
+    """The checked frames side by side: each with its mask (green), its window (cyan) and
+    its flags in the title."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from skimage.segmentation import find_boundaries
+
+    fig, axes = plt.subplots(1, len(thumbs), figsize=(2.6 * len(thumbs), 3.6), squeeze=False)
+    for ax, (name, frame, mask, box, valid) in zip(axes[0], thumbs):
+        rgb = np.asarray(frame)
+        rgb = np.repeat(rgb[..., None], 3, axis=2) if rgb.ndim == 2 else rgb[..., :3].copy()
+        if mask is not None:
+            rgb[mask] = (0.5 * rgb[mask] + 0.5 * np.array([0, 255, 0])).astype(np.uint8)
+            rgb[find_boundaries(mask, mode="inner")] = (255, 0, 255)
+            c0, r0, c1, r1 = box
+            ax.plot([c0, c1, c1, c0, c0], [r0, r0, r1, r1, r0], color="cyan", lw=0.8)
+        ax.imshow(rgb)
+        ax.set_xlim(0, rgb.shape[1])
+        ax.set_ylim(rgb.shape[0], 0)
+        ax.set_title(f"{name}\n{valid}", fontsize=7, color="black" if valid == "ok" else "red")
+        ax.axis("off")
+    fig.suptitle(f"finger found by {finder}", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

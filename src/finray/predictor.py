@@ -38,6 +38,12 @@ from .dataset.imageops import EmptyMaskError, base_anchored_box, segment, silhou
 from .errors import DeviceInputError, FrameError, InputError
 from .media import one_line
 from .precision import DeviceError, resolve_device
+from .recording.finder import FingerFinder
+from .validity import Limits, check_frame, window_outside
+
+#: The stress maps' reference (MPa) of models exported before it was saved with them
+#: (``render.stress_ref_MPa``'s value then: maps in log10(1 + sigma / 1 kPa)).
+DEFAULT_STRESS_REF_MPA = 1e-3
 
 BACKENDS = ("auto", "onnx", "torchscript")
 
@@ -56,11 +62,19 @@ class Predictor:
     column first and works at full resolution around it only
     (:func:`~finray.dataset.imageops.segment`; 4: a 1280x720 frame segments ~2x faster,
     the threshold may move an edge pixel); 1 segments as the dataset stage does, pixel
-    for pixel (the experiments).
+    for pixel (the experiments). ``finder``: how the finger is found
+    (:class:`~finray.recording.finder.FingerFinder`; None: the model's grey-level
+    threshold, as its renders were segmented); :attr:`finder` may be set later (a colour
+    learned from a stream's first frames).
+
+    What the model's outputs depend on is read from ``model.ts.json``:
+    :attr:`stress_ref_MPa` (the maps are ``log10(1 + sigma / stress_ref_MPa)``),
+    :attr:`trained` (the training's ranges, for :meth:`check`); a model exported
+    before they were saved gets the defaults, each with a line in :attr:`notes`.
     """
 
     def __init__(self, model_path: str | Path, threads: int = 1, backend: str = "auto",
-                 device: str = "auto", roi_stride: int = 4):
+                 device: str = "auto", roi_stride: int = 4, finder: FingerFinder | None = None):
         model_path = Path(model_path)
         meta_path = Path(str(model_path) + ".json")
         if not model_path.is_file():
@@ -93,6 +107,23 @@ class Predictor:
         #: the base is the widest row among the lowest base_band of the mask's height
         #: (dataset.base_band; 0, the lowest row, for exports before it)
         self.base_band = float(pre.get("base_band", 0.0))
+        #: How the finger is found in a frame (default: the model's grey-level threshold).
+        self.finder = finder or FingerFinder.grey(self.segment_kw, self.roi_stride)
+        #: One line per setting an old export lacks and that is assumed here.
+        self.notes: list[str] = []
+        #: The stress maps' reference (MPa): a map holds log10(1 + sigma / stress_ref_MPa).
+        self.stress_ref_MPa = self.meta.get("stress_ref_MPa")
+        if self.stress_ref_MPa is None:
+            self.stress_ref_MPa = DEFAULT_STRESS_REF_MPA
+            self.notes.append(f"{meta_path.name} has no stress_ref_MPa (exported before it was "
+                              f"saved): the stress maps are read in log10(1 + sigma / 1 kPa)")
+        #: The training's ranges (:func:`finray.validity.training_ranges`), or None.
+        self.trained = self.meta.get("trained")
+        if self.trained is None:
+            self.notes.append(f"{meta_path.name} has no training ranges (exported before they "
+                              "were saved): frames are checked for the mask only, not for "
+                              "shape, force or contact height")
+        self.limits = Limits()
         #: Heads of an adapted ensemble (:mod:`finray.adapt`; 0: a single network).
         self.ensemble = int(self.meta.get("ensemble", 0))
         if self.ensemble and backend == "onnx":
@@ -164,16 +195,42 @@ class Predictor:
             raise FrameError(str(exc)) from None
 
     def segment(self, frame: np.ndarray) -> np.ndarray:
-        """Finger mask (H, W) bool, as in the dataset stage."""
+        """Finger mask (H, W) bool: by :attr:`finder`; the default, the grey-level
+        threshold, as in the dataset stage (empty where nothing is found)."""
         frame = np.asarray(frame)
         if frame.ndim not in (2, 3):
             raise FrameError(f"expected an (H, W) or (H, W, 3) image, got shape {frame.shape}")
-        return segment(frame, **self.segment_kw, roi_stride=self.roi_stride)
+        if self.finder.mode == "grey":
+            return segment(frame, **self.finder.segment_kw, roi_stride=self.finder.stride)
+        return self.finder.mask(frame)
 
-    def network_input(self, mask: np.ndarray) -> np.ndarray:
+    def find(self, frame: np.ndarray) -> tuple[np.ndarray, float]:
+        """Finger mask (H, W) bool by :attr:`finder` and its confidence in [0, 1];
+        :class:`FrameError` where no finger is found."""
+        mask, confidence = self.finder.find(frame)
+        if mask is None:
+            raise FrameError("no finger found in the image (empty segmentation)"
+                             if self.finder.mode == "grey" else
+                             f"no finger found ({self.finder.describe()})")
+        return mask, confidence
+
+    def check(self, mask: np.ndarray, confidence: float, x: np.ndarray,
+              outputs: dict[str, float], box=None) -> list[str]:
+        """A frame's validity flags (:func:`finray.validity.check_frame`; empty: valid):
+        its mask (H, W), the mask's confidence, the network input ``x`` (1, 1, h, w), the
+        outputs by name (``fx_N``..., ``contact_mm``) and the window (``box``, else
+        :meth:`crop_box`)."""
+        box = self.crop_box(mask) if box is None else box
+        return check_frame(float(np.count_nonzero(mask)) / mask.size,
+                           window_outside(box, mask.shape), confidence, x,
+                           outputs, self.trained, self.contact_min_force_N, self.limits)
+
+    def network_input(self, mask: np.ndarray, box=None) -> np.ndarray:
         """Network input (1, 1, H, W) float32 in [0, 1] from the mask: the 8-bit soft
-        silhouette of the training window, as in the training data."""
-        x = silhouette_input(mask, self.crop_box(mask), self.size).astype(np.float32) / 255.0
+        silhouette of the training window (``box``, else :meth:`crop_box`), as in the
+        training data."""
+        box = self.crop_box(mask) if box is None else box
+        x = silhouette_input(mask, box, self.size).astype(np.float32) / 255.0
         return x[None, None]
 
     def preprocess(self, frame: np.ndarray) -> tuple[torch.Tensor, np.ndarray]:

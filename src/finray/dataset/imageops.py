@@ -123,7 +123,8 @@ def _luma(img: np.ndarray, stride: int = 1) -> np.ndarray:
 
 def segment(image: np.ndarray, threshold: str | float = "isodata", foreground: str = "bright",
             min_object_frac: float = 1e-3, max_hole_frac: float = 2e-4,
-            keep_largest: bool = True, roi_stride: int = 1) -> np.ndarray:
+            keep_largest: bool = True, roi_stride: int = 1,
+            stats: dict | None = None) -> np.ndarray:
     """Finger mask (H, W) bool of a camera image.
 
     1. grey level (BT.709 luma), 2. global threshold: Ridler-Calvard's
@@ -148,6 +149,10 @@ def segment(image: np.ndarray, threshold: str | float = "isodata", foreground: s
     enough that any background touching the margin is larger than a hole: the
     result is that of the whole image (skimage's ``remove_small_objects``,
     ``remove_small_holes`` and ``label``), at a fraction of the cost.
+
+    ``stats``: a dict that receives ``candidate_frac``, the fraction of the image (of
+    its ``roi_stride`` grid) on the finger's side of the threshold before the
+    morphology (the mask's confidence: :mod:`finray.recording.finder`).
     """
     img = np.asarray(image)
     if foreground not in ("bright", "dark"):
@@ -168,6 +173,8 @@ def segment(image: np.ndarray, threshold: str | float = "isodata", foreground: s
     else:
         t = float(threshold)
     fg = g > t if foreground == "bright" else g < t
+    if stats is not None:
+        stats["candidate_frac"] = float(np.count_nonzero(fg)) / fg.size
     if stride == 1:
         return clean_mask(fg, min_object_frac, max_hole_frac, keep_largest)
     mask = np.zeros(img.shape[:2], bool)

@@ -6,13 +6,11 @@ module adds what a real camera does to the pinhole image.
 """
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
 from ..render.camera import PinholeCamera
 
-__all__ = ["LensDistortion", "PinholeCamera", "SensorNoise", "VideoWriter"]
+__all__ = ["LensDistortion", "PinholeCamera", "SensorNoise"]
 
 
 class LensDistortion:
@@ -91,38 +89,3 @@ class SensorNoise:
         np.rint(out, out=out)
         np.clip(out, 0, 255, out=out)
         return out.astype(np.uint8)
-
-
-class VideoWriter:
-    """H.264 (``.mp4``) through PyAV, at ``fps`` with ``crf`` and ``pix_fmt``; x264's
-    ``ultrafast`` preset (a camera's real-time encoder trades size for speed too)."""
-
-    def __init__(self, path: str | Path, width: int, height: int, fps: float, crf: int = 20,
-                 pix_fmt: str = "yuv444p", preset: str = "ultrafast"):
-        from fractions import Fraction
-
-        import av
-
-        self.container = av.open(str(path), "w")
-        self.stream = s = self.container.add_stream("libx264", rate=Fraction(fps).limit_denominator(1000))
-        s.width, s.height, s.pix_fmt = int(width), int(height), pix_fmt
-        # one encoder thread: a job has one core
-        s.options = {"crf": str(int(crf)), "preset": preset, "threads": "1"}
-
-    def write(self, rgb: np.ndarray) -> None:
-        import av
-
-        for pkt in self.stream.encode(av.VideoFrame.from_ndarray(np.ascontiguousarray(rgb),
-                                                                 format="rgb24")):
-            self.container.mux(pkt)
-
-    def close(self) -> None:
-        for pkt in self.stream.encode():
-            self.container.mux(pkt)
-        self.container.close()
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()

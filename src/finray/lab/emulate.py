@@ -26,8 +26,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..media import VideoWriter
 from ..render.result import load_fea_result
-from .camera import LensDistortion, PinholeCamera, SensorNoise, VideoWriter
+from .camera import LensDistortion, PinholeCamera, SensorNoise
 from .motion import GripperMotion
 from .scene import LabScene
 from .sensor import ForceSensor, write_forces_csv
@@ -98,7 +99,7 @@ def emulate_take(result_npz, take_dir, lab: dict, *, object_name: str, height_mm
     push_mid = motion.push(t)
     bits, mask_px = np.zeros((n, H, (W + 7) // 8), np.uint8), np.zeros(n, np.int64)
     with LabScene(res.mesh, outline, camera, look, extrusion_mm, seed=seed) as scene, \
-            VideoWriter(take_dir / "take.mp4", W, H, fps, crf=cam_cfg["video_crf"],
+            VideoWriter(take_dir / "take.mp4", fps, (W, H), crf=cam_cfg["video_crf"],
                         pix_fmt=cam_cfg["video_pix_fmt"]) as video:
         # Only the finger and the clamp move: the full frame is rendered and processed
         # once, and each frame re-renders and re-processes only the box they can reach.

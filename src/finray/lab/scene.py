@@ -1,9 +1,14 @@
-"""The lab's 3D scene seen by a perspective camera (pyvista, off screen).
+"""The emulated rig's 3D scene seen by a perspective camera (pyvista, off screen).
 
 In view: the extruded finger (its FEA mesh, deformed per frame), the clamp that holds
 its base, the object on a six-axis sensor, and a textured back wall; lit by a key and
 a fill light (an uneven background). The finger and clamp move with the gripper
-(``shift_mm`` along x); the object and the sensor stand still.
+(``shift_mm`` along x); the object and the sensor stand still. ``look["clutter"]``
+adds still things that a finder must not take for the finger (:data:`CLUTTER`): a
+second object of the finger's colour (``object``: a box), a hand (``hand``: a
+skin-coloured ellipsoid), each at ``centre_mm`` (x, y in the FEA's plane, in front
+of the back wall at ``z_mm``) of ``size_mm`` (x, y extents); they hide what lies
+behind them in the label view too.
 
 Two plotters share the geometry: the colour view, and a label view where the finger is
 white and unlit and everything else black, whose pixels are the true finger mask
@@ -32,6 +37,26 @@ def prism(outline_xy: np.ndarray, z0: float, z1: float):
     face = pv.PolyData(np.column_stack([outline_xy, np.full(n, z0)]),
                        faces=np.concatenate([[n], np.arange(n)]))
     return face.extrude((0.0, 0.0, z1 - z0), capping=True).triangulate().clean()
+
+
+#: The clutter kinds and their colours (linear RGB; None: the finger's).
+CLUTTER = {"object": None, "hand": (0.80, 0.52, 0.40)}
+
+
+def clutter_mesh(item: dict, finger_rgb):
+    """A clutter item (see the module's text) as (pyvista mesh, colour)."""
+    import pyvista as pv
+
+    kind = item["kind"]
+    if kind not in CLUTTER:
+        raise ValueError(f"lab.scene.clutter: kind {kind!r} is not one of {list(CLUTTER)}")
+    (x, y), (w, h) = item["centre_mm"], item["size_mm"]
+    z = float(item.get("z_mm", 0.0))
+    if kind == "object":
+        mesh = pv.Box((x - w / 2, x + w / 2, y - h / 2, y + h / 2, z - 10.0, z + 10.0))
+    else:
+        mesh = pv.ParametricEllipsoid(w / 2, h / 2, 12.0).translate((x, y, z), inplace=False)
+    return mesh.triangulate(), CLUTTER[kind] or tuple(finger_rgb)
 
 
 def wall_texture(shape=(256, 384), seed=0, base_rgb=(0.62, 0.60, 0.56)) -> np.ndarray:
@@ -90,13 +115,16 @@ class LabScene:
         self.colour.add_mesh(obj, color=look["object_rgb"], **shade)
         self.colour.add_mesh(sensor, color=look["sensor_rgb"], **shade)
         self.colour.add_mesh(wall, texture=tex, **shade)
+        clutter = [clutter_mesh(item, look["finger_rgb"]) for item in look.get("clutter") or []]
+        for mesh, rgb in clutter:
+            self.colour.add_mesh(mesh, color=rgb, **shade)
         for light in look["lights"]:
             self.colour.add_light(pv.Light(position=light["position_mm"], focal_point=camera.target,
                                            intensity=light["intensity"], light_type="scene light"))
         flat = dict(ambient=1.0, diffuse=0.0, specular=0.0, lighting=False)
         a = self.label.add_mesh(self.finger, color=(1.0, 1.0, 1.0), **flat)
         a.GetProperty().BackfaceCullingOn()
-        for mesh in (self.clamp, obj, sensor):
+        for mesh in (self.clamp, obj, sensor, *(m for m, _ in clutter)):
             self.label.add_mesh(mesh, color=(0.0, 0.0, 0.0), **flat)
 
         span = float(np.linalg.norm(np.asarray(camera.position) - np.asarray(camera.target)))

@@ -151,16 +151,20 @@ def learn_colour(frames: list[np.ndarray], stride: int = 4) -> ColourRange | Non
 
 def segment_finger(rgb: np.ndarray, colour: ColourRange, stride: int = 4,
                    min_object_frac: float = 1e-3, max_hole_frac: float = 2e-4,
-                   margin_px: int = 8) -> np.ndarray | None:
+                   margin_px: int = 8, stats: dict | None = None) -> np.ndarray | None:
     """Finger mask (H, W) bool of a frame, or None when no pixel has the finger's colour.
 
     The largest blob of the colour on the ``stride``-subsampled frame gives the box;
     inside it (plus ``margin_px`` and a stride), the colour range at full resolution
     and :func:`~finray.dataset.imageops.clean_mask` with sizes as fractions of the whole
     frame (specks up to ``min_object_frac`` dropped, holes up to ``max_hole_frac``
-    filled)."""
+    filled). ``stats``: a dict that receives ``candidate_frac``, the fraction of the
+    ``stride`` grid's pixels of the finger's colour (the mask's confidence:
+    :mod:`finray.recording.finder`)."""
     H, W = rgb.shape[:2]
     small = colour.contains(rgb[::stride, ::stride])
+    if stats is not None:
+        stats["candidate_frac"] = float(np.count_nonzero(small)) / small.size
     sl, size = _largest_blob(small)
     if sl is None:
         return None

@@ -1,6 +1,7 @@
 """``finray ingest``: a lab take (video + sensor log) -> a dataset shard with sensor labels.
 
-Per frame: colour-segment the finger (:mod:`finray.recording.colour`), cut the same
+Per frame: colour-segment the finger (:mod:`finray.recording.finder`, as ``finray
+predict`` does), cut the same
 base-anchored window as :class:`~finray.predict.Predictor`
 (:func:`~finray.dataset.imageops.base_anchored_box`), area-average it to each network
 size. The image signal is the shift of the finger's left and right edges (mm, mean
@@ -30,7 +31,9 @@ import numpy as np
 from ..dataset.imageops import base_anchored_box, silhouette_input
 from ..dataset.params import scene_id, size_key
 from ..dataset.shards import save_npz
-from .colour import ColourRange, learn_colour, segment_finger
+from ..schema import schema_default
+from .colour import ColourRange, learn_colour
+from .finder import colour_finder
 from .sync import align_clocks, force_at_frames
 from .take import MIN_SAMPLES, TakeError, open_frames, read_forces, read_take_json
 
@@ -42,15 +45,15 @@ class IngestParams:
     """Crop and sizes (the dataset stage's and the finger's), segmentation and sync
     settings."""
 
-    sizes: tuple[tuple[int, int], ...] = ((128, 64), (64, 32))
-    crop_x_mm: tuple[float, float] = (-5.0, 35.0)
-    crop_y_mm: tuple[float, float] = (0.0, 80.0)
-    base_width_mm: float = 30.0
+    sizes: tuple[tuple[int, int], ...] = schema_default("dataset.sizes")
+    crop_x_mm: tuple[float, float] = schema_default("dataset.crop_x_mm")
+    crop_y_mm: tuple[float, float] = schema_default("dataset.crop_y_mm")
+    base_width_mm: float = schema_default("finger.base_width_mm")
     #: The base is the widest of the lowest rows of the mask (see base_anchored_box):
     #: at least ``base_rows``, and at least ``base_band`` of the mask's height (the
     #: finger's 3 mm base plate is 0.0375 of its 80 mm).
     base_rows: int = 4
-    base_band: float = 0.03
+    base_band: float = schema_default("dataset.base_band")
     #: Subsampling (rows and columns) of the frame for finding the finger.
     stride: int = 4
     #: Frames the finger's colour is learned from when take.json gives none.
@@ -108,6 +111,8 @@ def ingest(take: str | Path, out_dir: str | Path, params: IngestParams | None = 
             raise TakeError(f"no finger found: nothing coloured in the first frames of {src.path} "
                             "(give finger_colour in take.json)")
     log(f"finger colour ({colour.source}): {colour.describe()}")
+    # the one way the finger is found (finray predict's, with ingest's sizes)
+    finder = colour_finder(colour, p.stride, p.min_object_frac, p.max_hole_frac)
 
     big = max(p.sizes, key=lambda s: s[0] * s[1])
     crop_w_mm = p.crop_x_mm[1] - p.crop_x_mm[0]
@@ -124,7 +129,7 @@ def ingest(take: str | Path, out_dir: str | Path, params: IngestParams | None = 
         if rgb is None:
             row["status"] = "unreadable"
         else:
-            mask = segment_finger(rgb, colour, p.stride, p.min_object_frac, p.max_hole_frac)
+            mask, _ = finder.find(rgb)
             if mask is None:
                 row["status"] = "no_finger"
         if p.write_masks and rgb is not None:

@@ -37,6 +37,25 @@ def load_split(shards, size: tuple[int, int], every: int = 1,
             "displacement_mm": table["displacement_mm"].to_numpy()}
 
 
+def shard_stress_ref(shards) -> float | None:
+    """The stress maps' reference (MPa) the shards' renders used (``render.stress_ref_MPa``,
+    from each shard's ``meta``); None where no shard records it. One line where they
+    disagree (maps on two scales cannot train one network)."""
+    import json
+
+    refs = set()
+    for path in shards:
+        with np.load(path) as f:
+            if "meta" in f.files:
+                ref = (json.loads(str(f["meta"])).get("render") or {}).get("stress_ref_MPa")
+                if ref is not None:
+                    refs.add(float(ref))
+    if len(refs) > 1:
+        raise ValueError(f"the shards' stress maps use different references {sorted(refs)} MPa "
+                         "(render.stress_ref_MPa): render them alike")
+    return refs.pop() if refs else None
+
+
 def validation_scenes(scene_ids, fraction: float, seed: int) -> set[str]:
     """Whole scenes held out for validation (frames of one scene are too alike to split)."""
     ids = sorted(set(scene_ids))

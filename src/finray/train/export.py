@@ -38,7 +38,8 @@ CONTACT_METHODS = ("contact", "force_contact", "forward_contact")
 
 def export_torchscript(model: FinRayNet, path: str | Path, preprocess: dict | None = None,
                        forces: list[str] | None = None,
-                       contact_min_force_N: float | None = None) -> None:
+                       contact_min_force_N: float | None = None,
+                       stress_ref_MPa: float | None = None, trained: dict | None = None) -> None:
     """Trace the model (eval mode, float32) to TorchScript: ``forward`` gives (stress,
     force N), ``force`` the force (N) alone (no stress decoder); frozen. A model with the
     contact head also has ``contact`` (contact height (B,) mm), ``force_contact`` (force
@@ -48,7 +49,12 @@ def export_torchscript(model: FinRayNet, path: str | Path, preprocess: dict | No
     head), the names of the force outputs (``forces``, e.g. ``["fx_N", "fy_N"]``; default
     ``fx_N`` and on), ``contact_min_force_N`` (the smallest |fx| the contact height was
     trained on) and the preprocessing (crop window, base width, segmentation) that
-    :class:`finray.predict.Predictor` needs."""
+    :class:`finray.predict.Predictor` needs; also what the outputs mean and where they
+    hold: ``stress_ref_MPa`` (the maps are ``log10(1 + sigma / stress_ref_MPa)``, the
+    renders' ``render.stress_ref_MPa``), ``force_normalisation`` (the force head's mean
+    and scale, N) and ``trained`` (the training's ranges,
+    :func:`finray.validity.training_ranges`, which each predicted frame is checked
+    against)."""
     model = copy.deepcopy(model).cpu().float().eval().to(memory_format=torch.contiguous_format)
     c = model.cfg
     example = torch.rand(1, c.in_channels, c.height, c.width)
@@ -61,6 +67,12 @@ def export_torchscript(model: FinRayNet, path: str | Path, preprocess: dict | No
     if len(names) != c.n_forces:
         raise ValueError(f"{len(names)} force names for a model with {c.n_forces} force outputs")
     extra = {"contact_min_force_N": contact_min_force_N} if c.contact else {}
+    if stress_ref_MPa is not None:
+        extra["stress_ref_MPa"] = float(stress_ref_MPa)
+    extra["force_normalisation"] = {"mean_N": model.force_mean_N.tolist(),
+                                    "scale_N": model.force_scale_N.tolist()}
+    if trained is not None:
+        extra["trained"] = trained
     Path(str(path) + ".json").write_text(json.dumps({**model.config_dict(), "forces": names,
                                                       **extra, "preprocess": preprocess or {}},
                                                      indent=1))

@@ -14,7 +14,9 @@ from ..model import NetConfig
 from ..precision import cpu_name, resolve_device
 from .augment import TrainAugment
 from .config import FORCE_LOSS, AugmentConfig, History, TrainConfig
-from .data import FORCE_COMPONENTS, load_split, scene_force_weights, validation_scenes
+from ..validity import training_ranges
+from .data import (FORCE_COMPONENTS, load_split, scene_force_weights, shard_stress_ref,
+                   validation_scenes)
 from .export import export_onnx, export_torchscript, load_checkpoint, save_checkpoint
 from .loop import train
 
@@ -85,8 +87,13 @@ def train_from_shards(shards, out_dir: str | Path, net_cfg: NetConfig, cfg: Trai
              "forces": [FORCE_COMPONENTS[c] for c in forces],
              "start_from": None if init is None else str(init)}
     save_checkpoint(model, hist, out_dir / "model.pt", extra)
+    seen = [tr["images"], tr["camera_images"]] if camera else [tr["images"]]
+    trained = training_ranges(seen, tr["force_N"], extra["forces"],
+                              tr["contact_mm"] if net_cfg.contact else None,
+                              cfg.contact_min_force_N)
     export_torchscript(model, out_dir / "model.ts", preprocess, extra["forces"],
-                       contact_min_force_N=cfg.contact_min_force_N)
+                       contact_min_force_N=cfg.contact_min_force_N,
+                       stress_ref_MPa=shard_stress_ref(shards), trained=trained)
     export_onnx(model, out_dir / "model.onnx")
     (out_dir / "history.json").write_text(json.dumps({**asdict(hist), **extra}, indent=1))
     training_curves(hist, out_dir / "curves.png")
