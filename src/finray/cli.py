@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from . import __version__
-from .errors import BadInput, ConfigError, GeometryError, UsageError
+from .errors import BadInput, ConfigError, FinrayError, GeometryError, UsageError
 
 
 def _positive(args, *names: str) -> None:
@@ -207,7 +207,6 @@ def _run_simulate(args) -> int:
     import logging
 
     from .config import object_is_meshed, validate_config
-    from .fea.errors import SimulationError
     from .fea.scene import run_scene
     from .geometry.build import finger_from_config
     from .geometry.finger import mesh_finger
@@ -245,10 +244,7 @@ def _run_simulate(args) -> int:
     logger.setLevel(logging.INFO)
     try:
         out = run_scene(cfg, finger, obj, args.material, args.out, scene, vtu=not args.no_vtu)
-    except SimulationError as exc:
-        print(f"finray simulate: {exc}", file=sys.stderr)
-        return 1
-    finally:
+    finally:  # a SimulationError: main's exit code 1
         logger.removeHandler(progress)
         logger.setLevel(level)
     print(json.dumps({k: v for k, v in out.items() if k != "solver"}, indent=1))
@@ -595,6 +591,9 @@ def main(argv: list[str] | None = None) -> int:
     except BadInput as exc:  # finray.errors: every check at the door
         print(f"finray {args.command}: {exc}", file=sys.stderr)
         return 2
+    except FinrayError as exc:  # failed part way (an FEA scene: SimulationError)
+        print(f"finray {args.command}: {exc}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print(f"finray {args.command}: interrupted", file=sys.stderr)
         return 130

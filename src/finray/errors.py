@@ -1,14 +1,17 @@
-"""The package's exceptions, in one place. Each says in one line (``str``) what is
-wrong; the checks raise them at the door, before any work or any file is written.
+"""The package's exceptions, in one place; every one is a :class:`FinrayError`. Each
+says in one line (``str``) what is wrong; the checks raise them at the door, before any
+work or any file is written.
 
 Every error about what a user gave (a config, options, an object, a take, a model, a
 source, a frame, a device) is a :class:`BadInput`: ``finray`` prints ``finray
 <command>: <message>`` and exits with 2. They are also :class:`ValueError`, so that
 code that catches those keeps working. A failure part way through work that was valid
-to start (an FEA scene that does not converge: :class:`finray.fea.errors.SimulationError`)
-is not bad input.
+to start (an FEA scene that does not converge: :class:`SimulationError`, also a
+:class:`RuntimeError`) is not bad input: ``finray`` exits with 1.
 """
 from __future__ import annotations
+
+import numpy as np
 
 
 class FinrayError(Exception):
@@ -73,3 +76,28 @@ class DeviceInputError(InputError, DeviceError):
 
 class FrameError(InputError):
     """One frame that cannot be predicted: unreadable, not an image, or no finger in it."""
+
+
+class SimulationError(FinrayError, RuntimeError):
+    """An FEA solve failed part way (the CLI: exit code 1); ``step`` is the load-step
+    index, ``load`` the load factor (fraction of the push) it aimed at, ``cause`` a short
+    reason; ``partial``: the frames that converged before it (``displacement_mm`` (F,),
+    ``force_N`` (F, 2): the force on the object), where the solver got that far, else
+    None."""
+
+    def __init__(self, message: str, step: int | None = None, load: float | None = None,
+                 cause: str = "", partial: dict | None = None):
+        super().__init__(message)
+        self.step = step
+        self.load = load
+        self.cause = cause
+        self.partial = partial
+
+
+class NotPositiveDefinite(FinrayError, np.linalg.LinAlgError):
+    """A Cholesky factorisation met a non-positive pivot (the FEA's linear solvers; the
+    solver projects the Hessian and factorises again)."""
+
+
+class StabilityFailure(FinrayError, AssertionError):
+    """A case of the FEA stability suite raised an error it does not expect."""

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..fea.errors import SimulationError
+from ..errors import SimulationError, StabilityFailure
 from .fea import FingerCache, any_nan, fx_at, markdown_table, min_gap, run_case, with_overrides
 from .timing import Stopwatch
 
@@ -37,10 +37,6 @@ class Refusal:
     def __str__(self) -> str:
         return (("converge or " if self.or_converge else "")
                 + f"refuse: {self.error.__name__} /{self.match}/")
-
-
-class StabilityFailure(AssertionError):
-    """A case of the stability suite raised an error it does not expect."""
 
 
 #: case -> (config overrides, scene keywords of :func:`run_case`, expected outcome):

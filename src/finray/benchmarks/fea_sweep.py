@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..fea.errors import SimulationError
+from ..errors import SimulationError
 from ..fea.scene import material_law, scene_object, simulation_options
 from ..fea.simulate import simulate
 from ..geometry.finger import FingerParams

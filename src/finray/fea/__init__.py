@@ -20,7 +20,7 @@ scene      the stage's entry point :func:`~finray.fea.scene.run_scene`: one scen
            from the config to its files.
 """
 from .material import NeoHookean
-from .errors import SimulationError
+from ..errors import SimulationError
 from .simulate import (DeformableObject, RigidObject, SimulationOptions, SimulationResult,
                        simulate)
 

@@ -14,7 +14,7 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
-from .errors import NotPositiveDefinite
+from ..errors import NotPositiveDefinite
 
 try:  # CHOLMOD (scikit-sparse): symbolic analysis reused across Newton iterations
     from sksparse.cholmod import CholmodNotPositiveDefiniteError

@@ -28,7 +28,7 @@ import numpy as np
 from ..geometry.mesh import BOUNDARY_TAGS, TriMesh
 from .contact import ContactParams, split_p2_edges
 from .material import NeoHookean
-from .errors import SimulationError
+from ..errors import SimulationError
 from .simulate import (DeformableObject, RigidObject, SimulationOptions, SimulationResult,
                        simulate)
 from .newton import NewtonOptions

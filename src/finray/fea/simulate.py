@@ -32,7 +32,7 @@ from ..logs import Progress
 from .assembly import ElementBlock
 from .contact import ContactModel, ContactParams, split_p2_edges
 from .material import NeoHookean
-from .errors import SimulationError
+from ..errors import SimulationError
 from .newton import NewtonOptions, newton
 from .problem import Model
 from .stepping import StepOptions, march

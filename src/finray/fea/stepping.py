@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import SimulationError
+from ..errors import SimulationError
 from .newton import NewtonOptions, newton
 from .problem import Model
 
