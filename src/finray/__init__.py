@@ -2,3 +2,7 @@
 learned from finite-element simulations. Units: mm, N, MPa, degrees."""
 
 __version__ = "0.1.0"
+
+from .numba_cache import configure as _configure_numba_cache
+
+_configure_numba_cache()  # compiled kernels in the user's cache, not the source tree
