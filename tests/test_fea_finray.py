@@ -70,7 +70,7 @@ def test_push_stops_at_the_force_cap_and_keeps_its_frames(finger):
     above: steps past it are cut), that state the last frame, the frames before kept
     as without a cap; a cap it never reaches changes no array."""
     obj = front_contact_circle(FingerParams(), 30.0, 10.0, gap_mm=0.1)
-    opts = SimulationOptions(push_mm=4.0, frame_step_mm=1.0)
+    opts = SimulationOptions(push_mm=4.0, frame_step_mm=1.0, force_cap_N=None)  # no cap
     free = simulate(finger, obj, FINGER, opts)
     mag = np.hypot(*free.force_N.T)
     cap = 0.5 * (mag[2] + mag[3])  # between the frames at 2 and 3 mm

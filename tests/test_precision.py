@@ -69,7 +69,8 @@ def test_training_logs_its_precision_step_time_and_epochs():
     x, s, f = toy(64)
     lines = []
     _, hist = train(x, s, f, (x[:16], s[:16], f[:16]), NetConfig(height=32, width=16, base_channels=4),
-                    TrainConfig(epochs=2, batch_size=16, progress=False, log_every_s=0.0),
+                    TrainConfig(epochs=2, batch_size=16, progress=False, log_every_s=0.0,
+                                contact_weight=0.0),
                     log=lines.append)
     assert lines[0].startswith("precision: ") and hist.precision in ("bfloat16", "float32")
     assert (hist.precision == "bfloat16") is cpu_precision().native_bf16

@@ -47,6 +47,8 @@ from snakemake.settings.types import (ConfigSettings, DAGSettings, ExecutionSett
 from finray.config import (load_schema, merge_config, object_heights, read_config_file,  # noqa: E402
                            validate_config)
 
+pytestmark = [pytest.mark.slow, pytest.mark.workflow]  # not in `pytest -m "not slow"`
+
 ROOT = Path(__file__).resolve().parents[1]
 SMOKE = ROOT / "config" / "smoke.yaml"
 SCHEMA = ROOT / "workflow" / "schemas" / "config.schema.yaml"
@@ -247,8 +249,6 @@ READERS: list[tuple[str, set[str]]] = [
 UNREAD = {
     "materials.ninjaflex.source": "documentation of the constants only",
     "materials.neoprene.source": "documentation of the constants only",
-    "dataset.seed": "no stage draws from it: training and evaluation use train.seed and "
-                    "evaluate.seed",
     # the spread study is a target of its own (spread.smk), not in the default run's DAG;
     # test_workflow.py::test_smoke_spread runs it
     "evaluate.spread.seeds": "read by the spread study only (results/evaluate/spread/)",

@@ -33,7 +33,8 @@ def result(result_path):
 def front_render(result_path, tmp_path_factory):
     out = tmp_path_factory.mktemp("render") / "p0"
     render_scene(result_path, out, 0.0, scene={"object": "circle_d10", "material": "steel",
-                                               "height_mm": 30, "split": "train"})
+                                               "height_mm": 30, "split": "train"},
+                 params=RenderParams(files_per_scene=None))  # every frame's files
     return out
 
 

@@ -18,7 +18,7 @@ def toy(n=96, seed=0):
     return x, s, f
 
 
-CFG = dict(epochs=2, batch_size=16, progress=False, lr=1e-3)
+CFG = dict(epochs=2, batch_size=16, progress=False, lr=1e-3, contact_weight=0.0)  # no contact head
 
 
 def test_two_trainings_give_identical_losses():
@@ -32,7 +32,7 @@ def test_two_trainings_give_identical_losses():
 def test_training_reduces_the_loss():
     x, s, f = toy(256)
     _, hist = train(x, s, f, None, NetConfig(height=32, width=16, base_channels=4),
-                    TrainConfig(epochs=4, batch_size=16, progress=False, lr=1e-3, bf16=False),
+                    TrainConfig(**{**CFG, "epochs": 4, "bf16": False}),
                     log=lambda m: None)
     assert hist.train_loss[-1] < 0.7 * hist.train_loss[0]
 
@@ -132,7 +132,8 @@ def test_validation_scenes_follow_split_seed_not_seed(tmp_path, monkeypatch):
         monkeypatch.setattr(stage, "train", capture)
         with pytest.raises(Stop) as stop:
             stage.train_from_shards([], tmp_path, NetConfig(height=32, width=16),
-                                    TrainConfig(seed=seed, split_seed=split_seed), None, 0.1,
+                                    TrainConfig(seed=seed, split_seed=split_seed,
+                                                contact_weight=0.0), None, 0.1,
                                     log=lambda m: None)
         return stop.value.args[0]
 

@@ -31,6 +31,7 @@ from torch import nn
 
 from .errors import CalibrationError
 from .model import FinRayNet
+from .schema import schema_default
 
 
 @dataclass(frozen=True)
@@ -59,15 +60,17 @@ class HeadFit:
     even on frames that every bootstrap sample holds hundreds of times (a rig's rest
     frames), by the optimiser's jitter rather than by what the frames leave open."""
 
-    members: int = 4
-    steps: int = 400
-    batch: int = 64
-    lr: float = 1e-3
-    lr_decay: bool = True
-    bootstrap: bool = True
-    seed: int = 0
-    layers: int = 3  # fit the last this many linear layers only (0: every layer)
-    epochs: float = 0.0  # > 0: steps = ceil(epochs * frames / batch), in place of steps
+    members: int = schema_default("evaluate.sim2real.heads.members")
+    steps: int = schema_default("evaluate.sim2real.heads.steps")
+    batch: int = schema_default("evaluate.sim2real.heads.batch")
+    lr: float = schema_default("evaluate.sim2real.heads.lr")
+    lr_decay: bool = schema_default("evaluate.sim2real.heads.lr_decay")
+    bootstrap: bool = schema_default("evaluate.sim2real.heads.bootstrap")
+    seed: int = schema_default("evaluate.sim2real.heads.seed")
+    # fit the last this many linear layers only (0: every layer)
+    layers: int = schema_default("evaluate.sim2real.heads.layers")
+    # > 0: steps = ceil(epochs * frames / batch), in place of steps
+    epochs: float = schema_default("evaluate.sim2real.heads.epochs", float)
 
     def n_steps(self, frames: int) -> int:
         """The Adam steps of one head fitted on ``frames`` frames."""

@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import CalibrationError
+from .schema import schema_default
 
 PARAMS = ("gain", "offset_N", "log_sigma_N", "log_rho", "log_kappa", "log_nu")
 LABELS = ("g", "b (N)", r"log $\sigma$ (N)", r"log $\rho$", r"log $\kappa$", r"log $\nu$")
@@ -36,15 +37,15 @@ LABELS = ("g", "b (N)", r"log $\sigma$ (N)", r"log $\rho$", r"log $\kappa$", r"l
 @dataclass(frozen=True)
 class Priors:
     #: 0: fixed at 1 and 0 N (:func:`fixed_params`)
-    gain_log_sd: float = 0.0
-    offset_sd_N: float = 0.0
+    gain_log_sd: float = schema_default("evaluate.sim2real.priors.gain_log_sd")
+    offset_sd_N: float = schema_default("evaluate.sim2real.priors.offset_sd_N")
     #: bounds: sigma from a tenth of a force sensor's resolution (~0.01 N) up
-    sigma_N: tuple[float, float] = (1e-3, 10.0)
-    rho: tuple[float, float] = (1e-3, 1.0)
-    kappa: tuple[float, float] = (1e-2, 100.0)
+    sigma_N: tuple[float, float] = schema_default("evaluate.sim2real.priors.sigma_N")
+    rho: tuple[float, float] = schema_default("evaluate.sim2real.priors.rho")
+    kappa: tuple[float, float] = schema_default("evaluate.sim2real.priors.kappa")
     #: Student-t degrees of freedom: Gamma(shape, rate) within bounds
-    nu_gamma: tuple[float, float] = (2.0, 0.1)
-    nu: tuple[float, float] = (2.0, 200.0)
+    nu_gamma: tuple[float, float] = schema_default("evaluate.sim2real.priors.nu_gamma")
+    nu: tuple[float, float] = schema_default("evaluate.sim2real.priors.nu")
 
 
 @dataclass(frozen=True)
@@ -52,11 +53,11 @@ class Sampler:
     """emcee's settings: ``walkers``, steps per round (``chunk``), at most ``max_steps``,
     until the chain is ``min_tau_multiple`` times the largest autocorrelation time."""
 
-    walkers: int = 32
-    chunk: int = 1000
-    max_steps: int = 20000
-    min_tau_multiple: float = 50.0
-    seed: int = 0
+    walkers: int = schema_default("evaluate.sim2real.sampler.walkers")
+    chunk: int = schema_default("evaluate.sim2real.sampler.chunk")
+    max_steps: int = schema_default("evaluate.sim2real.sampler.max_steps")
+    min_tau_multiple: float = schema_default("evaluate.sim2real.sampler.min_tau_multiple")
+    seed: int = schema_default("evaluate.sim2real.sampler.seed")
 
 
 @dataclass(frozen=True)
@@ -68,8 +69,8 @@ class RigPrior:
     calibration is fitted on the simulation's own frames, which know neither: its
     intervals then covered 3-6 % of the emulated rig's frames (docs/studies/sim2real.md, "Sim-to-real")."""
 
-    gain_log_sd: float = 0.0
-    offset_sd_N: float = 0.0
+    gain_log_sd: float = schema_default("evaluate.sim2real.rig_prior.gain_log_sd")
+    offset_sd_N: float = schema_default("evaluate.sim2real.rig_prior.offset_sd_N")
     gain_log_mean: float = 0.0
 
 

@@ -10,7 +10,6 @@ import copy
 import functools
 import json
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 
 import jsonschema
@@ -20,11 +19,7 @@ from .geometry.blobs import blob_name, generated_objects
 from .geometry.finger import FingerParams, GeometryError, check_ribs, finger_polygon
 from .geometry.objects import object_shape, place_object
 from .errors import ConfigError
-
-
-def load_schema() -> dict:
-    with resources.files("finray").joinpath("config.schema.yaml").open() as f:
-        return yaml.safe_load(f)
+from .schema import load_schema
 
 
 def _extend_with_default(validator_class):

@@ -36,16 +36,19 @@ from dataclasses import asdict, dataclass
 import torch
 from torch import nn
 
+from .schema import schema_default
+
 
 @dataclass
 class NetConfig:
     in_channels: int = 3
-    base_channels: int = 16
-    height: int = 64
-    width: int = 32
+    base_channels: int = schema_default("train.base_channels")
+    height: int = schema_default("train.input_size", lambda hw: hw[0])
+    width: int = schema_default("train.input_size", lambda hw: hw[1])
     n_forces: int = 1
     hidden: tuple[int, ...] = (128, 64, 32, 8)
-    init: str = "he"  # initial weights: "he" or "torch" (PyTorch's default; module docstring)
+    # initial weights: "he" or "torch" (PyTorch's default; module docstring)
+    init: str = schema_default("train.init")
     contact: bool = False  # a contact-height head (module docstring); False: models before it
 
     def __post_init__(self):

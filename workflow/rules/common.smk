@@ -8,7 +8,7 @@ from types import SimpleNamespace
 import yaml
 from snakemake.utils import update_config
 
-from finray.config import (ConfigError, extra_train_heights, merge_config, read_config_file, scenes,
+from finray.config import (ConfigError, extra_train_heights, resolve_extends, scenes,
                            sim2real_model_name, validate_config)
 from finray.dataset import pitch_object
 from finray.dataset.params import SHARD_KEYS
@@ -23,12 +23,14 @@ if not workflow.config_settings.configfiles:
 elif "extends" in config:
     # a config file that extends another (config/diverse.yaml: config.yaml plus the
     # generated objects): that file under the given ones, the path relative to the last
-    # given file that names it (finray.config.read_config_file does the same)
+    # given file that names it
     _named = [f for f in workflow.config_settings.configfiles
               if "extends" in (yaml.safe_load(open(f)) or {})]
-    _merged = merge_config(read_config_file(os.path.join(os.path.dirname(_named[-1]),
-                                                          str(config["extends"]))),
-                           {k: v for k, v in config.items() if k != "extends"})
+    try:
+        _merged = resolve_extends(dict(config), os.path.dirname(_named[-1]))
+    except ConfigError as _err:
+        sys.stderr.write(f"finray: config error: {_err}\n")
+        sys.exit(1)
     config.clear()
     config.update(_merged)
 

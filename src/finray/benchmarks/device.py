@@ -60,7 +60,7 @@ def time_epoch(net_cfg, device: str = "auto", frames: int = 1024, batch_size: in
 
     data = synthetic_frames(frames, (net_cfg.height, net_cfg.width), net_cfg.n_forces)
     cfg = TrainConfig(epochs=1, batch_size=batch_size, lr=lr, threads=threads, device=device,
-                      progress=False, log_every_s=3600.0)
+                      progress=False, log_every_s=3600.0, contact_weight=0.0)
     lines: list[str] = []
     _, hist = train(data["images"], data["stress"], data["force_N"], None, net_cfg, cfg,
                     TrainAugment(AugmentConfig()), log=log or lines.append)

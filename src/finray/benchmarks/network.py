@@ -107,8 +107,10 @@ def run_time_vs_error(shards, out_csv, out_png, out_md, sizes, bases, configured
     torch.set_num_threads(1)
     rows = []
     # a CPU cost study (one thread, as its latencies): on the CPU whatever the machine has
+    # the networks without the contact head (contact_weight 0), as measured before it
     cfg = TrainConfig(epochs=epochs, batch_size=batch_size, lr=lr, seed=seed, threads=1,
                       bf16=bf16, device="cpu", channels_last=channels_last, progress=False,
+                      contact_weight=0.0,
                       **(schedule or {}))
     for h, w in sizes:
         data = load_split(shards, (h, w), every)

@@ -25,11 +25,25 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-#: Salt-and-pepper density (fraction of pixels hit) per noise level.
-NOISE_LEVELS: dict[str, float] = {"none": 0.0, "low": 0.02, "medium": 0.05, "high": 0.10}
-#: Occluding disc diameter as a fraction of the image width, [min, max], per level.
-OCCLUSION_LEVELS: dict[str, tuple[float, float]] = {
-    "none": (0.0, 0.0), "low": (0.10, 0.30), "medium": (0.40, 0.80), "high": (0.80, 1.00)}
+from ..schema import schema_default
+
+
+def noise_levels(levels: dict) -> dict[str, float]:
+    """A config's ``dataset.noise_levels`` as level -> salt-and-pepper density."""
+    return {str(k): float(v) for k, v in dict(levels).items()}
+
+
+def occlusion_levels(levels: dict) -> dict[str, tuple[float, float]]:
+    """A config's ``dataset.occlusion_levels`` as level -> disc diameter range."""
+    return {str(k): (float(v[0]), float(v[1])) for k, v in dict(levels).items()}
+
+
+#: Salt-and-pepper density (fraction of pixels hit) per noise level (the schema's).
+NOISE_LEVELS: dict[str, float] = schema_default("dataset.noise_levels", noise_levels)
+#: Occluding disc diameter as a fraction of the image width, [min, max], per level
+#: (the schema's).
+OCCLUSION_LEVELS: dict[str, tuple[float, float]] = schema_default("dataset.occlusion_levels",
+                                                                  occlusion_levels)
 
 
 @dataclass(frozen=True)

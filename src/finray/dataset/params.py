@@ -6,8 +6,9 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from .augment import NOISE_LEVELS, OCCLUSION_LEVELS
+from .augment import noise_levels, occlusion_levels
 from .imageops import segment
+from ..schema import schema_default
 
 
 #: The settings a shard's arrays depend on (sizes, crop, segmentation); the rest of
@@ -17,29 +18,38 @@ SHARD_KEYS = ("sizes", "crop_x_mm", "crop_y_mm", "threshold", "foreground", "min
               "max_hole_frac", "keep_largest", "base_band")
 
 
+def _noise_items(levels: dict) -> tuple:
+    return tuple(noise_levels(levels).items())
+
+
+def _occlusion_items(levels: dict) -> tuple:
+    return tuple(occlusion_levels(levels).items())
+
+
 @dataclass(frozen=True)
 class DatasetParams:
     """Settings of the dataset stage (config section ``dataset``)."""
 
     #: Output sizes (height, width); height = 2 x width.
-    sizes: tuple[tuple[int, int], ...] = ((128, 64), (64, 32))
+    sizes: tuple[tuple[int, int], ...] = schema_default("dataset.sizes")
     #: Crop window in image-plane mm (2:1 like the sizes).
-    crop_x_mm: tuple[float, float] = (-5.0, 35.0)
-    crop_y_mm: tuple[float, float] = (0.0, 80.0)
-    threshold: str | float = "isodata"
-    foreground: str = "bright"
-    min_object_frac: float = 1e-3
-    max_hole_frac: float = 2e-4
-    keep_largest: bool = True
+    crop_x_mm: tuple[float, float] = schema_default("dataset.crop_x_mm")
+    crop_y_mm: tuple[float, float] = schema_default("dataset.crop_y_mm")
+    threshold: str | float = schema_default("dataset.threshold")
+    foreground: str = schema_default("dataset.foreground")
+    min_object_frac: float = schema_default("dataset.min_object_frac")
+    max_hole_frac: float = schema_default("dataset.max_hole_frac")
+    keep_largest: bool = schema_default("dataset.keep_largest")
     #: The base-anchored crop of camera frames (camera views, the predictor): the base is
     #: the widest row among the lowest ``base_band`` of the mask's height (a rolled or
     #: pitched camera slants its bottom edge over several rows).
-    base_band: float = 0.03
-    noise_levels: tuple[tuple[str, float], ...] = tuple(NOISE_LEVELS.items())
-    occlusion_levels: tuple[tuple[str, tuple[float, float]], ...] = tuple(OCCLUSION_LEVELS.items())
-    occluder_value: float = 0.0
-    seed: int = 0
-    pitch_object: str | None = None
+    base_band: float = schema_default("dataset.base_band")
+    noise_levels: tuple[tuple[str, float], ...] = schema_default("dataset.noise_levels",
+                                                                 _noise_items)
+    occlusion_levels: tuple[tuple[str, tuple[float, float]], ...] = schema_default(
+        "dataset.occlusion_levels", _occlusion_items)
+    occluder_value: float = schema_default("dataset.occluder_value")
+    pitch_object: str | None = schema_default("dataset.pitch_object")
 
     def __post_init__(self):
         for h, w in self.sizes:
@@ -64,9 +74,9 @@ class DatasetParams:
             if k == "sizes":
                 v = tuple(tuple(int(x) for x in s) for s in v)
             elif k == "noise_levels":
-                v = tuple((str(a), float(b)) for a, b in dict(v).items())
+                v = _noise_items(v)
             elif k == "occlusion_levels":
-                v = tuple((str(a), (float(b[0]), float(b[1]))) for a, b in dict(v).items())
+                v = _occlusion_items(v)
             elif isinstance(v, list):
                 v = tuple(v)
             kw[k] = v

@@ -30,6 +30,7 @@ from ..adapt import HeadFit, SimAnchor, encoder_features, head_forces, head_from
 from ..calibration import (Priors, RigPrior, Sampler, coverage, fit_rig, fold_units, predictive,
                            shard_times, spread)
 from ..paper_reference import paper_value
+from ..schema import schema_default
 from .metrics import force_metrics
 
 
@@ -42,13 +43,15 @@ def paper_mse_N2() -> dict[int, float]:
 @dataclass(frozen=True)
 class Sim2RealConfig:
     heads: HeadFit = field(default_factory=HeadFit)
-    folds: str = "object"
-    level: float = 0.9
-    max_context: int = 2
-    sim_every: int = 4
-    sim_folds: int = 5
-    sim_views: str = "front"  # the simulated frames of the no-context fit (SIM_VIEWS)
-    sim_replay_frames: int = 0  # simulated frames fitted beside each fit's context frames (SimAnchor)
+    folds: str = schema_default("evaluate.sim2real.folds")
+    level: float = schema_default("evaluate.sim2real.level")
+    max_context: int = schema_default("evaluate.sim2real.max_context")
+    sim_every: int = schema_default("evaluate.sim2real.sim_every")
+    sim_folds: int = schema_default("evaluate.sim2real.sim_folds")
+    # the simulated frames of the no-context fit (SIM_VIEWS)
+    sim_views: str = schema_default("evaluate.sim2real.sim_views")
+    # simulated frames fitted beside each fit's context frames (SimAnchor)
+    sim_replay_frames: int = schema_default("evaluate.sim2real.sim_replay_frames")
     priors: Priors = field(default_factory=Priors)
     sampler: Sampler = field(default_factory=Sampler)
     rig_prior: RigPrior = field(default_factory=RigPrior)  # with no context frames
@@ -57,11 +60,13 @@ class Sim2RealConfig:
     def from_params(cls, p: dict) -> "Sim2RealConfig":
         pr = p.get("priors", {})
         return cls(heads=HeadFit(**p.get("heads", {})),
-                   folds=str(p.get("folds", "object")),
-                   level=float(p.get("level", 0.9)), max_context=int(p.get("max_context", 2)),
-                   sim_every=int(p.get("sim_every", 4)), sim_folds=int(p.get("sim_folds", 5)),
-                   sim_views=str(p.get("sim_views", "front")),
-                   sim_replay_frames=int(p.get("sim_replay_frames", 0)),
+                   folds=str(p.get("folds", cls.folds)),
+                   level=float(p.get("level", cls.level)),
+                   max_context=int(p.get("max_context", cls.max_context)),
+                   sim_every=int(p.get("sim_every", cls.sim_every)),
+                   sim_folds=int(p.get("sim_folds", cls.sim_folds)),
+                   sim_views=str(p.get("sim_views", cls.sim_views)),
+                   sim_replay_frames=int(p.get("sim_replay_frames", cls.sim_replay_frames)),
                    priors=Priors(**{k: tuple(v) if isinstance(v, list) else v for k, v in pr.items()}),
                    sampler=Sampler(**p.get("sampler", {})),
                    rig_prior=RigPrior(**{k: v for k, v in p.get("rig_prior", {}).items() if k != "gain"}))

@@ -30,6 +30,7 @@ import ipctk
 import numpy as np
 
 from ..geometry.mesh import split_p2_edges  # noqa: F401  (shared with the fea modules)
+from ..schema import schema_default
 
 ipctk.set_logger_level(ipctk.LoggerLevel.error)
 # one thread: ipctk's TBB loops add per-thread partial sums (energy, gradient, Hessian,
@@ -62,11 +63,11 @@ class ContactParams:
         degenerate queries run for seconds).
     """
 
-    dhat: float = 0.02
-    kappa: float = 0.05
-    mu: float = 0.15
-    eps_v: float = 1e-3
-    self_contact: bool = True
+    dhat: float = schema_default("fea.dhat_mm")
+    kappa: float = schema_default("fea.barrier_stiffness_MPa")
+    mu: float = schema_default("fea.friction")
+    eps_v: float = schema_default("fea.static_slip_mm")
+    self_contact: bool = schema_default("fea.self_contact")
     projection: str = "abs"
     ccd: str = "additive"
     ccd_max_iterations: int = 100_000

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .problem import Model
+from ..schema import schema_default
 
 @dataclass
 class NewtonOptions:
@@ -33,7 +34,8 @@ class NewtonOptions:
 
     max_iterations: int = 40
     tol_dx: float = 1e-5  # mm, infinity norm of the Newton direction
-    tol_residual: float = 1e-3  # |g_free| / |reactions + loads| (config fea.residual_tol)
+    # |g_free| / |reactions + loads| (config fea.residual_tol)
+    tol_residual: float = schema_default("fea.residual_tol")
     residual_floor: float = 1e-12  # N/mm
     armijo: float = 1e-4
     min_alpha: float = 1e-10

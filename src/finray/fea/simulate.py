@@ -36,6 +36,7 @@ from ..errors import SimulationError
 from .newton import NewtonOptions, newton
 from .problem import Model
 from .stepping import StepOptions, march
+from ..schema import schema_default
 
 __all__ = ["RigidObject", "DeformableObject", "SimulationOptions", "SimulationResult",
            "simulate", "boundary_loops"]
@@ -77,7 +78,8 @@ class DeformableObject:
 
 @dataclass
 class SimulationOptions:
-    """Options of :func:`simulate`.
+    """Options of :func:`simulate`; the defaults of those that are config keys
+    (``fea.*``) are the schema's.
 
     push_mm, direction : prescribed object translation (mm) and its direction.
     frame_step_mm : a frame every this many mm of push (frame 0 = rest).
@@ -105,23 +107,24 @@ class SimulationOptions:
     force_cap_N : a physical limit on the contact force (N, for the extruded finger):
         the push ends at the first load step whose force magnitude reaches it (within
         :attr:`StepOptions.limit_overshoot` above), that state the last frame, and
-        ``meta["stop"]`` says so; None: the whole push.
+        ``meta["stop"]`` says so; None: the whole push (default: the config's
+        ``fea.force_cap_N``, 40 N).
     log_every_s : a progress line (frame k/n, travel mm, load steps, elapsed s) in the
         ``finray.fea`` log at most this often (s), and at the last frame.
     """
 
-    push_mm: float = 10.0
+    push_mm: float = schema_default("fea.push_mm")
     direction: tuple = (1.0, 0.0)
-    frame_step_mm: float = 0.5
+    frame_step_mm: float = schema_default("fea.frame_step_mm")
     contact: ContactParams = field(default_factory=ContactParams)
     driver_stiffness: float = 1e5  # N/mm per mm of thickness
     initial_step_mm: float = 0.5
-    max_step_mm: float = 0.5
-    min_step_mm: float = 1e-3
-    max_retries: int = 12
+    max_step_mm: float = schema_default("fea.max_step_mm")
+    min_step_mm: float = schema_default("fea.min_step_mm")
+    max_retries: int = schema_default("fea.max_retries")
     friction_lag_iterations: int = 1
     newton: NewtonOptions = field(default_factory=NewtonOptions)
-    equilibrium_tol: float = 1e-3
+    equilibrium_tol: float = schema_default("fea.equilibrium_tol")
     equilibrium_floor_N_per_mm: float = 1e-6
     extrusion_mm: float | None = None  # default: finger_mesh.meta["extrusion_mm"] or 20
     gap_probe_mm: float = 1.0  # gaps above this are reported as NaN
@@ -130,7 +133,7 @@ class SimulationOptions:
     psd: object = "auto"
     stress: bool = True
     log_every_s: float = 30.0
-    force_cap_N: float | None = None
+    force_cap_N: float | None = schema_default("fea.force_cap_N")
 
 
 @dataclass

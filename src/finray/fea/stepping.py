@@ -17,6 +17,7 @@ import numpy as np
 from ..errors import SimulationError
 from .newton import NewtonOptions, newton
 from .problem import Model
+from ..schema import schema_default
 
 @dataclass
 class StepOptions:
@@ -25,7 +26,7 @@ class StepOptions:
     min_step: float = 1e-4
     grow: float = 2.0
     easy_iterations: int = 6  # grow the step when Newton took at most this many
-    max_retries: int = 12  # step cuts in a row before giving up
+    max_retries: int = schema_default("fea.max_retries")  # step cuts in a row before giving up
     friction_lag_iterations: int = 0  # friction re-lags within each step's solve
     # mm: the first re-lag once Newton's step is this small (0: at convergence). 1e-3 saves
     # ~13 % of the factorisations but moved a steel scene's force by 6 % at a slip event

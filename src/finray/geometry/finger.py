@@ -22,28 +22,29 @@ from shapely.geometry import LineString, MultiPolygon, Polygon, box
 
 from .mesh import BOUNDARY_TAGS, TriMesh, quality, triangulate_polygon
 from ..errors import GeometryError
+from ..schema import schema_default
 
 
 @dataclass
 class RibParams:
-    count: int = 11
-    thickness_mm: float = 1.0
-    first_height_mm: float = 17.0
-    spacing_mm: float = 4.0
-    first_angle_deg: float = 25.0
-    angle_step_deg: float = 3.0
+    count: int = schema_default("finger.ribs.count")
+    thickness_mm: float = schema_default("finger.ribs.thickness_mm")
+    first_height_mm: float = schema_default("finger.ribs.first_height_mm")
+    spacing_mm: float = schema_default("finger.ribs.spacing_mm")
+    first_angle_deg: float = schema_default("finger.ribs.first_angle_deg")
+    angle_step_deg: float = schema_default("finger.ribs.angle_step_deg")
 
 
 @dataclass
 class FingerParams:
-    height_mm: float = 80.0
-    base_width_mm: float = 30.0
-    wall_thickness_mm: float = 1.5
-    base_thickness_mm: float = 3.0
-    tip_radius_mm: float = 1.5
-    fillet_radius_mm: float = 0.3
-    extrusion_mm: float = 20.0
-    material: str = "ninjaflex"
+    height_mm: float = schema_default("finger.height_mm")
+    base_width_mm: float = schema_default("finger.base_width_mm")
+    wall_thickness_mm: float = schema_default("finger.wall_thickness_mm")
+    base_thickness_mm: float = schema_default("finger.base_thickness_mm")
+    tip_radius_mm: float = schema_default("finger.tip_radius_mm")
+    fillet_radius_mm: float = schema_default("finger.fillet_radius_mm")
+    extrusion_mm: float = schema_default("finger.extrusion_mm")
+    material: str = schema_default("finger.material")
     ribs: RibParams = field(default_factory=RibParams)
 
     @classmethod

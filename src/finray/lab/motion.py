@@ -13,6 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..schema import schema_default
+
 
 @dataclass(frozen=True)
 class GripperMotion:
@@ -20,11 +22,11 @@ class GripperMotion:
     the bottom; one cycle per start in ``starts_s`` (s, camera clock) in a take of
     ``duration_s``."""
 
-    push_mm: float = 10.0
-    speed_mm_s: float = 10.0
-    hold_s: float = 1.0
-    starts_s: tuple[float, ...] = (1.0, 5.5)
-    duration_s: float = 10.0
+    push_mm: float = schema_default("lab.motion.push_mm")
+    speed_mm_s: float = schema_default("lab.motion.speed_mm_s")
+    hold_s: float = schema_default("lab.motion.hold_s")
+    starts_s: tuple[float, ...] = schema_default("lab.motion.starts_s")
+    duration_s: float = schema_default("lab.motion.duration_s")
 
     @classmethod
     def from_config(cls, m: dict) -> "GripperMotion":

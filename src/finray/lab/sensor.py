@@ -15,19 +15,21 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..schema import schema_default
+
 
 @dataclass(frozen=True)
 class ForceSensor:
-    rate_hz: float = 1000.0
-    noise_N: tuple[float, float, float] = (0.01, 0.01, 0.02)
-    bias_N: tuple[float, float, float] = (0.08, -0.05, 0.12)
-    gain_error: float = 0.015
+    rate_hz: float = schema_default("lab.sensor.rate_hz")
+    noise_N: tuple[float, float, float] = schema_default("lab.sensor.noise_N")
+    bias_N: tuple[float, float, float] = schema_default("lab.sensor.bias_N")
+    gain_error: float = schema_default("lab.sensor.gain_error")
     #: The logger's clock reads this much at the camera's time 0 (s), before latency.
-    clock_start_s: float = 1000.0
-    latency_s: tuple[float, float] = (0.01, 0.08)
-    drift_ppm: float = 20.0
+    clock_start_s: float = schema_default("lab.sensor.clock_start_s")
+    latency_s: tuple[float, float] = schema_default("lab.sensor.latency_s")
+    drift_ppm: float = schema_default("lab.sensor.drift_ppm")
     #: Seconds the log runs before the camera's first frame and after its last.
-    margin_s: float = 0.5
+    margin_s: float = schema_default("lab.sensor.margin_s")
 
     @classmethod
     def from_config(cls, s: dict) -> "ForceSensor":

@@ -31,6 +31,7 @@ import numpy as np
 from ..dataset.imageops import base_anchored_box, silhouette_input
 from ..dataset.params import scene_id, size_key
 from ..dataset.shards import save_npz
+from ..schema import schema_default
 from .colour import ColourRange, learn_colour
 from .finder import colour_finder
 from .sync import align_clocks, force_at_frames
@@ -44,15 +45,15 @@ class IngestParams:
     """Crop and sizes (the dataset stage's and the finger's), segmentation and sync
     settings."""
 
-    sizes: tuple[tuple[int, int], ...] = ((128, 64), (64, 32))
-    crop_x_mm: tuple[float, float] = (-5.0, 35.0)
-    crop_y_mm: tuple[float, float] = (0.0, 80.0)
-    base_width_mm: float = 30.0
+    sizes: tuple[tuple[int, int], ...] = schema_default("dataset.sizes")
+    crop_x_mm: tuple[float, float] = schema_default("dataset.crop_x_mm")
+    crop_y_mm: tuple[float, float] = schema_default("dataset.crop_y_mm")
+    base_width_mm: float = schema_default("finger.base_width_mm")
     #: The base is the widest of the lowest rows of the mask (see base_anchored_box):
     #: at least ``base_rows``, and at least ``base_band`` of the mask's height (the
     #: finger's 3 mm base plate is 0.0375 of its 80 mm).
     base_rows: int = 4
-    base_band: float = 0.03
+    base_band: float = schema_default("dataset.base_band")
     #: Subsampling (rows and columns) of the frame for finding the finger.
     stride: int = 4
     #: Frames the finger's colour is learned from when take.json gives none.

@@ -16,6 +16,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from .camera import PinholeCamera
+from ..schema import schema_default
 
 #: The columns of a drawn view (:meth:`CameraViews.sample`), as stored per frame in shards.
 VIEW_COLUMNS = ("pitch_deg", "yaw_deg", "roll_deg", "distance_mm", "hfov_deg", "width_px",
@@ -26,22 +27,22 @@ VIEW_COLUMNS = ("pitch_deg", "yaw_deg", "roll_deg", "distance_mm", "hfov_deg", "
 class CameraViews:
     """Ranges ``[lo, hi]`` (drawn uniformly) of the training cameras."""
 
-    seed: int = 0
-    pitch_deg: tuple[float, float] = (0.0, 30.0)
-    yaw_deg: tuple[float, float] = (-8.0, 8.0)
-    roll_deg: tuple[float, float] = (-3.0, 3.0)
-    distance_mm: tuple[float, float] = (150.0, 400.0)
+    seed: int = schema_default("render.camera_views.seed")
+    pitch_deg: tuple[float, float] = schema_default("render.camera_views.pitch_deg")
+    yaw_deg: tuple[float, float] = schema_default("render.camera_views.yaw_deg")
+    roll_deg: tuple[float, float] = schema_default("render.camera_views.roll_deg")
+    distance_mm: tuple[float, float] = schema_default("render.camera_views.distance_mm")
     #: Horizontal field of view of the (landscape) stream.
-    hfov_deg: tuple[float, float] = (66.0, 72.0)
+    hfov_deg: tuple[float, float] = schema_default("render.camera_views.hfov_deg")
     #: Stream sizes (width, height), one drawn per view; used portrait (rotated 90 deg).
-    frames_px: tuple[tuple[int, int], ...] = ((848, 480), (1280, 720))
+    frames_px: tuple[tuple[int, int], ...] = schema_default("render.camera_views.frames_px")
     #: Principal point offset from the centre, each axis uniform in +-this (px).
-    principal_offset_px: float = 10.0
+    principal_offset_px: float = schema_default("render.camera_views.principal_offset_px")
     #: Where the camera aims (finger frame, mm), each axis within +-target_jitter_mm.
-    target_mm: tuple[float, float] = (15.0, 40.0)
-    target_jitter_mm: float = 5.0
+    target_mm: tuple[float, float] = schema_default("render.camera_views.target_mm")
+    target_jitter_mm: float = schema_default("render.camera_views.target_jitter_mm")
     #: Samples per pixel along each axis of the raster (coverage at 1 / supersample^2).
-    supersample: int = 2
+    supersample: int = schema_default("render.camera_views.supersample")
 
     def __post_init__(self):
         for key in ("pitch_deg", "yaw_deg", "roll_deg", "distance_mm", "hfov_deg"):

@@ -35,47 +35,54 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from ..schema import schema_default
 
-def stress_transform(sigma_MPa, stress_ref_MPa: float = 1e-3):
+
+#: The default stress reference (MPa): the schema's ``render.stress_ref_MPa``.
+STRESS_REF_MPa = schema_default("render.stress_ref_MPa")
+
+
+def stress_transform(sigma_MPa, stress_ref_MPa: float = STRESS_REF_MPa):
     """``log10(1 + sigma / ref)``, negative stresses clipped to 0 (float64 in, same out)."""
     return np.log10(1.0 + np.maximum(sigma_MPa, 0.0) / stress_ref_MPa)
 
 
-def inverse_stress_transform(s, stress_ref_MPa: float = 1e-3):
+def inverse_stress_transform(s, stress_ref_MPa: float = STRESS_REF_MPa):
     """Von Mises stress (MPa) from the transformed value of a fully covered pixel."""
     return stress_ref_MPa * (10.0 ** np.asarray(s, dtype=np.float64) - 1.0)
 
 
 @dataclass(frozen=True)
 class RenderParams:
-    """All settings of the render stage (config section ``render``)."""
+    """All settings of the render stage (config section ``render``; the defaults are
+    the schema's)."""
 
-    window_x_mm: tuple[float, float] = (-5.0, 35.0)
-    window_y_mm: tuple[float, float] = (-2.0, 82.0)
-    px_per_mm: float = 4.0
+    window_x_mm: tuple[float, float] = schema_default("render.window_x_mm")
+    window_y_mm: tuple[float, float] = schema_default("render.window_y_mm")
+    px_per_mm: float = schema_default("render.px_per_mm")
     #: Samples per pixel along each axis (rendered at px_per_mm * supersample, then
     #: area-averaged down).
-    supersample: int = 4
-    stress_ref_MPa: float = 1e-3
+    supersample: int = schema_default("render.supersample")
+    stress_ref_MPa: float = schema_default("render.stress_ref_MPa")
     #: Colours in [0, 1]; away from x.5/255 so every 8-bit rounding agrees.
-    finger_rgb: tuple[float, float, float] = (0.92, 0.52, 0.12)
-    background_rgb: tuple[float, float, float] = (0.05, 0.05, 0.05)
-    object_rgb: tuple[float, float, float] = (0.45, 0.6, 0.85)
+    finger_rgb: tuple[float, float, float] = schema_default("render.finger_rgb")
+    background_rgb: tuple[float, float, float] = schema_default("render.background_rgb")
+    object_rgb: tuple[float, float, float] = schema_default("render.object_rgb")
     #: Phong terms of the 3D view (headlight): a face square to the camera gets
     #: ``finger_rgb * (ambient + diffuse)``; keep the sum at 1 so that the front
     #: view of pyvista and of the 2D rasteriser have the same colour. A high
     #: ambient keeps the walls seen at a pitch (lit at a grazing angle) brighter
     #: than the segmentation's Otsu threshold.
-    ambient: float = 0.6
-    diffuse: float = 0.4
+    ambient: float = schema_default("render.ambient")
+    diffuse: float = schema_default("render.diffuse")
     #: Frames per scene, evenly spaced in displacement and interpolated between
     #: the solver's frames; None takes the solver's frames as they are.
-    frames_per_scene: int | None = None
+    frames_per_scene: int | None = schema_default("render.frames_per_scene")
     #: How many of the frames are also written as PNG + EXR files (evenly spaced,
     #: first and last included; see :func:`written_frames`); None writes all.
     #: Frames not written still reach a consumer of :func:`~finray.render.scene.render_scene`
     #: (the dataset shard) in memory.
-    files_per_scene: int | None = None
+    files_per_scene: int | None = schema_default("render.files_per_scene")
 
     def __post_init__(self):
         for key in ("window_x_mm", "window_y_mm"):

@@ -1,9 +1,9 @@
 """Render every frame of one FEA scene into one pixel frame: RGB PNG + stress EXR.
 
 Output directory of :func:`render_scene` (files for the frames that
-``RenderParams.files_per_scene`` selects -- all by default; the workflow writes a
-few and hands every frame in memory to the dataset shard, see
-:func:`finray.dataset.render_shard`)::
+``RenderParams.files_per_scene`` selects -- a few, evenly spaced, by default (the
+schema's ``render.files_per_scene``; None writes all); every frame goes in memory to
+the dataset shard, see :func:`finray.dataset.render_shard`)::
 
     image_0000.png    camera image (H, W, 3) uint8: the finger seen at the job's pitch
     stress_0000.exr   float32 channels, always in the front (pitch 0) pixel frame:
@@ -118,7 +118,7 @@ def render_scene(result_npz: str | Path, out_dir: str | Path, pitch_deg: float =
 
     ``params.frames_per_scene`` frames are taken evenly in displacement (fields
     interpolated between solver frames), or the solver's frames if it is None.
-    The PNG + EXR files are written for ``params.written_frames`` (all by default;
+    The PNG + EXR files are written for ``params.written_frames`` (``files_per_scene``;
     frame files of an earlier render in ``out_dir`` are removed first);
     ``on_frame(k, rgb, maps)``, if given, receives every frame in memory, in order
     (``rgb, maps`` as :meth:`SceneRenderer.frame` returns them); ``on_points(k, points)``,

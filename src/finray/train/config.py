@@ -6,39 +6,53 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from ..schema import schema_default
+
 
 @dataclass
 class TrainConfig:
-    epochs: int = 10
-    batch_size: int = 16
-    lr: float = 4e-4  # the peak of the cosine (the paper: a constant 1e-4)
-    alpha_stress: float = 1.0
-    alpha_force: float = 10.0
+    """The training loop's settings: the config's ``train`` keys (their defaults are the
+    schema's) and the caller's run-time knobs, which are no config keys: ``threads`` (the
+    job's cores), ``progress`` and ``log_every_s`` (how it reports), ``compare_running_bn``
+    (a diagnostic the spread study turns on)."""
+
+    epochs: int = schema_default("train.epochs")
+    batch_size: int = schema_default("train.batch_size")
+    lr: float = schema_default("train.lr")  # the peak of the cosine (the paper: a constant 1e-4)
+    alpha_stress: float = schema_default("train.alpha_stress")
+    alpha_force: float = schema_default("train.alpha_force")
     # the contact-height term's weight (0: no contact head, the models before it); its
     # MSE (normalised like the force) over the frames with a contact height whose |fx|
     # is above contact_min_force_N (N)
-    contact_weight: float = 0.0
-    contact_min_force_N: float = 0.2
+    contact_weight: float = schema_default("train.contact_weight")
+    contact_min_force_N: float = schema_default("train.contact_min_force_N")
     # the force term's frame weights: "absolute" (every frame alike: the error in N) or
     # "relative" (each frame's squared error over its scene's largest |fx|, floored at
     # force_floor_N, squared; weights of mean 1): near the clamped base a scene ends at
     # 40 N, at the tip at 2 N, and an absolute loss spends the network on the first
-    force_loss: str = "absolute"
-    force_floor_N: float = 1.0
-    seed: int = 0  # the training's draws: initial weights, batch order, augmentation
+    force_loss: str = schema_default("train.force_loss")
+    force_floor_N: float = schema_default("train.force_floor_N")
+    # the training's draws: initial weights, batch order, augmentation
+    seed: int = schema_default("train.seed")
     # the validation scenes (part of the data, not of the training's draw: a seed study
     # varies the training on the same data)
-    split_seed: int = 0
+    split_seed: int = schema_default("train.split_seed")
     threads: int = 1
-    bf16: bool | str = "auto"  # "auto": bfloat16 autocast where the device runs it natively
-    device: str = "auto"  # "auto" (the GPU when torch sees one), "cpu" or "cuda"
-    channels_last: bool = True
+    # "auto": bfloat16 autocast where the device runs it natively
+    bf16: bool | str = schema_default("train.bf16")
+    # "auto" (the GPU when torch sees one), "cpu" or "cuda"
+    device: str = schema_default("train.device")
+    channels_last: bool = schema_default("train.channels_last")
     progress: bool = True  # a tqdm bar (interactive use); the log gets lines either way
     log_every_s: float = 60.0  # a progress line in the log at most this often (s)
-    schedule: str = "cosine"  # "cosine" (warm-up, then cosine to 0) or "constant" (the paper's)
-    warmup_frac: float = 0.05  # of all steps, linear warm-up of the cosine schedule
-    bn_frames: int = 2048  # augmented training frames per batch-norm re-estimate (0: keep training's)
-    keep: str = "val_force_rmse"  # the kept epoch: lowest "val_force_rmse" (fx), "val_loss", or "last"
+    # "cosine" (warm-up, then cosine to 0) or "constant" (the paper's)
+    schedule: str = schema_default("train.schedule")
+    # of all steps, linear warm-up of the cosine schedule
+    warmup_frac: float = schema_default("train.warmup_frac")
+    # augmented training frames per batch-norm re-estimate (0: keep training's)
+    bn_frames: int = schema_default("train.bn_frames")
+    # the kept epoch: lowest "val_force_rmse" (fx), "val_loss", or "last"
+    keep: str = schema_default("train.keep")
     # also validate with training's running batch-norm averages before each re-estimate
     # (History.val_force_rmse_running_bn_N; a diagnostic: one more validation pass)
     compare_running_bn: bool = False
@@ -98,7 +112,7 @@ class AugmentConfig:
     # geometry of the input for the pitch: set by the training script from the config
     mm_per_px: float = 1.25  # image-plane mm per input pixel
     pitch_centre_row: float = 31.5  # input row of the camera's rotation axis
-    extrusion_mm: float = 20.0
+    extrusion_mm: float = schema_default("finger.extrusion_mm")
 
 
 def pitch_geometry(dataset: dict, render: dict, height_px: int, extrusion_mm: float) -> dict:
