@@ -82,52 +82,118 @@ def newton(model: Model, q0: np.ndarray, opts: NewtonOptions | None = None,
     near the minimum), else not converged, with the step and residual in ``cause``.
     A non-descent direction is replaced by scaled gradient descent and counted
     (``model.counters["gradient_fallbacks"]``).
+
+    Each iteration (:class:`_Newton`): a direction (:meth:`_Newton.direction`, made a
+    descent one by :meth:`_Newton.descent`), the convergence test (with the tiny last
+    step, :meth:`_Newton.last_step_taken`), the collision-free fraction of the step
+    (:meth:`_Newton.collision_free`) and a backtracking line search
+    (:meth:`_Newton.line_search`).
     """
-    opts = opts or NewtonOptions()
-    cnt = model.counters
-    q = q0.copy()
-    E, g, H = model.evaluate(q, 2)
-    if not np.isfinite(E):
-        return NewtonResult(q, False, 0, "initial state has an inverted element", E)
-    hist = []
-    last_step = np.inf  # |dx| of the last full Newton step taken
-    relags = relags if relag is not None else 0
-    since_relag = None  # Newton steps since the last re-lag
+    return _Newton(model, opts or NewtonOptions(), relag, relags if relag is not None else 0,
+                   relag_dx).solve(q0)
 
-    def chord_next() -> bool:
-        return last_step < opts.chord_dx
 
-    def assemble(q):
+class _Newton:
+    """The state of one solve: the last full step's size (a chord step follows a small
+    one), the re-lags left, the steps since the last re-lag and the history rows
+    ``[E, |g|, |d|, argmax, ccd alpha, alpha, residual]``."""
+
+    def __init__(self, model: Model, opts: NewtonOptions, relag, relags: int,
+                 relag_dx: float):
+        self.model, self.opts = model, opts
+        self.relag, self.relags, self.relag_dx = relag, relags, relag_dx
+        self.last_step = np.inf  # |dx| of the last full Newton step taken
+        self.since_relag = None  # Newton steps since the last re-lag
+        self.hist: list = []
+
+    def chord_next(self) -> bool:
+        return self.last_step < self.opts.chord_dx
+
+    def assemble(self, q):
         # a chord step needs no Hessian (it is assembled if the chord is refused)
-        return model.evaluate(q, 1 if chord_next() else 2)
+        return self.model.evaluate(q, 1 if self.chord_next() else 2)
 
-    def do_relag(q):
-        nonlocal relags, since_relag, last_step
-        relag(q)
-        relags -= 1
-        since_relag = 0
+    def relag_at(self, q):
+        """Re-lag the friction at q; the potential's new energy, gradient, Hessian."""
+        self.relag(q)
+        self.relags -= 1
+        self.since_relag = 0
         # re-lagging near the solution hardly changes the Hessian: a chord step may
         # follow, if it is below chord_contraction * chord_dx
-        last_step = opts.chord_dx * (1 - 1e-12)
-        return assemble(q)
+        self.last_step = self.opts.chord_dx * (1 - 1e-12)
+        return self.assemble(q)
 
-    for it in range(1, opts.max_iterations + 1):
-        if not (np.all(np.isfinite(g)) and (H is None or H.all_finite())):
-            return NewtonResult(q, False, it, "non-finite gradient or Hessian", E, hist)
+    def solve(self, q0: np.ndarray) -> NewtonResult:
+        model, opts, cnt, hist = self.model, self.opts, self.model.counters, self.hist
+        q = q0.copy()
+        E, g, H = model.evaluate(q, 2)
+        if not np.isfinite(E):
+            return NewtonResult(q, False, 0, "initial state has an inverted element", E)
+        for it in range(1, opts.max_iterations + 1):
+            if not (np.all(np.isfinite(g)) and (H is None or H.all_finite())):
+                return NewtonResult(q, False, it, "non-finite gradient or Hessian", E, hist)
+            d, H, failed = self.direction(q, g, H)
+            if failed:
+                return NewtonResult(q, False, it, failed, E, hist)
+            d, gd, H = self.descent(q, g, d, H)
+            dmax = float(np.abs(d).max()) if len(d) else 0.0
+            res = model.residual_norm(g, opts.residual_floor)  # g of this state: no assembly
+            hist.append([E, float(np.abs(g).max()) if len(g) else 0.0, dmax,
+                         int(np.abs(d).argmax()) if len(d) else -1, 1.0, 1.0, res])
+            if dmax < opts.tol_dx and res <= opts.tol_residual:
+                q, E = self.last_step_taken(q, d, E)
+                # re-lag at the solution and go on, unless the last re-lag needed no step
+                if self.relags > 0 and self.since_relag != 0:
+                    E, g, H = self.relag_at(q)
+                    continue
+                cnt["residual_max_rel"] = max(cnt["residual_max_rel"], res)
+                return NewtonResult(q, True, it, "", E, hist, res)
+            alpha = self.collision_free(q, d)
+            if alpha <= 0:
+                return NewtonResult(q, False, it, "CCD allows no step", E, hist)
+            hist[-1][4] = alpha
+            found = self.line_search(q, d, E, gd, dmax, alpha)
+            if found is None:
+                return self.stalled(q, it, E, dmax, res)
+            q, alpha, ahead = found
+            hist[-1][5] = alpha
+            self.last_step = dmax if alpha == 1.0 else np.inf
+            if self.since_relag is not None:
+                self.since_relag += 1
+            if self.relags > 0 and self.since_relag is None and alpha == 1.0 \
+                    and dmax <= self.relag_dx:
+                E, g, H = self.relag_at(q)
+            elif ahead:  # the accepted first trial, evaluated at q
+                E, g, H = ahead
+            else:
+                E, g, H = self.assemble(q)
+        res_last = model.residual_norm(g, opts.residual_floor)
+        dmax_last = hist[-1][2] if hist else np.nan
+        return NewtonResult(q, False, opts.max_iterations,
+                            f"no convergence in {opts.max_iterations} iterations "
+                            f"(last |dx| = {dmax_last:.2e} mm, residual {res_last:.2e})", E,
+                            hist, res_last)
+
+    def direction(self, q, g, H):
+        """The step at q: a chord step (the last factorisation) near the solution where
+        it contracts, else the Hessian factorised, projected to PSD where it is not
+        positive definite. ``(d, H, None)``, or ``(None, H, why)`` where none is found."""
+        model, opts = self.model, self.opts
         t0 = time.perf_counter()
         d = None
-        if chord_next():  # near the solution: try the last factorisation
+        if self.chord_next():  # near the solution: try the last factorisation
             d = model.linsolve.resolve(-g)
-            if d is not None and not (np.all(np.isfinite(d)) and float(g @ d) < 0 and np.abs(d).max()
-                                      <= opts.chord_contraction * last_step):
+            if d is not None and not (
+                    np.all(np.isfinite(d)) and float(g @ d) < 0
+                    and np.abs(d).max() <= opts.chord_contraction * self.last_step):
                 d = None
         if d is None and H is None:  # the chord was refused: the Hessian after all
-            cnt["chord_refused"] += 1
+            model.counters["chord_refused"] += 1
             t1 = time.perf_counter()
             _, _, H = model.evaluate(q, 2)
             t0 += time.perf_counter() - t1  # counted as assembly and contact, not solve
             if not H.all_finite():
-                return NewtonResult(q, False, it, "non-finite Hessian", E, hist)
+                return None, H, "non-finite Hessian"
         if d is None and model.psd is not True:
             try:
                 d = model.linsolve.solve(H, -g)
@@ -142,44 +208,53 @@ def newton(model: Model, q0: np.ndarray, opts: NewtonOptions | None = None,
             try:
                 d = model.linsolve.solve(H, -g)
             except np.linalg.LinAlgError as e:
-                return NewtonResult(q, False, it, f"linear solve failed: {e}", E, hist)
+                return None, H, f"linear solve failed: {e}"
         model.stats["solve_s"] += time.perf_counter() - t0
         if not np.all(np.isfinite(d)):
-            return NewtonResult(q, False, it, "linear solve returned NaN", E, hist)
+            return None, H, "linear solve returned NaN"
+        return d, H, None
+
+    def descent(self, q, g, d, H):
+        """``(d, g . d, H)``: d, or scaled gradient descent where d does not descend
+        (should not happen with PSD Hessians; counted)."""
         gd = float(g @ d)
-        if gd >= 0:  # not a descent direction (should not happen with PSD Hessians)
-            cnt["gradient_fallbacks"] += 1
+        if gd >= 0:
+            self.model.counters["gradient_fallbacks"] += 1
             if H is None:
-                _, _, H = model.evaluate(q, 2)
+                _, _, H = self.model.evaluate(q, 2)
             d = -g / np.maximum(H.diagonal(), 1e-12)
             gd = float(g @ d)
-        dmax = float(np.abs(d).max()) if len(d) else 0.0
-        res = model.residual_norm(g, opts.residual_floor)  # g of this state: no assembly
-        hist.append([E, float(np.abs(g).max()) if len(g) else 0.0, dmax,
-                     int(np.abs(d).argmax()) if len(d) else -1, 1.0, 1.0, res])
-        if dmax < opts.tol_dx and res <= opts.tol_residual:
-            # take the (tiny) last Newton step too: the residual becomes O(|d|^2)
-            q_try = q + d
-            ok = model.contact is None or model.contact.max_step(model.U(q), model.U(q_try)) >= 1.0
-            if ok:
-                E_try = model.energy(q_try)
-                if np.isfinite(E_try) and E_try <= E + 1e-12 * max(1.0, abs(E)):
-                    q, E = q_try, E_try
-            # re-lag at the solution and go on, unless the last re-lag needed no step
-            if relags > 0 and since_relag != 0:
-                E, g, H = do_relag(q)
-                continue
-            cnt["residual_max_rel"] = max(cnt["residual_max_rel"], res)
-            return NewtonResult(q, True, it, "", E, hist, res)
-        # continuous collision detection bounds the step
-        alpha = 1.0
-        if model.contact is not None:
-            t0 = time.perf_counter()
-            alpha = min(1.0, model.contact.max_step(model.U(q), model.U(q + d)))
-            model.stats["ccd_s"] += time.perf_counter() - t0
-            if alpha <= 0:
-                return NewtonResult(q, False, it, "CCD allows no step", E, hist)
-            hist[-1][4] = alpha
+        return d, gd, H
+
+    def last_step_taken(self, q, d, E):
+        """The converged solve's (tiny) last Newton step, taken where it is collision-free
+        and does not raise the energy: the residual becomes O(|d|^2). ``(q, E)``."""
+        model = self.model
+        q_try = q + d
+        ok = model.contact is None or model.contact.max_step(model.U(q), model.U(q_try)) >= 1.0
+        if ok:
+            E_try = model.energy(q_try)
+            if np.isfinite(E_try) and E_try <= E + 1e-12 * max(1.0, abs(E)):
+                return q_try, E_try
+        return q, E
+
+    def collision_free(self, q, d) -> float:
+        """The largest fraction (<= 1) of the step d from q that continuous collision
+        detection allows."""
+        model = self.model
+        if model.contact is None:
+            return 1.0
+        t0 = time.perf_counter()
+        alpha = min(1.0, model.contact.max_step(model.U(q), model.U(q + d)))
+        model.stats["ccd_s"] += time.perf_counter() - t0
+        return alpha
+
+    def line_search(self, q, d, E, gd, dmax, alpha):
+        """Backtracking (Armijo) from ``alpha``: ``(q_new, alpha, ahead)``, ``ahead`` the
+        first trial's evaluation where it was accepted (the next iterate's energy,
+        gradient and Hessian, unless a chord step follows), else False; None where no
+        decrease is found above ``min_alpha``."""
+        model, opts = self.model, self.opts
         t0 = time.perf_counter()
         slack = 1e-12 * max(1.0, abs(E))
         # the first trial is evaluated with the derivatives the next iteration needs
@@ -200,32 +275,21 @@ def newton(model: Model, q0: np.ndarray, opts: NewtonOptions | None = None,
             alpha *= 0.5
             if alpha < opts.min_alpha:
                 model.stats["line_search_s"] += time.perf_counter() - t0
-                cnt["line_search_failures"] += 1
-                if dmax < 100 * opts.tol_dx and res <= opts.tol_residual:
-                    # balanced forces, energy differences below round-off
-                    cnt["residual_max_rel"] = max(cnt["residual_max_rel"], res)
-                    return NewtonResult(q, True, it - 1, "", E, hist, res,
-                                        note=f"line search stalled at |dx| = {dmax:.2e} mm "
-                                             f"with the residual {res:.2e} within tolerance")
-                return NewtonResult(q, False, it, f"line search failed (no decrease) at "
-                                    f"|dx| = {dmax:.2e} mm, residual {res:.2e} (tolerance "
-                                    f"{opts.tol_residual:.0e})", E, hist, res)
+                return None
         model.stats["line_search_s"] += time.perf_counter() - t0
-        hist[-1][5] = alpha
-        last_step = dmax if alpha == 1.0 else np.inf
-        q = q_try
-        if since_relag is not None:
-            since_relag += 1
-        if relags > 0 and since_relag is None and alpha == 1.0 and dmax <= relag_dx:
-            E, g, H = do_relag(q)
-        elif ahead:  # the accepted first trial, evaluated at q
-            E, g, H = ahead
-        else:
-            E, g, H = assemble(q)
-    # hist rows: [E, |g|, |d|, argmax, ccd alpha, alpha, residual]
-    res_last = model.residual_norm(g, opts.residual_floor)
-    dmax_last = hist[-1][2] if hist else np.nan
-    return NewtonResult(q, False, opts.max_iterations,
-                        f"no convergence in {opts.max_iterations} iterations "
-                        f"(last |dx| = {dmax_last:.2e} mm, residual {res_last:.2e})", E, hist,
-                        res_last)
+        return q_try, alpha, ahead
+
+    def stalled(self, q, it, E, dmax, res) -> NewtonResult:
+        """The result where the line search found no decrease (counted): converged if
+        the residual is within tolerance (energy differences below round-off)."""
+        cnt, opts = self.model.counters, self.opts
+        cnt["line_search_failures"] += 1
+        if dmax < 100 * opts.tol_dx and res <= opts.tol_residual:
+            # balanced forces, energy differences below round-off
+            cnt["residual_max_rel"] = max(cnt["residual_max_rel"], res)
+            return NewtonResult(q, True, it - 1, "", E, self.hist, res,
+                                note=f"line search stalled at |dx| = {dmax:.2e} mm "
+                                     f"with the residual {res:.2e} within tolerance")
+        return NewtonResult(q, False, it, f"line search failed (no decrease) at "
+                            f"|dx| = {dmax:.2e} mm, residual {res:.2e} (tolerance "
+                            f"{opts.tol_residual:.0e})", E, self.hist, res)

@@ -226,12 +226,47 @@ def simulate(finger_mesh: TriMesh, obj: RigidObject | DeformableObject, material
     ``material``: the finger's elastic law. Keyword arguments override fields of
     ``options`` (e.g. ``push_mm=5``). Raises :class:`SimulationError` (naming the
     load step and the cause) when the solve fails.
+
+    The steps: assemble the finger and the object into one model
+    (:func:`_assemble`), record the rest state, march the load steps to every frame
+    (:func:`_push`, each frame checked and recorded by :class:`_Frames`), then
+    gather the arrays and the run's metadata (:func:`_metadata`).
     """
     t_start = time.perf_counter()
     opts = options or SimulationOptions()
     if kw:
         opts = SimulationOptions(**{**asdict_shallow(opts), **kw})
-    fm = finger_mesh
+    scene = _assemble(finger_mesh, obj, material, opts)
+    direction = np.asarray(opts.direction, float)
+    direction = direction / np.linalg.norm(direction)
+    push = float(opts.push_mm)
+    extrusion = opts.extrusion_mm or float(finger_mesh.meta.get("extrusion_mm", 20.0))
+    frames = _Frames(scene, opts, push, direction)
+    stopped = _push(scene, frames, opts, push, direction, extrusion,
+                    f"FEA {getattr(obj, 'name', 'object')}")
+    meta = _metadata(scene, obj, material, opts, push, direction, extrusion, stopped,
+                     frames.rec["displacement_mm"][-1], t_start)
+    return frames.result(opts, extrusion, isinstance(obj, DeformableObject), meta)
+
+
+@dataclass
+class _Scene:
+    """The finger and the object as one model: nodes ``[finger..., object...]``
+    (``n_finger`` of the finger's), the contact model, the clamped base's and the
+    object's nodes as masks."""
+
+    model: Model
+    contact: ContactModel
+    points: np.ndarray
+    n_finger: int
+    base_mask: np.ndarray
+    obj_nodes: np.ndarray
+
+
+def _assemble(fm: TriMesh, obj, material: NeoHookean, opts: SimulationOptions) -> _Scene:
+    """The model of the clamped finger and the driven object (rigid: a polyline that
+    translates; deformable: its mesh, driven by the back of its inner loop); a
+    :class:`SimulationError` where the object starts inside the finger."""
     Nf = len(fm.points)
     base_nodes = fm.nodes_with_tag("base")
     finger_edges = fm.boundary_edges[fm.boundary_tags != BOUNDARY_TAGS["base"]]
@@ -251,8 +286,7 @@ def simulate(finger_mesh: TriMesh, obj: RigidObject | DeformableObject, material
     else:
         raise TypeError(f"unsupported object {type(obj).__name__}")
     points = np.vstack([fm.points, obj_pts])
-    No = len(obj_pts)
-    body = np.r_[np.zeros(Nf, int), np.ones(No, int)]
+    body = np.r_[np.zeros(Nf, int), np.ones(len(obj_pts), int)]
     segs = np.vstack([split_p2_edges(finger_edges).astype(np.int64), obj_segs])
     cm = ContactModel(points, segs, body, rigid_bodies=rigid, params=opts.contact)
     model = Model(points, blocks, fixed_nodes=base_nodes, driven_nodes=driven, contact=cm,
@@ -261,48 +295,54 @@ def simulate(finger_mesh: TriMesh, obj: RigidObject | DeformableObject, material
     if cm.has_intersections(np.zeros((len(points), 2))):
         raise SimulationError("the object intersects the finger in the initial state",
                               step=0, load=0.0, cause="initial intersection")
-    # which self pairs are real contacts (not neighbours along the same boundary)
-    loop_id, arc, loop_len = cm.boundary_arclength()
-
-    direction = np.asarray(opts.direction, float)
-    direction = direction / np.linalg.norm(direction)
-    push = float(opts.push_mm)
-    n_frames = max(1, int(round(push / opts.frame_step_mm)))
-    frames_s = np.linspace(0.0, 1.0, n_frames + 1)
-    extrusion = opts.extrusion_mm or float(fm.meta.get("extrusion_mm", 20.0))
     obj_nodes = np.zeros(len(points), bool)
     obj_nodes[Nf:] = True
     base_mask = np.zeros(len(points), bool)
     base_mask[base_nodes] = True
+    return _Scene(model, cm, points, Nf, base_mask, obj_nodes)
 
-    rec: dict[str, list] = {k: [] for k in (
-        "displacement_mm", "target_mm", "force", "base", "friction", "Uf", "vmf", "Uo", "vmo",
-        "gap_obj", "gap_self", "n_obj", "n_self", "iters", "steps", "wall", "res", "eq",
-        "contact_y")}
 
-    def self_real(v0, v1):
-        same = loop_id[v0] == loop_id[v1]
-        ds = np.abs(arc[v0] - arc[v1])
-        ds = np.minimum(ds, loop_len[v0] - ds)
-        return ~same | (ds > opts.self_neighbour_mm)
+class _Frames:
+    """The recorded frames: :meth:`record` checks a solved state (finite, in
+    equilibrium) and appends its forces, displacements, stresses and contact gaps;
+    :meth:`result` makes them a :class:`SimulationResult`."""
 
-    def balance(q):
+    KEYS = ("displacement_mm", "target_mm", "force", "base", "friction", "Uf", "vmf", "Uo",
+            "vmo", "gap_obj", "gap_self", "n_obj", "n_self", "iters", "steps", "wall", "res",
+            "eq", "contact_y")
+
+    def __init__(self, scene: _Scene, opts: SimulationOptions, push: float,
+                 direction: np.ndarray):
+        self.scene, self.opts, self.push, self.direction = scene, opts, push, direction
+        self.rec: dict[str, list] = {k: [] for k in self.KEYS}
+        # which self pairs are real contacts (not neighbours along the same boundary)
+        self.loop_id, self.arc, self.loop_len = scene.contact.boundary_arclength()
+
+    def _self_real(self, v0, v1):
+        same = self.loop_id[v0] == self.loop_id[v1]
+        ds = np.abs(self.arc[v0] - self.arc[v1])
+        ds = np.minimum(ds, self.loop_len[v0] - ds)
+        return ~same | (ds > self.opts.self_neighbour_mm)
+
+    def balance(self, q):
         """Force on the object, clamp reaction (N/mm), their relative difference and
         the height (mm) of the object's contact-force centroid (NaN without force)."""
-        f_nodes = model.contact_nodal_forces(q, obj_nodes)
-        f_obj, f_base = f_nodes.sum(axis=0), model.elastic_force(q, base_mask)
+        sc, model = self.scene, self.scene.model
+        f_nodes = model.contact_nodal_forces(q, sc.obj_nodes)
+        f_obj, f_base = f_nodes.sum(axis=0), model.elastic_force(q, sc.base_mask)
         return f_obj, f_base, float(np.linalg.norm(f_obj - f_base) / max(
-            np.linalg.norm(f_obj), np.linalg.norm(f_base), opts.equilibrium_floor_N_per_mm)), \
-            contact_centroid_y(points[Nf:, 1] + model.U(q)[Nf:, 1], f_nodes)
+            np.linalg.norm(f_obj), np.linalg.norm(f_base), self.opts.equilibrium_floor_N_per_mm)), \
+            contact_centroid_y(sc.points[sc.n_finger:, 1] + model.U(q)[sc.n_finger:, 1], f_nodes)
 
-    def record(k, s, q, info):
-        """Record frame k at load factor s; returns its state (q, or q polished to
-        equilibrium_tol)."""
-        U = model.U(q)
+    def _equilibrium(self, k, s, q, info):
+        """The frame's state (q, or q polished to ``equilibrium_tol``) and its
+        :meth:`balance`; a :class:`SimulationError` where it is not finite or not in
+        equilibrium."""
+        opts, model = self.opts, self.scene.model
         if not np.all(np.isfinite(q)):
             raise SimulationError(f"non-finite state at frame {k} (load factor {s:.4f})",
                                   step=info.get("steps"), load=s, cause="non-finite state")
-        f_obj, f_base, err, y_c = balance(q)
+        f_obj, f_base, err, y_c = self.balance(q)
         if k > 0 and not err <= opts.equilibrium_tol:  # frame 0: the rest state, not solved
             # the residual test (relative to all loads) passed, yet the object's force
             # and the clamp's reaction differ by more than the tolerance: the same
@@ -310,29 +350,19 @@ def simulate(finger_mesh: TriMesh, obj: RigidObject | DeformableObject, material
             res = newton(model, q, replace(opts.newton, tol_residual=opts.newton.tol_residual / 10))
             if res.converged:
                 q = res.q
-                f_obj, f_base, err, y_c = balance(q)
+                f_obj, f_base, err, y_c = self.balance(q)
                 model.counters["equilibrium_polishes"] += 1
-                U = model.U(q)
             if not err <= opts.equilibrium_tol:
                 raise SimulationError(
                     f"frame {k}: equilibrium error {err:.2e} > tolerance "
                     f"{opts.equilibrium_tol:.0e} (|force on object - clamp reaction| / |force|)",
                     step=info.get("steps"), load=s, cause="equilibrium")
-        t = model.t(q)
-        rec["displacement_mm"].append(float(t @ direction))
-        rec["target_mm"].append(s * push)
-        rec["eq"].append(err)
-        rec["contact_y"].append(y_c)
-        rec["res"].append(info.get("residual_rel", 0.0))
-        rec["force"].append(f_obj)
-        rec["friction"].append(model.contact_force(q, obj_nodes, friction_only=True))
-        rec["base"].append(f_base)
-        rec["Uf"].append(U[:Nf].copy())
-        rec["Uo"].append(U[Nf:].copy())
-        if opts.stress:
-            st = model.elastic.nodal_stress(U)["von_mises"]
-            rec["vmf"].append(st[:Nf])
-            rec["vmo"].append(st[Nf:])
+        return q, f_obj, f_base, err, y_c
+
+    def _gaps(self, U):
+        """Smallest finger-object and finger-finger gaps (mm; NaN beyond the probe) and
+        the active barrier pairs of each kind at displacements ``U``."""
+        opts, cm = self.opts, self.scene.contact
         # a probe within NEAR_PROBE_MM first: below that distance it has the full
         # probe's pairs, so where both kinds have one there the gaps are the same; the
         # full probe (most of the record's cost) only where a kind has none
@@ -340,63 +370,135 @@ def simulate(finger_mesh: TriMesh, obj: RigidObject | DeformableObject, material
         for radius in sorted({max(min(NEAR_PROBE_MM, probe), opts.contact.dhat), probe}):
             pr = cm.pairs(U, radius)
             fo = pr["b0"] != pr["b1"]
-            fs = (pr["b0"] == 0) & (pr["b1"] == 0) & self_real(pr["v0"], pr["v1"])
+            fs = (pr["b0"] == 0) & (pr["b1"] == 0) & self._self_real(pr["v0"], pr["v1"])
             if fo.any() and fs.any():
                 break
         d = pr["d"]
         act = d < opts.contact.dhat
-        rec["gap_obj"].append(float(d[fo].min()) if fo.any() else np.nan)
-        rec["gap_self"].append(float(d[fs].min()) if fs.any() else np.nan)
-        rec["n_obj"].append(int((fo & act).sum()))
-        rec["n_self"].append(int((fs & act).sum()))
+        return (float(d[fo].min()) if fo.any() else np.nan,
+                float(d[fs].min()) if fs.any() else np.nan,
+                int((fo & act).sum()), int((fs & act).sum()))
+
+    def record(self, k, s, q, info):
+        """Record frame k at load factor s; returns its state (q, or q polished to
+        equilibrium_tol)."""
+        rec, opts, model, Nf = self.rec, self.opts, self.scene.model, self.scene.n_finger
+        q, f_obj, f_base, err, y_c = self._equilibrium(k, s, q, info)
+        U = model.U(q)
+        t = model.t(q)
+        rec["displacement_mm"].append(float(t @ self.direction))
+        rec["target_mm"].append(s * self.push)
+        rec["eq"].append(err)
+        rec["contact_y"].append(y_c)
+        rec["res"].append(info.get("residual_rel", 0.0))
+        rec["force"].append(f_obj)
+        rec["friction"].append(model.contact_force(q, self.scene.obj_nodes, friction_only=True))
+        rec["base"].append(f_base)
+        rec["Uf"].append(U[:Nf].copy())
+        rec["Uo"].append(U[Nf:].copy())
+        if opts.stress:
+            st = model.elastic.nodal_stress(U)["von_mises"]
+            rec["vmf"].append(st[:Nf])
+            rec["vmo"].append(st[Nf:])
+        gap_obj, gap_self, n_obj, n_self = self._gaps(U)
+        rec["gap_obj"].append(gap_obj)
+        rec["gap_self"].append(gap_self)
+        rec["n_obj"].append(n_obj)
+        rec["n_self"].append(n_self)
         rec["iters"].append(info.get("newton_iterations", 0))
         rec["steps"].append(info.get("steps", 0))
         rec["wall"].append(info.get("wall_time_s", 0.0))
         return q
 
+    def partial(self, extrusion: float) -> dict:
+        """The frames recorded whole (a frame that failed its check is not), for a
+        :class:`SimulationError`'s ``partial``."""
+        n_ok = len(self.rec["force"])
+        return {"displacement_mm": np.array(self.rec["displacement_mm"][:n_ok]),
+                "force_N": np.array(self.rec["force"]).reshape(n_ok, 2) * extrusion}
+
+    def result(self, opts: SimulationOptions, extrusion: float, deformable: bool,
+               meta: dict) -> SimulationResult:
+        rec = self.rec
+        F = np.array(rec["force"])
+        B = np.array(rec["base"])
+        vmo = np.array(rec["vmo"]) if (opts.stress and deformable) else None
+        return SimulationResult(
+            displacement_mm=np.array(rec["displacement_mm"]), target_mm=np.array(rec["target_mm"]),
+            force_N_per_mm=F, force_N=F * extrusion, base_reaction_N_per_mm=B,
+            base_reaction_N=B * extrusion, friction_force_N_per_mm=np.array(rec["friction"]),
+            finger_displacement_mm=np.array(rec["Uf"]),
+            finger_von_mises_MPa=np.array(rec["vmf"]) if opts.stress else None,
+            object_displacement_mm=np.array(rec["Uo"]), object_von_mises_MPa=vmo,
+            min_gap_object_mm=np.array(rec["gap_obj"]), min_gap_self_mm=np.array(rec["gap_self"]),
+            n_pairs_object=np.array(rec["n_obj"]), n_pairs_self=np.array(rec["n_self"]),
+            newton_iterations=np.array(rec["iters"]), residual_rel=np.array(rec["res"]),
+            equilibrium_rel_error=np.array(rec["eq"]), load_steps=np.array(rec["steps"]),
+            wall_time_s=np.array(rec["wall"]), meta=meta,
+            contact_y_mm=np.array(rec["contact_y"], float))
+
+
+def _force_limit(model: Model, opts: SimulationOptions, extrusion: float):
+    """``limit(q)`` of :func:`~finray.fea.stepping.march`: the contact force over
+    ``force_cap_N`` (None without a cap)."""
+    if opts.force_cap_N is None:
+        return None
+    if not opts.force_cap_N > 0:
+        raise ValueError(f"force_cap_N must be > 0 N, got {opts.force_cap_N}")
+
+    def limit(q):
+        # the driving spring's force: the object's contact force at equilibrium, free
+        return float(np.linalg.norm(model.driver_force(q))) * extrusion / opts.force_cap_N
+    return limit
+
+
+def _push(scene: _Scene, frames: _Frames, opts: SimulationOptions, push: float,
+          direction: np.ndarray, extrusion: float, what: str) -> bool:
+    """Record the rest state, then move the object ``push`` mm in load steps, a frame
+    every ``frame_step_mm``; whether the push stopped at ``force_cap_N``. A failed
+    step's :class:`SimulationError` is told the displacement and the frames before it."""
+    model = scene.model
+    n_frames = max(1, int(round(push / opts.frame_step_mm)))
+    frames_s = np.linspace(0.0, 1.0, n_frames + 1)
     q0 = np.zeros(model.n)
     model.U_step_start = model.U(q0)
-    record(0, 0.0, q0, {})
-    what = f"FEA {getattr(obj, 'name', 'object')}"
+    frames.record(0, 0.0, q0, {})
     log.info(f"{what}: push {push:g} mm in {n_frames} frames, {model.n} DOFs")
     progress = Progress(log, what, n_frames, opts.log_every_s)
-
     stopped = []
 
     def on_frame(k, s, q, info):
         if info.get("stop"):
             stopped.append(s)
-        q = record(k + 1, s, q, info)
-        progress(k + 1, f"travel {rec['displacement_mm'][-1]:.2f}/{push:g} mm, "
+        q = frames.record(k + 1, s, q, info)
+        progress(k + 1, f"travel {frames.rec['displacement_mm'][-1]:.2f}/{push:g} mm, "
                         f"{info.get('steps', 0)} load steps")
         return q
-    L = push
-    so = StepOptions(initial_step=opts.initial_step_mm / L, max_step=opts.max_step_mm / L,
-                     min_step=opts.min_step_mm / L, max_retries=opts.max_retries,
+
+    so = StepOptions(initial_step=opts.initial_step_mm / push, max_step=opts.max_step_mm / push,
+                     min_step=opts.min_step_mm / push, max_retries=opts.max_retries,
                      friction_lag_iterations=opts.friction_lag_iterations)
-    limit = None
-    if opts.force_cap_N is not None:
-        if not opts.force_cap_N > 0:
-            raise ValueError(f"force_cap_N must be > 0 N, got {opts.force_cap_N}")
-        # the driving spring's force: the object's contact force at equilibrium, free
-        limit = lambda q: float(np.linalg.norm(model.driver_force(q))) * extrusion / opts.force_cap_N  # noqa: E731
+    limit = _force_limit(model, opts, extrusion)
     try:
         march(model, q0, lambda s: s * push * direction, frames_s[1:], so, opts.newton,
-              on_frame=on_frame,
-              friction=opts.contact.mu > 0, limit=limit)
+              on_frame=on_frame, friction=opts.contact.mu > 0, limit=limit)
     except SimulationError as e:
         e.args = (f"{e.args[0]} at object displacement {e.load * push:.4f} mm "
                   f"(push {push} mm)",)
-        n_ok = len(rec["force"])  # frames recorded whole (a frame that failed its check is not)
-        e.partial = {"displacement_mm": np.array(rec["displacement_mm"][:n_ok]),
-                     "force_N": np.array(rec["force"]).reshape(n_ok, 2) * extrusion}
+        e.partial = frames.partial(extrusion)
         raise
+    return bool(stopped)
 
-    F = np.array(rec["force"])
-    B = np.array(rec["base"])
-    vmo = np.array(rec["vmo"]) if (opts.stress and isinstance(obj, DeformableObject)) else None
-    meta = {
-        "n_finger_nodes": Nf, "n_object_nodes": No, "n_dofs": model.n,
+
+def _metadata(scene: _Scene, obj, material: NeoHookean, opts: SimulationOptions, push: float,
+              direction: np.ndarray, extrusion: float, stopped: bool, push_reached_mm: float,
+              t_start: float) -> dict:
+    """``SimulationResult.meta``: the scene's sizes and materials, the options, the
+    solver's counters and timings, and why the push ended."""
+    model = scene.model
+    return {
+        "n_finger_nodes": scene.n_finger, "n_object_nodes": len(scene.points) - scene.n_finger,
+        "n_dofs": model.n,
         "object": getattr(obj, "name", type(obj).__name__),
         "object_kind": "rigid" if isinstance(obj, RigidObject) else "deformable",
         "finger_material": {"name": material.name, "E_MPa": material.E, "nu": material.nu},
@@ -426,22 +528,9 @@ def simulate(finger_mesh: TriMesh, obj: RigidObject | DeformableObject, material
         "sign_convention": "force_*: finger on object; base_reaction_*: clamp on finger",
         # "complete": the whole push; "force_cap": ended at force_cap_N (frames kept)
         "stop": {"reason": "force_cap" if stopped else "complete",
-                 "push_reached_mm": float(rec["displacement_mm"][-1]),
+                 "push_reached_mm": float(push_reached_mm),
                  "force_cap_N": opts.force_cap_N},
     }
-    return SimulationResult(
-        displacement_mm=np.array(rec["displacement_mm"]), target_mm=np.array(rec["target_mm"]),
-        force_N_per_mm=F, force_N=F * extrusion, base_reaction_N_per_mm=B,
-        base_reaction_N=B * extrusion, friction_force_N_per_mm=np.array(rec["friction"]),
-        finger_displacement_mm=np.array(rec["Uf"]),
-        finger_von_mises_MPa=np.array(rec["vmf"]) if opts.stress else None,
-        object_displacement_mm=np.array(rec["Uo"]), object_von_mises_MPa=vmo,
-        min_gap_object_mm=np.array(rec["gap_obj"]), min_gap_self_mm=np.array(rec["gap_self"]),
-        n_pairs_object=np.array(rec["n_obj"]), n_pairs_self=np.array(rec["n_self"]),
-        newton_iterations=np.array(rec["iters"]), residual_rel=np.array(rec["res"]),
-        equilibrium_rel_error=np.array(rec["eq"]), load_steps=np.array(rec["steps"]),
-        wall_time_s=np.array(rec["wall"]), meta=meta,
-        contact_y_mm=np.array(rec["contact_y"], float))
 
 
 def contact_centroid_y(y_mm: np.ndarray, f_nodes: np.ndarray) -> float:
