@@ -261,3 +261,51 @@ def test_the_emulated_rig_draws_clutter_that_the_finder_flags(tmp_path):
     assert conf > 0.9 and (mask & truth).sum() / (mask | truth).sum() > 0.8
     mask, conf = finder.find(cluttered)
     assert (mask & truth).sum() / (mask | truth).sum() > 0.8 and conf < 0.8
+
+
+def test_the_stress_reference_comes_from_the_training_shards(tmp_path):
+    """The stress reference saved with a model is the one its shards' renders used
+    (render.stress_ref_MPa); shards on two scales cannot train one network."""
+    from finray.train.data import shard_stress_ref
+
+    def shard(name, ref):
+        meta = {"render": {} if ref is None else {"stress_ref_MPa": ref}}
+        np.savez(tmp_path / name, meta=np.array(json.dumps(meta)))
+        return tmp_path / name
+
+    a, b, c = shard("a.npz", 0.01), shard("b.npz", 0.01), shard("c.npz", 0.001)
+    assert shard_stress_ref([a, b]) == 0.01
+    assert shard_stress_ref([shard("old.npz", None)]) is None
+    with pytest.raises(ValueError, match="different references"):
+        shard_stress_ref([a, c])
+
+
+def test_a_trained_model_saves_its_stress_reference_and_ranges(tmp_path, monkeypatch):
+    """train_from_shards writes into model.ts.json the shards' stress reference, the force
+    normalisation and the training's ranges, which the predictor reads back."""
+    import finray.train.stage as stage
+    from finray.train import TrainConfig
+
+    rng = np.random.default_rng(0)
+    n = 48
+    images = np.zeros((n, 1, 32, 16), "f4")
+    images[:, :, 4:, 3:11] = 1.0
+    force = rng.uniform(0.5, 6.0, (n, 1)).astype("f4")
+    fake = {"images": images, "stress": np.zeros_like(images), "force_N": force,
+            "contact_mm": np.full(n, np.nan, "f4"),
+            "scene_id": np.repeat([f"s{k}" for k in range(8)], n // 8)}
+    monkeypatch.setattr(stage, "load_split", lambda *a, **k: fake)
+    np.savez(tmp_path / "shard.npz", meta=np.array(json.dumps({"render": {"stress_ref_MPa": 0.004}})))
+    stage.train_from_shards([tmp_path / "shard.npz"], tmp_path / "out",
+                            NetConfig(in_channels=1, height=32, width=16, base_channels=4),
+                            TrainConfig(epochs=1, batch_size=16, contact_weight=0.0, threads=1,
+                                        progress=False), None, 0.25, log=lambda m: None)
+    meta = json.loads((tmp_path / "out" / "model.ts.json").read_text())
+    assert meta["stress_ref_MPa"] == 0.004
+    train_ids = ~np.isin(fake["scene_id"], list(stage.validation_scenes(fake["scene_id"], 0.25, 0)))
+    lo, hi = meta["trained"]["force_N"]["fx_N"]
+    assert lo == pytest.approx(force[train_ids].min()) and hi == pytest.approx(force[train_ids].max())
+    assert meta["trained"]["fill"] == pytest.approx([28 / 32 * 8 / 16] * 2) and meta["trained"]["shape_iou_min"] == 1.0
+    assert len(meta["force_normalisation"]["mean_N"]) == 1
+    p = Predictor(tmp_path / "out" / "model.ts", backend="torchscript")
+    assert p.stress_ref_MPa == 0.004 and p.trained == meta["trained"] and p.notes == []

@@ -8,7 +8,11 @@ machine may be shared, its wall time is not a measure.
     python studies/realtime/frame_cpu.py OUT.json [--frames 200]
 
 Frames: the synthetic orange finger of tests/recording_synth.py over a lit grey
-background, bent 0-5 mm, at 640x480 and 1280x720 (the finger ~70 % of the height). A
+background (a camera's view: the grey threshold takes the background), and the same
+finger alone on black (a render's look), bent 0-5 mm, at 640x480 and 1280x720 (the
+finger ~70 % of the height). New code: ``grey`` the renders' threshold, ``auto`` the
+finder learned from the first 5 frames (colour on the camera's view, the threshold on
+the render's look), with the validity checks. A
 model of the default network (input 64x32, 16 base channels), untrained: its cost is
 the trained one's.
 """
@@ -36,10 +40,17 @@ PREPROCESS = {"base_width_mm": 30.0, "crop_x_mm": [-5.0, 35.0], "crop_y_mm": [0.
                           "max_hole_frac": 2e-4, "keep_largest": True}}
 
 
-def frames_at(h, w, n=12):
+def frames_at(h, w, n=12, render_like=False):
+    """``n`` frames (H, W, 3) of the finger bent 0-5 mm: over a lit grey background (a
+    camera's view), or, ``render_like``, its true mask in the finger's colour on black
+    (the renders' look, where the grey threshold finds the finger)."""
     bg = background((h, w), 0)
     ppm = h / 120.0
-    return [render_frame(bg, ppm, (0.45 * w, 0.88 * h), d, 0.0)[0] for d in np.linspace(0, 5, n)]
+    out = []
+    for d in np.linspace(0, 5, n):
+        img, truth = render_frame(bg, ppm, (0.45 * w, 0.88 * h), d, 0.0)
+        out.append(np.where(truth[..., None], img, 12).astype(np.uint8) if render_like else img)
+    return out
 
 
 def time_loop(p, frames, n, new):
@@ -79,20 +90,23 @@ def main():
     new = hasattr(Predictor, "find")
     out = {"finray": str(Path(sys.modules["finray"].__file__).parent), "new": new, "runs": {}}
     for h, w in ((480, 640), (720, 1280)):
-        frames = frames_at(h, w)
-        p = Predictor(d / "model.ts", threads=1, backend="onnx")
-        runs = {}
-        if new:
-            from finray.recording.finder import learn_finder
+        for look in ("camera", "render"):
+            frames = frames_at(h, w, render_like=look == "render")
+            p = Predictor(d / "model.ts", threads=1, backend="onnx")
+            runs = {}
+            if new:
+                from finray.recording.finder import learn_finder
 
-            runs["grey"] = time_loop(p, frames, args.frames, True)  # the renders' path
-            p.finder = learn_finder(frames[:5], p.finder)
-            runs["finder"] = p.finder.describe()
-            runs["colour"] = time_loop(p, frames, args.frames, True)
-        else:
-            runs["grey"] = time_loop(p, frames, args.frames, False)
-        out["runs"][f"{w}x{h}"] = runs
-        print(w, h, json.dumps(runs), flush=True)
+                runs["grey"] = time_loop(p, frames, args.frames, True)
+                c0 = time.thread_time()
+                p.finder = learn_finder(frames[:5], p.finder)
+                runs["learn_cpu_ms"] = (time.thread_time() - c0) * 1e3
+                runs["finder"] = p.finder.describe()
+                runs["auto"] = time_loop(p, frames, args.frames, True)
+            else:
+                runs["grey"] = time_loop(p, frames, args.frames, False)
+            out["runs"][f"{w}x{h} {look}"] = runs
+            print(w, h, look, json.dumps(runs), flush=True)
     Path(args.out).write_text(json.dumps(out, indent=1))
 
 

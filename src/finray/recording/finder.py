@@ -82,8 +82,6 @@ class FingerFinder:
             if frame.ndim not in (2, 3):
                 raise FrameError(f"expected an (H, W) or (H, W, 3) image, got shape {frame.shape}")
             mask = segment(frame, **self.segment_kw, roi_stride=self.stride, stats=stats)
-            if not mask.any():
-                return None, 0.0
         else:
             if frame.ndim != 3 or frame.shape[2] < 3:
                 raise FrameError(f"expected an (H, W, 3) colour frame, got shape {frame.shape}")
@@ -91,8 +89,10 @@ class FingerFinder:
                                   self.max_hole_frac, stats=stats)
             if mask is None:
                 return None, 0.0
-        kept = np.count_nonzero(mask) / mask.size
-        return mask, float(min(1.0, kept / max(stats["candidate_frac"], 1e-12)))
+        kept = np.count_nonzero(mask)
+        if kept == 0:
+            return None, 0.0
+        return mask, float(min(1.0, kept / mask.size / max(stats["candidate_frac"], 1e-12)))
 
     def mask(self, frame: np.ndarray) -> np.ndarray:
         """The finger's mask (H, W) bool; :class:`FrameError` where it is not found."""

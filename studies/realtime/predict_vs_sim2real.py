@@ -1,0 +1,112 @@
+"""Uncalibrated ``finray predict`` on every emulated rig's takes against the sim-to-real
+no-context path on the same frames (issue 52's acceptance): per rig, the Fx NRMSE of
+both against the sensor, how many frames each takes, the frames predict flags, and
+whether any take reads as a constant while the sensor moves.
+
+    python studies/realtime/predict_vs_sim2real.py RESULTS OUT_DIR [--model camera]
+
+RESULTS: a full run's results folder (read only): ``lab/<take>/take.mp4`` (the
+configured rig) and ``lab/rigs/<rig>/<take>/take.mp4`` (the drawn ones), their
+``evaluate/sim2real[/rigs/<rig>]/frames.csv`` (the no-context rows, context_objects 0:
+``pred_N`` calibrated by the simulation with the rig prior, ``net_mean_N`` the
+no-context heads' mean) and ``train/<model>/model.ts``. OUT_DIR gets each take's
+``finray predict`` output, ``frames.csv`` (every frame of both paths beside the sensor)
+and ``summary.json`` / ``summary.md`` (per rig). The takes are emulated (finray.lab),
+not recordings.
+"""
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from finray.evaluate.metrics import force_metrics
+from finray.predict import predict_files
+
+
+def rig_takes(results: Path) -> dict[str, tuple[list[Path], Path]]:
+    """rig -> (its take folders, its sim2real frames.csv)."""
+    lab = results / "lab"
+    out = {"default": (sorted(p.parent for p in lab.glob("*/take.mp4")),
+                       results / "evaluate" / "sim2real" / "frames.csv")}
+    for rig in sorted((lab / "rigs").glob("rig*")):
+        out[rig.name] = (sorted(p.parent for p in rig.glob("*/take.mp4")),
+                         results / "evaluate" / "sim2real" / "rigs" / rig.name / "frames.csv")
+    return out
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("results", type=Path)
+    ap.add_argument("out", type=Path)
+    ap.add_argument("--model", default="camera")
+    args = ap.parse_args()
+    model = args.results / "train" / args.model / "model.ts"
+    if not model.is_file():
+        print(f"no model at {model}", file=sys.stderr)
+        return 2
+    rows, summary = [], {"model": str(model), "emulated": True, "rigs": {}}
+    for rig, (takes, sim_csv) in rig_takes(args.results).items():
+        if not takes:
+            continue
+        sim = pd.read_csv(sim_csv) if sim_csv.is_file() else None
+        if sim is not None:
+            sim = sim[sim["context_objects"] == 0]
+        per_rig = []
+        for take in takes:
+            out = args.out / rig / take.name
+            res = predict_files(model, take / "take.mp4", out, force_only=True, overwrite=True)
+            pred = pd.read_csv(out / "forces.csv")
+            pred["frame"] = pred["frame"].str.rsplit("_", n=1).str[-1].astype(int)
+            ingest = take.parent / "ingest" / take.name / "frames.csv"
+            labels = pd.read_csv(ingest)[["frame", "force_N", "status"]]
+            t = pred.merge(labels, on="frame", how="left").assign(rig=rig, take=take.name,
+                                                                    finder=res["finder"])
+            if sim is not None:
+                s = sim[sim["take"] == take.name][["frame", "pred_N", "net_mean_N"]]
+                t = t.merge(s.rename(columns={"pred_N": "sim2real_N",
+                                              "net_mean_N": "sim2real_net_N"}),
+                            on="frame", how="left")
+            per_rig.append(t)
+        table = pd.concat(per_rig, ignore_index=True)
+        rows.append(table)
+        both = table.dropna(subset=["force_N"])
+        r = {"takes": len(takes), "frames": int(len(table)),
+             "flagged": int((table["valid"] != "ok").sum()),
+             "finders": sorted(set(table["finder"])),
+             "predict_vs_sensor": force_metrics(both["force_N"], both["fx_N"])}
+        if "sim2real_N" in both:
+            same = both.dropna(subset=["sim2real_N"])
+            r["same_frames"] = int(len(same))
+            r["predict_vs_sensor_same_frames"] = force_metrics(same["force_N"], same["fx_N"])
+            r["sim2real_vs_sensor"] = force_metrics(same["force_N"], same["sim2real_N"])
+            r["sim2real_net_vs_sensor"] = force_metrics(same["force_N"], same["sim2real_net_N"])
+            r["predict_vs_sim2real_net_rmse_N"] = float(
+                np.sqrt(np.mean((same["fx_N"] - same["sim2real_net_N"]) ** 2)))
+        # a constant read while the sensor moves: the prediction's spread against the sensor's
+        spread = both.groupby("take").agg(pred_sd=("fx_N", "std"), sensor_sd=("force_N", "std"))
+        r["constant_takes"] = sorted(spread.index[spread["pred_sd"] < 0.05 * spread["sensor_sd"]])
+        summary["rigs"][rig] = r
+        print(rig, json.dumps({k: (v["nrmse_pct"] if isinstance(v, dict) and "nrmse_pct" in v else v)
+                               for k, v in r.items()}), flush=True)
+    args.out.mkdir(parents=True, exist_ok=True)
+    pd.concat(rows, ignore_index=True).to_csv(args.out / "frames.csv", index=False,
+                                              float_format="%.6g")
+    (args.out / "summary.json").write_text(json.dumps(summary, indent=1))
+    lines = ["| rig | takes | frames | flagged | predict Fx NRMSE (%) | sim2real no-context NRMSE (%) "
+             "| its heads' mean, NRMSE (%) | constant takes |", "|---|---|---|---|---|---|---|---|"]
+    for rig, r in summary["rigs"].items():
+        p = r.get("predict_vs_sensor_same_frames", r["predict_vs_sensor"])["nrmse_pct"]
+        s = r.get("sim2real_vs_sensor", {}).get("nrmse_pct", float("nan"))
+        n = r.get("sim2real_net_vs_sensor", {}).get("nrmse_pct", float("nan"))
+        lines.append(f"| {rig} | {r['takes']} | {r['frames']} | {r['flagged']} | {p:.1f} | {s:.1f} "
+                     f"| {n:.1f} | {len(r['constant_takes'])} |")
+    (args.out / "summary.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
