@@ -309,3 +309,22 @@ def test_a_trained_model_saves_its_stress_reference_and_ranges(tmp_path, monkeyp
     assert len(meta["force_normalisation"]["mean_N"]) == 1
     p = Predictor(tmp_path / "out" / "model.ts", backend="torchscript")
     assert p.stress_ref_MPa == 0.004 and p.trained == meta["trained"] and p.notes == []
+
+
+def test_check_reports_the_mask_and_validity_of_a_few_frames(model, tmp_path, capsys):
+    """``finray predict --check``: frames spread over the take, each with its mask share,
+    confidence and flags, check.png, exit 0 for a good set-up and 1 for a bad one."""
+    video = tmp_path / "take.mp4"
+    write_video(video, [frame(d)[0] for d in np.linspace(0, 3, 12)], 10)
+    args = ["predict", "--model", str(model / "model.ts"), str(video), "--check", "4"]
+    assert main([*args, "--out", str(tmp_path / "good")]) == 0
+    out = capsys.readouterr().out.strip().splitlines()
+    assert out[0].startswith("finger found by colour")
+    frames = [line for line in out if line.startswith("take_")]
+    assert [f.split("\t")[0] for f in frames] == ["take_00000", "take_00003", "take_00006",
+                                                  "take_00009"]
+    assert all(f.endswith("\tok") for f in frames) and out[-1].startswith("set-up OK: 4 of 4")
+    assert (tmp_path / "good" / "check.png").is_file()
+    assert main([*args, "--out", str(tmp_path / "bad"), "--segmentation", "grey"]) == 1
+    out = capsys.readouterr().out
+    assert "fills_frame" in out and "set-up NOT OK: 0 of 4" in out

@@ -104,7 +104,7 @@ class FingerFinder:
     def describe(self) -> str:
         if self.mode == "grey":
             return self.source
-        return f"colour {self.colour.describe()} ({self.colour.source})"
+        return f"colour {self.colour.describe()} ({self.source or self.colour.source})"
 
     def to_dict(self) -> dict:
         """What ``segmentation.json`` keeps (read back by :func:`finder_from_spec`)."""
