@@ -13,11 +13,12 @@ A :class:`FingerFinder` tells the finger from the rest of a frame in one of two 
   ``DatasetParams.foreground``), which is how the renders the model was trained on are
   segmented, pixel for pixel.
 
-Learned (``auto``): the colour is learned from the first frames; where the grey
-threshold finds the same finger there (IoU >= :data:`AGREE_IOU`: a render, a bright
-finger on a dark background) the grey threshold is kept, so that renders are segmented
-as in training; elsewhere (a camera's view of a lit room) the colour is used; where
-nothing in view is coloured, the grey threshold.
+Learned (``auto``): the colour is learned from the first frames; where everything on
+the finger's side of the grey threshold is the finger the colour finds there (IoU >=
+:data:`AGREE_IOU`: a render, a bright finger alone on a dark background) the grey
+threshold is kept, so that renders are segmented as in training; elsewhere (a camera's
+view of a lit room, a bright object that will touch the finger) the colour is used;
+where nothing in view is coloured, the grey threshold.
 
 Each frame's mask comes with a confidence in [0, 1]: the share of the frame's pixels
 of the finger's colour (or grey side) that the kept finger holds. Clutter of the
@@ -138,8 +139,10 @@ def learn_finder(frames, grey: FingerFinder, stride: int = 4, min_object_frac: f
     by_colour = colour_finder(learned, stride, min_object_frac, max_hole_frac,
                               f"learned from the first {len(colours)} frames")
     a, _ = by_colour.find(colours[0])
-    b, _ = grey.find(colours[0])
-    if a is not None and b is not None:
+    # everything on the finger's side of the threshold, not only its largest part: an
+    # object apart now may touch the finger later, and the threshold would then join them
+    b = segment(colours[0], **{**grey.segment_kw, "keep_largest": False}, roi_stride=grey.stride)
+    if a is not None and b.any():
         iou = np.count_nonzero(a & b) / max(np.count_nonzero(a | b), 1)
         if iou >= AGREE_IOU:
             return FingerFinder.grey(grey.segment_kw, grey.stride,
