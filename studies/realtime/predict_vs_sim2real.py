@@ -13,6 +13,11 @@ no-context heads' mean) and ``train/<model>/model.ts``. OUT_DIR gets each take's
 ``finray predict`` output, ``frames.csv`` (every frame of both paths beside the sensor)
 and ``summary.json`` / ``summary.md`` (per rig). The takes are emulated (finray.lab),
 not recordings.
+
+A model exported before the training's ranges were saved with it (``model.ts.json``
+without ``trained``) is copied into OUT_DIR/model with the ranges of the run's training
+split (``dataset/manifest.csv``'s ``train`` shards, validation scenes included) and the
+shards' stress reference, so that every check runs.
 """
 import argparse
 import json
@@ -37,6 +42,40 @@ def rig_takes(results: Path) -> dict[str, tuple[list[Path], Path]]:
     return out
 
 
+def with_ranges(model: Path, results: Path, out: Path) -> Path:
+    """``model`` itself where its export has the training's ranges, else a copy in
+    ``out`` with those of the run's training split (see the module's text)."""
+    import shutil
+
+    from finray.train.data import load_split, shard_stress_ref
+    from finray.validity import training_ranges
+
+    meta = json.loads(Path(str(model) + ".json").read_text())
+    if "trained" in meta:
+        return model
+    manifest = pd.read_csv(results / "dataset" / "manifest.csv", usecols=["shard", "split"])
+    shards = sorted(results.parent / s for s in manifest.loc[manifest["split"] == "train", "shard"].unique())
+    size = (meta["height"], meta["width"])
+    try:
+        data = load_split(shards, size, camera=True)
+        seen = [data["images"], data["camera_images"]]
+    except (KeyError, ValueError):
+        data = load_split(shards, size)
+        seen = [data["images"]]
+    meta["trained"] = training_ranges(seen, data["force_N"][:, :1], ["fx_N"],
+                                      data["contact_mm"] if meta.get("contact") else None,
+                                      float(meta.get("contact_min_force_N") or 0.0))
+    meta.setdefault("stress_ref_MPa", shard_stress_ref(shards))
+    out.mkdir(parents=True, exist_ok=True)
+    for f in model.parent.glob(model.stem + ".*"):
+        if f.suffix in (".ts", ".onnx"):
+            shutil.copy(f, out / f.name)
+    (out / (model.name + ".json")).write_text(json.dumps(meta, indent=1))
+    print(f"{model}: no training ranges; {out / model.name} has those of {len(shards)} "
+          f"training shards ({meta['trained']['n_frames']} frames)", flush=True)
+    return out / model.name
+
+
 def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("results", type=Path)
@@ -47,6 +86,7 @@ def main() -> int:
     if not model.is_file():
         print(f"no model at {model}", file=sys.stderr)
         return 2
+    model = with_ranges(model, args.results, args.out / "model")
     rows, summary = [], {"model": str(model), "emulated": True, "rigs": {}}
     for rig, (takes, sim_csv) in rig_takes(args.results).items():
         if not takes:
