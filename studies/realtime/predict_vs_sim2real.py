@@ -28,7 +28,7 @@ import numpy as np
 import pandas as pd
 
 from finray.evaluate.metrics import force_metrics
-from finray.predict import predict_files
+from finray.predict import Predictor, predict_files
 
 
 def rig_takes(results: Path) -> dict[str, tuple[list[Path], Path]]:
@@ -76,6 +76,32 @@ def with_ranges(model: Path, results: Path, out: Path) -> Path:
     return out / model.name
 
 
+def same_inputs(model: Path, take: Path, pred_dir: Path, every: int = 10) -> dict:
+    """Whether predict and ingest see the same network input (one segmentation): every
+    ``every``-th frame of the take through the predictor with the run's finder
+    (``segmentation.json``) against the ingested shard's input of that frame; the
+    largest difference (of 255) and the share of frames identical."""
+    from finray.media import video_frames
+    from finray.recording.finder import finder_from_spec
+
+    p = Predictor(model, threads=1, backend="torchscript",
+                  finder=finder_from_spec(str(pred_dir / "segmentation.json")))
+    key = f"input_{p.size[0]}x{p.size[1]}"
+    with np.load(take.parent / "ingest" / take.name / "shard.npz") as f:
+        if key not in f.files:
+            return {}
+        shard = dict(zip(f["frame"].tolist(), f[key]))
+    diffs = []
+    for fr in video_frames(take / "take.mp4"):
+        if fr.image is None or fr.index % every or fr.index not in shard:
+            continue
+        mask, _ = p.find(fr.image)
+        x = np.rint(p.network_input(mask)[0, 0] * 255).astype(int)
+        diffs.append(int(np.abs(x - shard[fr.index].astype(int)).max()))
+    return {"frames_compared": len(diffs), "input_max_diff_255": max(diffs, default=0),
+            "input_identical_frames_pct": 100 * float(np.mean([d == 0 for d in diffs])) if diffs else None}
+
+
 def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("results", type=Path)
@@ -94,7 +120,7 @@ def main() -> int:
         sim = pd.read_csv(sim_csv) if sim_csv.is_file() else None
         if sim is not None:
             sim = sim[sim["context_objects"] == 0]
-        per_rig = []
+        per_rig, inputs = [], []
         for take in takes:
             out = args.out / rig / take.name
             res = predict_files(model, take / "take.mp4", out, force_only=True, overwrite=True)
@@ -110,13 +136,18 @@ def main() -> int:
                                               "net_mean_N": "sim2real_net_N"}),
                             on="frame", how="left")
             per_rig.append(t)
+            same = same_inputs(model, take, out)
+            inputs.append(same)
+            print(f"{rig}/{take.name}: {res['finder']}; inputs vs ingest's {same}", flush=True)
         table = pd.concat(per_rig, ignore_index=True)
         rows.append(table)
         both = table.dropna(subset=["force_N"])
         r = {"takes": len(takes), "frames": int(len(table)),
              "flagged": int((table["valid"] != "ok").sum()),
              "finders": sorted(set(table["finder"])),
-             "predict_vs_sensor": force_metrics(both["force_N"], both["fx_N"])}
+             "predict_vs_sensor": force_metrics(both["force_N"], both["fx_N"]),
+             "input_max_diff_255": max((i.get("input_max_diff_255", 0) for i in inputs), default=None),
+             "inputs": inputs}
         if "sim2real_N" in both:
             same = both.dropna(subset=["sim2real_N"])
             r["same_frames"] = int(len(same))
