@@ -191,9 +191,12 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
     export lacks, before the first frame.
 
     A frame that cannot be predicted (unreadable, not an image, no finger) is skipped:
-    ``on_skip(name, message)`` is called and the run goes on. ``on_frame(row)`` gets
-    each row ``{"frame", "fx_N"[, "fy_N"][, "contact_mm"]}`` as it completes. Returns ``{"rows": [...],
-    "skipped": [(name, message), ...], "interrupted"}`` (a live source ended by Ctrl-C),
+    ``on_skip(name, message)`` is called (for those before the first predicted frame,
+    once it is: a run that predicts none ends with its one error) and the run goes on.
+    ``on_frame(row)`` gets each row ``{"frame", "fx_N"[, "fy_N"][, "contact_mm"],
+    "valid"}`` as it completes. Returns ``{"rows": [...], "skipped": [(name, message),
+    ...], "interrupted", "flagged", "finder"}`` (a live source ended by Ctrl-C; flags
+    counted; how the finger was found),
     for a live source also ``received`` and ``dropped`` (frames it sent; frames that
     came while the network was busy). With ``calibration`` (a ``calibration.json`` of
     :func:`finray.calibration.calibrate_takes`, its model's heads' spread per frame) rows
@@ -338,6 +341,8 @@ def _predict_loop(p, run: _Run, writer) -> dict:
     from .render.imageio import write_exr, write_png
 
     rows, skipped, interrupted, no_finger = [], [], False, 0
+    pending = []  # skips before the first predicted frame: reported once one is (a take
+    # where the finger is never found ends in one line, not one per frame)
     with open(run.part, "w") as table:
         cal_cols = ["force_N", "lo_N", "hi_N"] if calibration is not None else []
         time_cols = ["t_s"] if video else []
@@ -367,8 +372,10 @@ def _predict_loop(p, run: _Run, writer) -> dict:
                     if run.one_image:
                         raise InputError(msg) from None
                     skipped.append((name, msg))
-                    if run.on_skip is not None:
+                    if run.on_skip is not None and rows:
                         run.on_skip(name, msg)
+                    elif run.on_skip is not None:
+                        pending.append((name, msg))
                     continue
                 if not run.force_only and run.maps:
                     stem = Path(name).stem
@@ -414,6 +421,9 @@ def _predict_loop(p, run: _Run, writer) -> dict:
                                       row["valid"]]) + "\n")
                 table.flush()  # a long video's forces can be read while it runs
                 rows.append(row)
+                for skip in pending:
+                    run.on_skip(*skip)
+                pending.clear()
                 if run.on_frame is not None:
                     run.on_frame(row)
         except KeyboardInterrupt:
