@@ -107,8 +107,9 @@ def test_a_mask_filling_the_frame_is_flagged(model, tmp_path, capsys):
                  str(tmp_path / "grey"), "--segmentation", "grey", "--force-only"]) == 0
     rows = list(csv.DictReader(open(tmp_path / "grey" / "forces.csv")))
     assert len(rows) == 3 and all("fills_frame" in r["valid"] for r in rows)
-    err = capsys.readouterr().err
-    assert "finray predict: warning: 3 of 3 frames flagged" in err and "fills_frame 3" in err
+    io = capsys.readouterr()
+    assert "finray predict: warning: 3 of 3 frames flagged" in io.err and "fills_frame 3" in io.err
+    assert io.out.count("\tNOT VALID: fills_frame") == 3  # each frame's line says so too
     assert main(["predict", "--model", str(model / "model.ts"), str(video), "--out",
                  str(tmp_path / "auto"), "--force-only"]) == 0
     rows = list(csv.DictReader(open(tmp_path / "auto" / "forces.csv")))

@@ -344,19 +344,26 @@ def _predict_parser(sub) -> None:
     p.set_defaults(func=_run_predict)
 
 
+def _invalid(row: dict) -> list[str]:
+    """``["NOT VALID: <flags>"]`` for a flagged row (:mod:`finray.validity`), else []."""
+    return [f"NOT VALID: {row['valid'].replace('+', ', ')}"] if row.get("valid", "ok") != "ok" else []
+
+
 def _force_line(row: dict) -> str:
-    """``<frame>\t[t 1.2345 s\t]fx 1.2345 N\tfy -0.2345 N[\tcontact 34.12 mm]`` of a
-    predicted row."""
+    """``<frame>\t[t 1.2345 s\t]fx 1.2345 N\tfy -0.2345 N[\tcontact 34.12 mm][\tNOT VALID:
+    <flags>]`` of a predicted row."""
     t = [f"t {row['t_s']:.4f} s"] if row.get("t_s") is not None else []
     c = [f"contact {row['contact_mm']:.2f} mm"] if "contact_mm" in row else []
     return "\t".join([row["frame"], *t, *(f"{k.removesuffix('_N')} {v:.4f} N"
-                                           for k, v in row.items() if k.endswith("_N")), *c])
+                                           for k, v in row.items() if k.endswith("_N")), *c,
+                      *_invalid(row)])
 
 
 def _calibrated_line(row: dict) -> str:
-    """``<frame>\tfx 1.2345 N\tcalibrated 1.30 N [1.10, 1.50] 90 %``."""
-    return (f"{row['frame']}\tfx {row['fx_N']:.4f} N\tcalibrated {row['force_N']:.4f} N "
-            f"[{row['lo_N']:.4f}, {row['hi_N']:.4f}] {100 * row['level']:.0f} %")
+    """``<frame>\tfx 1.2345 N\tcalibrated 1.30 N [1.10, 1.50] 90 %[\tNOT VALID: <flags>]``."""
+    return "\t".join([f"{row['frame']}\tfx {row['fx_N']:.4f} N\tcalibrated {row['force_N']:.4f} N "
+                      f"[{row['lo_N']:.4f}, {row['hi_N']:.4f}] {100 * row['level']:.0f} %",
+                      *_invalid(row)])
 
 
 def _run_predict(args) -> int:
