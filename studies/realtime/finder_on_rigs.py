@@ -34,6 +34,7 @@ def main() -> None:
     ap.add_argument("work", type=Path)
     ap.add_argument("--rigs", type=int, default=8)
     args = ap.parse_args()
+    args.work.mkdir(parents=True, exist_ok=True)
     res = write_synthetic_fea_result(args.work / "result.npz", n_frames=11,
                                      max_displacement_mm=10.0, size_mm=1.0)
     lab = load_config(ROOT / "config" / "config.yaml")["lab"]
