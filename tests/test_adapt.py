@@ -12,7 +12,7 @@ from finray.adapt import (HeadEnsemble, HeadFit, SimAnchor, encoder_features, ex
 from finray.cli import main
 from finray.model import FinRayNet, NetConfig
 from finray.predict import InputError, Predictor
-from test_predict import PREPROCESS, render_png  # noqa: F401,F811  (a fixture)
+from test_predict import PREPROCESS
 
 
 @pytest.fixture(scope="module")
@@ -43,6 +43,7 @@ def test_heads_learn_a_rig_that_differs_from_the_simulation(net):
     assert pred.std(0).mean() > 0  # bootstrap samples: the members differ
 
 
+@pytest.mark.slow
 def test_decayed_heads_spread_by_the_data_not_the_optimiser(net):
     """150 copies of one rest frame whose sensor reads 0.01 N noise: the bootstrap leaves
     their mean open by 0.01 / sqrt(150) = 0.8 mN, and that is the decayed heads' spread
@@ -128,7 +129,7 @@ def test_exported_ensemble_in_the_predictor(ensemble):
         Predictor(d / "rig.model.ts", backend="onnx")
 
 
-def test_predict_with_calibration(ensemble, render_png, tmp_path, capsys):  # noqa: F811  (the fixture)
+def test_predict_with_calibration(ensemble, render_png, tmp_path, capsys):
     """`finray predict --calibration` prints each frame's calibrated force and interval
     and writes them to forces.csv; a --model that is not the calibrated one is refused."""
     _, _, d = ensemble
@@ -256,6 +257,7 @@ def test_members_fitted_together_as_one_at_a_time(net, layers):
     """The members are fitted in one batched loop: each gets the frames, the gradient and
     the Adam steps it would get alone (last layers, or every layer with the batch norms'
     affine), to float rounding."""
+    torch.manual_seed(1)  # the frames, whatever ran before (a quick run leaves tests out)
     x = torch.rand(96, 1, 64, 32)
     f = encoder_features(net, x)
     rig = 1.5 * net.force(x)[:, 0].detach().numpy() + 0.3

@@ -38,6 +38,7 @@ def test_recovers_known_gain_offset_and_noise(fitted):
         assert q["q2.5"] < value < q["q97.5"], (name, value, q)
 
 
+@pytest.mark.slow
 def test_heavy_tailed_noise_gives_few_degrees_of_freedom():
     """Student-t(3) noise of known scale: the posterior puts nu far below a normal law's
     (its 97.5 % quantile under 20, the prior's mean), gain and scale inside their 95 %
@@ -68,6 +69,7 @@ def test_predictive_interval_covers_new_frames(fitted):
     assert np.all(band["lo"] <= band["median"]) and np.all(band["median"] <= band["hi"])
 
 
+@pytest.mark.slow
 def test_rig_prior_covers_rigs_of_unknown_gain(fitted):
     """Rigs whose gain and offset differ from the calibrated one's by draws of the rig
     prior: the intervals without it cover far too few of their frames, with it about

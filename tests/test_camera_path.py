@@ -5,50 +5,16 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
-import torch
 
-from finray.dataset import DatasetParams, render_shard
 from finray.evaluate.camera import camera_test_set, rendered_subset
 from finray.evaluate.experiments import run_experiment
 from finray.evaluate.metrics import force_metrics
 from finray.evaluate.predictions import load_test_set
 from finray.evaluate.summary import camera_agreement, experiment_summary
-from finray.model import FinRayNet, NetConfig
 from finray.predict import Predictor
-from finray.render import RenderParams
 from finray.render.imageio import read_png, write_png
-from finray.train import export_torchscript
 
-from test_predict import PREPROCESS
-from test_render_fixture import write_synthetic_fea_result
-
-SIZE = (64, 32)
-
-
-@pytest.fixture(scope="module")
-def scene(tmp_path_factory):
-    """Two views of the fixture scene (5 frames, 3 written as files each), their
-    shards and an untrained exported network."""
-    tmp = tmp_path_factory.mktemp("camera")
-    res = write_synthetic_fea_result(tmp / "result.npz", n_frames=5)
-    rp = RenderParams(frames_per_scene=5, files_per_scene=3)
-    params = DatasetParams(sizes=(SIZE,))
-    indices, shards = [], []
-    for h in (20.0, 30.0):
-        d = tmp / f"h{h:g}" / "p0"
-        meta = render_shard(res, d, tmp / f"h{h:g}.npz", 0.0, render_params=rp, params=params,
-                            scene={"object": "ellipse_16x9", "material": "steel", "height_mm": h,
-                                   "split": "shape"})
-        assert meta["n_frames"] == 5
-        indices.append(d / "index.json")
-        shards.append(tmp / f"h{h:g}.npz")
-    torch.manual_seed(0)
-    net = FinRayNet(NetConfig(in_channels=1, base_channels=4, height=SIZE[0], width=SIZE[1],
-                              n_forces=2))
-    net.set_force_normalisation([3.0, -0.5], [2.0, 0.4])
-    net.eval()
-    export_torchscript(net, tmp / "model.ts", PREPROCESS, ["fx_N", "fy_N"])
-    return {"tmp": tmp, "indices": indices, "shards": shards, "model": tmp / "model.ts"}
+SIZE = (64, 32)  # the size of the scene fixture (conftest.py)
 
 
 def test_camera_rows_beside_the_shard_rows(scene, tmp_path):

@@ -8,6 +8,8 @@ import pytest
 from finray.cli import build_parser
 from finray.geometry.mesh import TriMesh
 
+pytestmark = pytest.mark.slow  # not in `pytest -m "not slow"`
+
 
 def run(*args):
     return subprocess.run([sys.executable, "-m", "finray.cli", *args], capture_output=True, text=True)

@@ -85,6 +85,7 @@ DIVERSE = read_config_file(ROOT / "config" / "diverse.yaml")  # config.yaml + ge
 SLICE = yaml.safe_load((ROOT / "config" / "diverse_slice.yaml").read_text())
 
 
+@pytest.mark.slow
 def test_diverse_config_is_the_paper_config_plus_generated_objects():
     """config/diverse.yaml: config/config.yaml unchanged (it extends it) plus 300
     generated training objects, at the training's heights; the held-out test scenes are
@@ -106,6 +107,7 @@ def test_diverse_config_is_the_paper_config_plus_generated_objects():
     assert validate_config(cfg) == cfg  # a validated config validates again unchanged
 
 
+@pytest.mark.slow
 def test_diverse_slice_is_the_first_blobs_of_the_full_set():
     """Merged after diverse.yaml (as Snakemake merges --configfile a b), the slice keeps
     60 blobs with the same specs: their geometry and FEA jobs are the full set's."""

@@ -12,8 +12,6 @@ from finray.evaluate.diversity import GENERATED, METRICS, PAPER, comparison_tabl
 from finray.evaluate.manuscript import render_text
 from finray.evaluate.summary import key_structure
 
-from test_camera_path import scene  # noqa: F401  (the fixture: shards and a network)
-
 ROOT = Path(__file__).resolve().parents[1]
 TEMPLATE = ROOT / "paper" / "manuscript.md.j2"
 FULL = json.loads((ROOT / "tests" / "data" / "summary_full.json").read_text())
@@ -147,6 +145,7 @@ def test_manuscript_extension_verdict_turns_with_the_numbers():
         in render(s).replace("\n", " ")
 
 
+@pytest.mark.slow
 def test_compare_model_config():
     """diverse.yaml compares plain; the paper config nothing; an unknown model is refused."""
     full = load_config(ROOT / "config" / "config.yaml")

@@ -203,6 +203,7 @@ def _parse_finray(cmd: str) -> None:
     build_parser().parse_args(argv[1:])  # SystemExit on an unknown option
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("cmds", list(_cases("run")))
 def test_tutorial_commands_run(cmds, tmp_path):
     for cmd in cmds:
@@ -211,6 +212,8 @@ def test_tutorial_commands_run(cmds, tmp_path):
         assert r.returncode == 0, f"{cmd}\n{r.stdout[-2000:]}\n{r.stderr[-2000:]}"
 
 
+@pytest.mark.slow
+@pytest.mark.workflow
 @pytest.mark.parametrize("cmds", list(_cases("dry-run")))
 def test_tutorial_commands_dry_run(cmds, tmp_path):
     for cmd in cmds:
@@ -258,6 +261,8 @@ def test_configfile_trap_detection():
     assert misread_configfile(["--cores", "2"]) is None
 
 
+@pytest.mark.slow
+@pytest.mark.workflow
 def test_configfile_guard_logger_works_when_chosen():
     """The module must be a valid Snakemake logger plugin (or every snakemake call
     would fail on it); chosen by name it logs a dry run as the default does."""
@@ -275,6 +280,8 @@ def test_readme_holds_no_lab_notebook():
     assert "tried and not taken" not in text.lower() and "tried, not taken" not in text.lower()
 
 
+@pytest.mark.slow
+@pytest.mark.workflow
 def test_readme_commands_parse_or_dry_run(tmp_path):
     """The README's other commands: finray lines parse, snakemake lines plan (-n)."""
     skip = {FULL_RUN, _ci_test_command()}

@@ -18,6 +18,8 @@ from finray.fea.newton import NewtonOptions
 from finray.geometry.finger import FingerParams, mesh_finger
 from finray.geometry.mesh import triangulate_polygon
 
+pytestmark = pytest.mark.slow  # not in `pytest -m "not slow"`
+
 CONFIG = load_config(default_config_path())  # the material constants
 FINGER = material_law(CONFIG, "ninjaflex")
 

@@ -89,6 +89,7 @@ def test_scene_projects_like_the_camera_and_windows_are_exact(result):
     assert (colour[full][:, 0] > colour[full][:, 2] + 60).mean() > 0.95
 
 
+@pytest.mark.slow
 def test_a_short_take_ingests_without_its_truth(result, tmp_path):
     from finray.lab.emulate import emulate_take
     from finray.recording import IngestParams, ingest

@@ -35,21 +35,6 @@ def exported(tmp_path_factory):
     return net, d
 
 
-@pytest.fixture(scope="module")
-def render_png(tmp_path_factory):
-    """A camera frame of the fabricated scene (test_render_fixture.py), front view."""
-    from finray.render import RenderParams, load_render_index, render_scene
-    from test_render_fixture import write_synthetic_fea_result
-
-    tmp = tmp_path_factory.mktemp("render")
-    res = write_synthetic_fea_result(tmp / "result.npz", n_frames=4)
-    render_scene(res, tmp / "p0", 0.0, params=RenderParams(frames_per_scene=3),
-                 scene={"object": "ellipse_16x9", "material": "steel", "height_mm": 30.0,
-                        "split": "shape"})
-    frames = load_render_index(tmp / "p0")["frames"]
-    return tmp / "p0" / frames[-1]["image"]
-
-
 def never_seen(png, path):
     """The render's finger, 1.6x larger, as a flat pale-yellow shape on a plain grey
     background of another size, off-centre: what a different camera might give (the
@@ -618,6 +603,7 @@ def test_fit_frame_crops_to_the_aspect_and_resizes():
     assert fit_frame(tall, (100, 400)).shape == (100, 400, 3)
 
 
+@pytest.mark.slow
 def test_stream_benchmark_on_a_live_stream(exported, render_png, tmp_path):
     """The real-time benchmark's measurement (the figures themselves are timings, not
     asserted): a served stream read alone and by finray predict; every frame the server
@@ -712,6 +698,7 @@ def test_a_stream_gives_the_files_forces_frame_for_frame(exported, render_png, t
         assert [r[k] for k in r if k.endswith("_N")] == [f[k] for k in f if k.endswith("_N")], (r, f)
 
 
+@pytest.mark.slow
 def test_sigint_ends_a_live_run_with_a_complete_table(exported, render_png, tmp_path):
     """SIGINT (Ctrl-C) to `finray predict` on a live stream, the way a live run ends:
     exit code 0, forces.csv in place with a full row per frame predicted, no .part left,

@@ -49,6 +49,8 @@ from finray.config import (load_schema, merge_config, object_heights, read_confi
 
 pytestmark = [pytest.mark.slow, pytest.mark.workflow]  # not in `pytest -m "not slow"`
 
+pytestmark = [pytest.mark.slow, pytest.mark.workflow]  # not in `pytest -m "not slow"`
+
 ROOT = Path(__file__).resolve().parents[1]
 SMOKE = ROOT / "config" / "smoke.yaml"
 SCHEMA = ROOT / "workflow" / "schemas" / "config.schema.yaml"

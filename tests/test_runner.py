@@ -11,6 +11,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = [pytest.mark.slow, pytest.mark.workflow]  # not in `pytest -m "not slow"`
+
 ROOT = Path(__file__).resolve().parents[1]
 HELPER = ROOT / "workflow" / "rules" / "helpers" / "runner.smk"
 JOBS = 40

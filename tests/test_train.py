@@ -197,6 +197,7 @@ def toy_contact(n=128, seed=0):
 CONTACT_NET = NetConfig(in_channels=1, height=32, width=16, base_channels=4, contact=True)
 
 
+@pytest.mark.slow
 def test_the_contact_head_learns_a_height_it_can_see():
     """Trained on the toy's heights, the head's validation RMSE (mm, over the masked
     frames) is a fraction of the heights' spread; the history records it."""
@@ -256,6 +257,7 @@ def test_contact_training_in_bfloat16_autocast():
     assert np.isfinite(hist.train_contact_mse).all() and np.isfinite(hist.val_contact_rmse_mm).all()
 
 
+@pytest.mark.slow
 def test_contact_checkpoint_torchscript_and_onnx_parity(tmp_path):
     """The contact model through its checkpoint, TorchScript (contact, force_contact,
     forward_contact beside forward and force) and ONNX (contact_mm outputs) gives the

@@ -10,6 +10,8 @@ import yaml
 
 from finray.geometry.mesh import TriMesh, quality
 
+pytestmark = [pytest.mark.slow, pytest.mark.workflow]  # not in `pytest -m "not slow"`
+
 ROOT = Path(__file__).resolve().parents[1]
 SNAKEMAKE = [sys.executable, "-m", "snakemake", "-s", str(ROOT / "Snakefile")]
 
