@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from finray.evaluate.budget import budget_table, cpu_seconds, with_worst, write_budget
+from finray.benchmarks.budget import budget_table, cpu_seconds, with_worst, write_budget
 
 FIGURES = {
     "default": {"s0_auto": {"shape | none | camera | force NRMSE %": 1.9, "pitch | 0 | pitch | force NRMSE %": 1.0,

@@ -36,7 +36,9 @@ def main() -> None:
         histories = {p.parent.name: p for p in sorted(r.glob("train/*/history.json"))}
         s = build_summary(r / "evaluate", EXPERIMENTS, r / "evaluate" / "baseline" / "fit.json",
                           r / "evaluate" / "speed" / "speed.json",
-                          r / "benchmarks" / "fea_pareto.csv", histories,
+                          # the FEA cost study's table where it was built (STUDY_NODES)
+                          p if (p := r / "benchmarks" / "fea_pareto.csv").exists() else None,
+                          histories,
                           cfg["evaluate"]["usable_nrmse_pct"], config=cfg,
                           fea_scenes_csv=scenes, manifest_csv=r / "dataset" / "manifest.csv")
     # the emulated lab takes, with the set-up the summary rule passes (lab.smk, paper.smk)

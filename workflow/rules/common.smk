@@ -13,7 +13,9 @@ from finray.config import (ConfigError, extra_train_heights, resolve_extends, sc
 from finray.dataset import pitch_object
 from finray.dataset.params import SHARD_KEYS
 
-DEFAULT_CONFIGFILE = os.path.join(workflow.basedir, "config", "config.yaml")
+#: the repository root (this workflow is workflow/Snakefile, the catalog's layout)
+REPO = os.path.dirname(workflow.basedir)
+DEFAULT_CONFIGFILE = os.path.join(REPO, "config", "config.yaml")
 if not workflow.config_settings.configfiles:
     # no --configfile: the paper's full set-up, with any --config KEY=VALUE on top
     _overrides = dict(config)
@@ -35,7 +37,7 @@ elif "extends" in config:
     config.update(_merged)
 
 try:
-    _validated = validate_config(config, base_dir=workflow.basedir)
+    _validated = validate_config(config, base_dir=REPO)
     try:  # the viewpoint study needs a held-out shape (or dataset.pitch_object)
         pitch_object(_validated)
     except ValueError as _exc:
@@ -45,6 +47,13 @@ except ConfigError as _err:
     sys.exit(1)
 config.clear()
 config.update(_validated)
+
+def script_path(name):
+    """workflow/scripts/<name> from anywhere: a rule that another file reuses (``use rule
+    ... with:``, studies/seeds/rules.smk) keeps its script, which a path relative to the
+    rule file would not (Snakemake resolves it against the reusing file)."""
+    return os.path.join(workflow.basedir, "scripts", name)
+
 
 RESULTS = "results"
 GEOMETRY = f"{RESULTS}/geometry"

@@ -64,7 +64,7 @@ rule evaluate_experiment:
     conda:
         "../../envs/finray.yaml"
     script:
-        "../scripts/evaluate_experiment.py"
+        script_path("evaluate_experiment.py")  # (also run by the seeds study's `use rule`)
 
 
 rule sim2real_no_context:
@@ -89,7 +89,7 @@ rule sim2real_no_context:
     conda:
         "../../envs/finray.yaml"
     script:
-        "../scripts/sim2real_no_context.py"
+        script_path("sim2real_no_context.py")  # (also run by the seeds study's `use rule`)
 
 
 rule sim2real:
@@ -120,7 +120,7 @@ rule sim2real:
     conda:
         "../../envs/finray.yaml"
     script:
-        "../scripts/sim2real.py"
+        script_path("sim2real.py")  # (also run by the seeds study's `use rule`)
 
 
 # ------------------------------------------------- training on generated objects

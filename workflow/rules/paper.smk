@@ -35,13 +35,13 @@ rule evaluate_speed:
     input:
         fea_scenes=f"{RESULTS}/benchmarks/fea_scenes.csv",
         latency=f"{RESULTS}/benchmarks/inference_latency.json",
-        # every stage and study has run, so that its benchmark files are complete
+        # every stage has run, so that its benchmark files are complete
         stages=[f"{DATASET}/manifest.csv"]
         + expand(f"{TRAIN}/{{model}}/model.ts", model=model_names())
         + expand(f"{EVALUATE}/{{experiment}}/metrics.json", experiment=EXPERIMENTS)
         + diversity_files(),  # (with generated training objects: the comparison)
-        studies=[f"{RESULTS}/benchmarks/{name}" for name in (
-            "fea_pareto.csv", "fea_stability.csv", "render_throughput.json", "train_pareto.csv")],
+        # the studies' timings where they were built (never a reason to build one)
+        studies=built(study_targets()),
     output:
         json=f"{EVALUATE}/speed/speed.json",
         table=f"{EVALUATE}/speed/speed.md",
@@ -214,7 +214,8 @@ rule summary:
         experiments=expand(f"{EVALUATE}/{{experiment}}/metrics.json", experiment=EXPERIMENTS),
         baseline=f"{EVALUATE}/baseline/fit.json",
         speed=f"{EVALUATE}/speed/speed.json",
-        fea_pareto=f"{RESULTS}/benchmarks/fea_pareto.csv",
+        # the FEA cost study's table where it was built (summary key fea_mesh_study)
+        fea_pareto=built([f"{RESULTS}/benchmarks/fea_pareto.csv"]),
         fea_scenes=f"{RESULTS}/benchmarks/fea_scenes.csv",
         histories=expand(f"{TRAIN}/{{model}}/history.json", model=model_names()),
         manifest=f"{DATASET}/manifest.csv",  # the frames behind training vs the FEA states
@@ -247,13 +248,17 @@ rule summary:
 
 rule manuscript:
     input:
-        template=os.path.join(workflow.basedir, PAPER, "manuscript.md.j2"),
+        template=os.path.join(REPO, PAPER, "manuscript.md.j2"),
         summary=f"{RESULTS}/summary.json",
         speed_table=f"{EVALUATE}/speed/speed.md",
         figures=expand(f"{PAPER}/figures/{{name}}.png", name=FIGURES),
+        # the studies' results where they were built: shown, else how to build them
+        studies=built(study_targets()),
     output:
         md=f"{PAPER}/manuscript.md",
         html=report(f"{PAPER}/manuscript.html", caption="../report/manuscript.rst", category="Paper"),
+    params:
+        studies=manuscript_studies(),
     log:
         f"{RESULTS}/logs/paper/manuscript.log",
     threads: 1

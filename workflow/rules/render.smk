@@ -33,29 +33,6 @@ rule render_scene:
         "../scripts/render_scene.py"
 
 
-rule render_benchmark:
-    input:
-        result=render_benchmark_input,
-    output:
-        json=f"{RESULTS}/benchmarks/render_throughput.json",
-    params:
-        render=render_params(),
-        dataset=section("dataset", keys=SHARD_KEYS),
-        extrusion_mm=config["finger"]["extrusion_mm"],
-    log:
-        f"{RESULTS}/logs/render/benchmark.log",
-    benchmark:
-        f"{RESULTS}/benchmarks/studies/render_throughput.tsv"
-    threads: 1
-    resources:
-        mem_mb=700,
-        runtime=1,
-    conda:
-        "../../envs/finray.yaml"
-    script:
-        "../scripts/render_benchmark.py"
-
-
 rule viewpoint_render:
     # The viewpoint experiment's test frames: pyvista perspective renders of a held-out
     # scene at every pitch and distance (independent of the training views' raster).

@@ -150,7 +150,7 @@ rule sim2real_rigs:
     conda:
         "../../envs/finray.yaml"
     script:
-        "../scripts/sim2real_rigs.py"
+        script_path("sim2real_rigs.py")  # (also run by the seeds study's `use rule`)
 
 
 rule sim2real_selection_rigs:
@@ -175,7 +175,7 @@ rule sim2real_selection_rigs:
     conda:
         "../../envs/finray.yaml"
     script:
-        "../scripts/sim2real_rigs.py"
+        script_path("sim2real_rigs.py")  # (also run by the seeds study's `use rule`)
 
 
 rule figure_sim2real_rigs:

@@ -6,4 +6,6 @@ from finray.logs import log_to
 with log_to(snakemake.log[0]):
     render_manuscript(snakemake.input.template, snakemake.input.summary, snakemake.output.md,
                       snakemake.output.html,
-                      extra={"speed_table": Path(snakemake.input.speed_table).read_text()})
+                      extra={"speed_table": Path(snakemake.input.speed_table).read_text(),
+                             # each study: its figure where it was built, else how to build it
+                             "studies": snakemake.params.studies})

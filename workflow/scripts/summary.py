@@ -9,7 +9,10 @@ with log_to(snakemake.log[0]):
     experiments = [Path(p).parent.name for p in snakemake.input.experiments]
     histories = {Path(p).parent.name: p for p in snakemake.input.histories}
     s = build_summary(snakemake.params.evaluate, experiments, snakemake.input.baseline,
-                      snakemake.input.speed, snakemake.input.fea_pareto, histories,
+                      snakemake.input.speed,
+                      # the FEA cost study's table, where it was built (else no fea_mesh_study)
+                      snakemake.input.fea_pareto[0] if snakemake.input.fea_pareto else None,
+                      histories,
                       snakemake.params.usable_nrmse_pct,
                       fea_scenes_csv=snakemake.input.fea_scenes,
                       manifest_csv=snakemake.input.manifest)

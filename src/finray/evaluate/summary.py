@@ -310,10 +310,16 @@ def build_summary(evaluate_dir, experiments, baseline_fit, speed_json, fea_paret
                   "network_ms_per_frame": speed["network_ms_per_frame"],
                   "network_force_only_ms_per_frame": speed["network_force_only_ms_per_frame"],
                   "stages": speed["stages"], "studies": speed["studies"], "dag": speed["dag"]}
-    pareto = pd.read_csv(fea_pareto_csv)
-    s["fea_mesh_study"] = pareto.to_dict("records")
+    if fea_pareto_csv is not None:  # the FEA cost study (studies/fea_cost), where it was built
+        s["fea_mesh_study"] = pd.read_csv(fea_pareto_csv).to_dict("records")
     s["paper"] = paper_reference()["values"]  # {name: {value, unit, where, quote}}
     return s
+
+
+#: Nodes that come from a study (studies/<name>/), present only where that study was
+#: built before the summary: the default run builds none (``fea_mesh_study``: the FEA
+#: cost study's table, ``snakemake --cores 2 fea_cost``).
+STUDY_NODES = ("fea_mesh_study",)
 
 
 #: Where the summary's keys are names from the config or the data (conditions, groups,

@@ -1,5 +1,18 @@
 # How Snakemake itself runs the jobs: its scheduler's rate limit and its benchmark
-# sampling (functions only; the Snakefile's onstart calls them).
+# sampling (functions only; workflow/Snakefile's onstart calls them).
+#
+# These two reach into Snakemake's internals (JobScheduler.job_rate_limiter, the default
+# argument of snakemake.benchmark.benchmarked), because Snakemake 9.27 has no public
+# interface for either; each checks the internal's shape first and does nothing (returns
+# False) where it changed, so a new Snakemake release loses the fix, never the run:
+# - the rate limit: --max-jobs-per-timespan (CLI or profile) cannot switch the limiter
+#   off (it takes <n>/<span> only), and every scheduler pass under any limit arms a
+#   threading.Timer of that span; a long span (e.g. 1000/1h in the default profile)
+#   would pile up fewer wake-ups but leaves those non-daemon timers alive after the last
+#   job, so Snakemake does not exit until they fire (tried on a toy workflow: it hung
+#   past its jobs). Dropping the limiter is what a local run needs.
+# - the sampling interval: no flag or profile key sets it (snakemake/snakemake#851, open,
+#   asks for one); the interval is benchmarked()'s default argument.
 def drop_default_rate_limit(wf):
     """Drop Snakemake's job-rate limit from a local run that left it at its default
     (``--max-jobs-per-timespan 100/1s``); returns whether it did.

@@ -1,7 +1,7 @@
 """The training-budget study: CPU time per model against every error.
 
 Training is most of the full run's cost. The study (``benchmarks.training_budget``,
-``workflow/rules/spread.smk``) retrains every model at each *point* (train keys that
+``studies/training_budget/``, through the seeds study's rules) retrains every model at each *point* (train keys that
 differ from the run's train section; the run's own is the point ``default``) with each
 seed, and runs every experiment and sim-to-real on each (a spread variant
 ``s<seed>_<type>_<point>``). This module puts them side by side:

@@ -1,9 +1,10 @@
-# The spread study (evaluate.spread): every model of train.models (or those of
+# The seeds study (studies/seeds/README.md; config evaluate.spread): every model of train.models (or those of
 # evaluate.spread.models) trained again for each
 # seed of evaluate.spread.seeds and each numeric type of evaluate.spread.types, every
 # experiment and sim-to-real run on each such variant, and each headline figure given as
 # the default seed's value, mean and range (results/evaluate/spread/). Not in the default
-# run: it trains len(seeds) x len(bf16) x 4 models (docs/studies/seeds.md, "Seeds and numeric types").
+# run: it trains len(seeds) x len(bf16) x 4 models.
+#   snakemake --cores 2 seeds
 #
 # A variant is s<seed>_<type>: type auto (train.bf16: auto, the machine's native type),
 # fp32 (false) or bf16 (true). Its models, experiments and sim-to-real live in
@@ -11,6 +12,15 @@
 
 wildcard_constraints:
     variant=r"s\d+_(auto|fp32|bf16)(_[A-Za-z0-9]+)?",
+
+
+localrules:
+    seeds,
+
+
+rule seeds:
+    input:
+        study_files("seeds"),
 
 
 rule spread_train:
@@ -43,7 +53,7 @@ rule spread_train:
     conda:
         "../../envs/finray.yaml"
     script:
-        "../scripts/train_model.py"
+        "../../workflow/scripts/train_model.py"
 
 
 use rule evaluate_experiment as spread_experiment with:
@@ -134,7 +144,7 @@ rule spread_rigs:
         json=f"{SPREAD}/rigs/summary.json",
         table=f"{SPREAD}/rigs/rigs.md",
         csv=f"{SPREAD}/rigs/rigs.csv",
-        figure=report(f"{SPREAD}/rigs/rigs.png", caption="../report/spread_rigs.rst",
+        figure=report(f"{SPREAD}/rigs/rigs.png", caption="caption_rigs.rst",
                       category="Sim-to-real"),
     params:
         variants=spread_variants(),
@@ -148,7 +158,7 @@ rule spread_rigs:
     conda:
         "../../envs/finray.yaml"
     script:
-        "../scripts/spread_rigs.py"
+        "spread_rigs.py"
 
 
 rule spread_summary:
@@ -162,7 +172,7 @@ rule spread_summary:
         json=f"{SPREAD}/summary.json",
         table=f"{SPREAD}/spread.md",
         csv=f"{SPREAD}/spread.csv",
-        figure=report(f"{SPREAD}/spread.png", caption="../report/spread.rst", category="Training"),
+        figure=report(f"{SPREAD}/spread.png", caption="caption.rst", category="Training"),
     params:
         variants=spread_variants(),
         # the variant that is the run's own set-up (its seed and numeric type)
@@ -176,37 +186,4 @@ rule spread_summary:
     conda:
         "../../envs/finray.yaml"
     script:
-        "../scripts/spread_summary.py"
-
-
-rule training_budget:
-    # the training-budget study (benchmarks.training_budget): not in the default run
-    input:
-        experiments=expand(f"{SPREAD}/{{variant}}/{{experiment}}/metrics.json",
-                           variant=sum(budget_variants().values(), []), experiment=variant_experiments()),
-        sim2real=expand(f"{SPREAD}/{{variant}}/sim2real/summary.json",
-                        variant=sum(budget_variants().values(), [])),
-        histories=expand(f"{SPREAD}/{{variant}}/train/{{model}}/history.json",
-                         variant=sum(budget_variants().values(), []), model=spread_models()),
-        # the training jobs' CPU time (Snakemake's benchmark files, products of spread_train)
-        cpu=expand(f"{RESULTS}/benchmarks/studies/spread/{{variant}}_train_{{model}}.tsv",
-                   variant=sum(budget_variants().values(), []), model=spread_models()),
-    output:
-        json=f"{RESULTS}/benchmarks/training_budget.json",
-        table=f"{RESULTS}/benchmarks/training_budget.md",
-        csv=f"{RESULTS}/benchmarks/training_budget.csv",
-        figure=report(f"{RESULTS}/benchmarks/training_budget.png",
-                      caption="../report/training_budget.rst", category="Training"),
-    params:
-        variants=budget_variants(),
-        points=canonical({"default": {}} | config["benchmarks"]["training_budget"]["points"]),
-    log:
-        f"{RESULTS}/logs/spread/training_budget.log",
-    threads: 1
-    resources:
-        mem_mb=1000,
-        runtime=5,
-    conda:
-        "../../envs/finray.yaml"
-    script:
-        "../scripts/training_budget.py"
+        "spread_summary.py"

@@ -1,6 +1,6 @@
 from pathlib import Path
 
-from finray.evaluate.budget import cpu_seconds, write_budget
+from finray.benchmarks.budget import cpu_seconds, write_budget
 from finray.evaluate.spread import variant_figures
 from finray.logs import log_to
 

@@ -1,0 +1,28 @@
+# The FEA stability study (studies/fea_stability/README.md): the hard scenes (a soft
+# object, coarse and fine meshes) solved to the end or stopped with a message naming the
+# scene and the step; reads benchmarks.fea_* (FEA_STUDY_KEYS).
+#   snakemake --cores 2 fea_stability
+
+rule fea_stability:
+    output:
+        table=f"{RESULTS}/benchmarks/fea_stability.csv",
+        summary=f"{RESULTS}/benchmarks/fea_stability.md",
+    params:
+        fea=section("fea"),
+        mesh=section("mesh"),
+        finger=section("finger"),
+        materials=study_materials("neoprene"),  # a case of the suite
+        placement=section("placement"),
+        sizes=section("benchmarks", keys=FEA_STUDY_KEYS),
+    log:
+        f"{RESULTS}/logs/fea/benchmark_stability.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/studies/fea_stability.tsv"
+    threads: 1
+    resources:
+        mem_mb=1200,
+        runtime=6,
+    conda:
+        "../../envs/finray.yaml"
+    script:
+        "fea_stability.py"
