@@ -17,9 +17,12 @@ or lower. The top-level modules that are not stages get the rank of what they im
 - ``model``, ``train``: the train stage; ``predictor`` runs a trained model on camera
   frames (dataset's image ops) and is what evaluate scores; ``predict`` runs it over
   files and live sources (render's image I/O).
-  ``adapt`` fits a rig's force heads on a trained model, ``calibration`` the sensor model
-  on them (from ingested takes: recording's level): both at train's rank, so that
-  ``predict`` may apply a calibration.
+- ``sim2real``: a package ranked by module. ``sim2real.adapt`` fits a rig's force heads
+  on a trained model, ``sim2real.calibration`` the sensor model on them (from ingested
+  takes: recording's level), ``sim2real.rig_prior`` the gain's prior from FEA variants:
+  at train's rank, so that ``predict`` may apply a calibration; ``sim2real.experiment``
+  and ``sim2real.rigs`` score and draw: evaluate's rank. ``adapt`` and ``calibration``
+  (top level) are aliases of the first two for a release.
 - ``lab``: the emulated rig: FEA results through a camera into takes (render's level
   and up: rank 35). ``recording``: a real rig's takes -> shards, the dataset stage's
   counterpart; it must never import ``lab`` (ingest must not see the emulator's truth).
@@ -43,6 +46,8 @@ RANK = {
     "dataset": 40, "recording": 40,
     "config": 45,
     "model": 50, "train": 50, "predictor": 50, "predict": 50, "adapt": 50, "calibration": 50,
+    "sim2real": 50, "sim2real.adapt": 50, "sim2real.calibration": 50, "sim2real.rig_prior": 50,
+    "sim2real.experiment": 60, "sim2real.rigs": 60,
     "validity": 50,
     "evaluate": 60,
     "benchmarks": 70,
@@ -52,7 +57,10 @@ RANK = {
 
 def _unit(parts: list[str]) -> str:
     """The rank key of module ``finray.<parts>``: its sub-package or top-level module
-    (``__init__`` for names of the package itself, e.g. ``__version__``)."""
+    (``__init__`` for names of the package itself, e.g. ``__version__``); a module of a
+    package ranked by module (``sim2real.adapt``) where ``RANK`` names it."""
+    if len(parts) > 1 and ".".join(parts[:2]) in RANK:
+        return ".".join(parts[:2])
     if parts and ((SRC / parts[0]).is_dir() or (SRC / f"{parts[0]}.py").is_file()):
         return parts[0]
     return "__init__"

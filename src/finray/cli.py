@@ -383,7 +383,7 @@ def _predict(args) -> int:
 
     cal = None
     if args.calibration is not None:
-        from .calibration import read_calibration
+        from .sim2real.calibration import read_calibration
 
         cal = read_calibration(args.calibration)
         cal_model = args.calibration.parent / cal.get("model", "")
@@ -512,7 +512,7 @@ Calibrate a simulation-trained model to a rig from its takes (each a folder as
 finray ingest reads). The takes are ingested, the rig gets its own ensemble of
 force heads on the model's frozen encoder (fitted on every take's frames), and
 the sensor model F_sensor = g F_pred + b + e is sampled with emcee on
-cross-fitted predictions (see finray.calibration). Writes calibration.json
+cross-fitted predictions (see finray.sim2real.calibration). Writes calibration.json
 (posterior samples, summary, convergence diagnostics), the adapted model
 <out>.model.ts that finray predict --calibration runs (on frames segmented by the
 takes' finger colour), <out>.corner.png and the ingested takes under
@@ -544,8 +544,8 @@ def _calibrate_parser(sub) -> None:
 
 
 def _run_calibrate(args) -> int:
-    from .calibration import calibrate_takes
-    from .evaluate.sim2real import Sim2RealConfig
+    from .sim2real.calibration import calibrate_takes
+    from .sim2real.experiment import Sim2RealConfig
 
     raw = _raw_config(args.config)
     c = Sim2RealConfig.from_params((raw.get("evaluate") or {}).get("sim2real") or {})

@@ -17,7 +17,7 @@ Outputs: the log-scale stress map ``(B, 1, H, W)`` and the force ``(B, n_forces)
   fully connected layers 64-16 (ReLU) to one output, the height (mm, the finger's frame,
   the clamped base at 0) of the force-weighted centroid of the contact; normalised like
   the force (``contact_mean_mm``, ``contact_scale_mm``). A head of its own, not a third
-  output of the force head, so that :mod:`finray.adapt`, which re-fits the force head's
+  output of the force head, so that :mod:`finray.sim2real.adapt`, which re-fits the force head's
   last layers, sees the force head it knows. Read with :meth:`FinRayNet.contact`,
   :meth:`FinRayNet.force_contact` (no stress decoder) or :meth:`FinRayNet.forward_contact`.
 

@@ -199,7 +199,7 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
     counted; how the finger was found),
     for a live source also ``received`` and ``dropped`` (frames it sent; frames that
     came while the network was busy). With ``calibration`` (a ``calibration.json`` of
-    :func:`finray.calibration.calibrate_takes`, its model's heads' spread per frame) rows
+    :func:`finray.sim2real.calibration.calibrate_takes`, its model's heads' spread per frame) rows
     and columns also have ``force_N``, ``lo_N``, ``hi_N`` (the calibrated force's median
     and predictive interval, N) and ``level``. Raises :class:`InputError` for a missing
     model or source, a ``device`` this machine does not have (:class:`Predictor`), a
@@ -392,7 +392,7 @@ def _predict_loop(p, run: _Run, writer) -> dict:
                 flags = p.check(mask, confidence, x, row, box)
                 row["valid"] = "+".join(flags) or "ok"
                 if calibration is not None:
-                    from .calibration import predictive, spread
+                    from .sim2real.calibration import predictive, spread
 
                     members = p.run_members(x)[0]
                     band = predictive(calibration, [members.mean()], spread(members[:, None]),

@@ -124,7 +124,7 @@ class Predictor:
                               "were saved): frames are checked for the mask only, not for "
                               "shape, force or contact height")
         self.limits = Limits()
-        #: Heads of an adapted ensemble (:mod:`finray.adapt`; 0: a single network).
+        #: Heads of an adapted ensemble (:mod:`finray.sim2real.adapt`; 0: a single network).
         self.ensemble = int(self.meta.get("ensemble", 0))
         if self.ensemble and backend == "onnx":
             raise InputError(f"{model_path} is a head ensemble: TorchScript only (backend "

@@ -17,7 +17,7 @@ with log_to(snakemake.log[0]):
     elif name == "sim2real":
         import pandas as pd
 
-        from finray.evaluate.sim2real import sim2real_figure
+        from finray.sim2real.experiment import sim2real_figure
 
         sim2real_figure(pd.read_csv(snakemake.input.frames),
                         json.loads(Path(snakemake.input.summary).read_text()), out)
@@ -26,7 +26,7 @@ with log_to(snakemake.log[0]):
     elif name == "sim2real_rigs":
         import pandas as pd
 
-        from finray.evaluate.rigs import rigs_figure
+        from finray.sim2real.rigs import rigs_figure
 
         rigs_figure(pd.read_csv(snakemake.input.csv),
                     json.loads(Path(snakemake.input.summary).read_text())["level"], out)

@@ -3,7 +3,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from finray.evaluate.rig_prior import force_gain, rig_prior
+from finray.sim2real.rig_prior import force_gain, rig_prior
 from finray.logs import log_to
 
 p, inp = snakemake.params, snakemake.input

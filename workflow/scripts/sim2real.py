@@ -1,6 +1,6 @@
 import torch
 
-from finray.evaluate.sim2real import Sim2RealConfig, run_sim2real, write_outputs
+from finray.sim2real.experiment import Sim2RealConfig, run_sim2real, write_outputs
 from finray.logs import log_to
 
 inp, out = snakemake.input, snakemake.output
@@ -8,7 +8,7 @@ with log_to(snakemake.log[0]):
     torch.set_num_threads(snakemake.threads)
     cfg = Sim2RealConfig.from_params(snakemake.params.sim2real)
     prior = [inp.rig_prior] if isinstance(inp.rig_prior, str) else list(inp.rig_prior)
-    if prior:  # the rig prior's gain from the FEA (finray.evaluate.rig_prior)
+    if prior:  # the rig prior's gain from the FEA (finray.sim2real.rig_prior)
         cfg = cfg.with_rig_prior(prior[0])
     result = run_sim2real(inp.model, list(inp.lab), inp.no_context, snakemake.params.size, cfg)
     write_outputs(result, out)

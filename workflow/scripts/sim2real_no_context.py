@@ -1,6 +1,6 @@
 import torch
 
-from finray.evaluate.sim2real import Sim2RealConfig, fit_no_context, save_no_context
+from finray.sim2real.experiment import Sim2RealConfig, fit_no_context, save_no_context
 from finray.logs import log_to
 
 inp = snakemake.input

@@ -1,7 +1,7 @@
 import json
 from pathlib import Path
 
-from finray.evaluate.rigs import write_rigs
+from finray.sim2real.rigs import write_rigs
 from finray.logs import log_to
 
 inp = snakemake.input

@@ -50,7 +50,7 @@ def variant_figures(variant: str, experiments, sim2real, histories) -> tuple[dic
 
 def rig_figures(rigs: dict) -> dict[str, float]:
     """A variant's figures on every emulated rig (a ``summary.json`` of
-    :func:`finray.evaluate.rigs.write_rigs`): ``sim2real rigs | <rig> | <k> context |
+    :func:`finray.sim2real.rigs.write_rigs`): ``sim2real rigs | <rig> | <k> context |
     NRMSE %`` and ``coverage %``, and per context count the coverage pooled over the
     rigs' frames (``sim2real rigs | pooled | <k> context | coverage %``)."""
     out = {}

@@ -1,0 +1,459 @@
+"""Bayesian force calibration: a rig's sensor against the network, sampled with emcee.
+
+The sensor model, per frame with the network's force ``mu`` (N, the ensemble's mean)
+and its spread ``s`` (N, the heads' standard deviation, :func:`spread`):
+
+    F_sensor = g mu + b + e,   e / v ~ Student-t(nu),  v^2 = sigma^2 + (rho g mu)^2 + (kappa g s)^2
+
+``g`` the gain, ``b`` the offset (N; a sensor that was not zeroed), ``sigma`` (N) the
+noise at rest, ``rho`` the relative error under load (the network's error grows with
+the force), ``kappa`` the scale of the ensemble's spread (a small ensemble's spread is
+a relative, not an absolute, measure of its error), ``nu`` the degrees of freedom: the
+network's errors on a new scene are heavy-tailed (most frames close, a few far off, e.g.
+at contact onset), which a normal law can only meet with a scale that makes most
+frames' intervals too wide. Priors (:class:`Priors`): ``log g ~ Normal(0, gain_log_sd)``,
+``b ~ Normal(0, offset_sd_N)`` (each fixed, at 1 and 0 N, where its sd is 0); ``log
+sigma``, ``log rho`` and ``log kappa`` uniform (scale-free) within bounds; ``nu ~ Gamma(2, rate 0.1)`` within bounds (Juárez & Steel
+2010: mean 20, from near-Cauchy to near-normal). The chain runs until it is at least ``min_tau_multiple`` autocorrelation
+times long for every parameter (emcee's integrated time); the diagnostics are kept
+with the posterior (:func:`fit_calibration`). :func:`predictive` gives each frame's
+median and interval from the posterior and the network's spread.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import CalibrationError
+from ..schema import schema_default
+
+PARAMS = ("gain", "offset_N", "log_sigma_N", "log_rho", "log_kappa", "log_nu")
+LABELS = ("g", "b (N)", r"log $\sigma$ (N)", r"log $\rho$", r"log $\kappa$", r"log $\nu$")
+
+
+@dataclass(frozen=True)
+class Priors:
+    #: 0: fixed at 1 and 0 N (:func:`fixed_params`)
+    gain_log_sd: float = schema_default("evaluate.sim2real.priors.gain_log_sd")
+    offset_sd_N: float = schema_default("evaluate.sim2real.priors.offset_sd_N")
+    #: bounds: sigma from a tenth of a force sensor's resolution (~0.01 N) up
+    sigma_N: tuple[float, float] = schema_default("evaluate.sim2real.priors.sigma_N")
+    rho: tuple[float, float] = schema_default("evaluate.sim2real.priors.rho")
+    kappa: tuple[float, float] = schema_default("evaluate.sim2real.priors.kappa")
+    #: Student-t degrees of freedom: Gamma(shape, rate) within bounds
+    nu_gamma: tuple[float, float] = schema_default("evaluate.sim2real.priors.nu_gamma")
+    nu: tuple[float, float] = schema_default("evaluate.sim2real.priors.nu")
+
+
+@dataclass(frozen=True)
+class Sampler:
+    """emcee's settings: ``walkers``, steps per round (``chunk``), at most ``max_steps``,
+    until the chain is ``min_tau_multiple`` times the largest autocorrelation time."""
+
+    walkers: int = schema_default("evaluate.sim2real.sampler.walkers")
+    chunk: int = schema_default("evaluate.sim2real.sampler.chunk")
+    max_steps: int = schema_default("evaluate.sim2real.sampler.max_steps")
+    min_tau_multiple: float = schema_default("evaluate.sim2real.sampler.min_tau_multiple")
+    seed: int = schema_default("evaluate.sim2real.sampler.seed")
+
+
+@dataclass(frozen=True)
+class RigPrior:
+    """What a rig leaves unknown until its frames are seen: its gain against the
+    simulation (an as-built finger's stiffness and grip; ``log g_rig ~
+    Normal(gain_log_mean, gain_log_sd)``, :mod:`finray.sim2real.rig_prior`) and its
+    offset (N; ``b_rig ~ Normal(0, offset_sd_N)``). With no context frames the
+    calibration is fitted on the simulation's own frames, which know neither: its
+    intervals then covered 3-6 % of the emulated rig's frames (docs/studies/sim2real.md, "Sim-to-real")."""
+
+    gain_log_sd: float = schema_default("evaluate.sim2real.rig_prior.gain_log_sd")
+    offset_sd_N: float = schema_default("evaluate.sim2real.rig_prior.offset_sd_N")
+    gain_log_mean: float = 0.0
+
+
+def spread(members) -> np.ndarray:
+    """The heads' spread (N) per frame from their forces (M, N): the sample standard
+    deviation (ddof 1), whose square is unbiased whatever the number of heads, so that
+    a kappa fitted on the cross-fitting's heads holds for the ensemble's (ddof 0 would
+    make 2 heads' spread read 1/sqrt(2) of the scale, 4 heads' sqrt(3)/2)."""
+    members = np.asarray(members, dtype=np.float64)
+    return members.std(0, ddof=1) if len(members) > 1 else np.zeros(members.shape[1:])
+
+
+def log_posterior(theta: np.ndarray, mu, s, y, priors: Priors, weight: float = 1.0) -> np.ndarray:
+    """Log posterior (W,) of parameter rows ``theta`` (W, 6): gain, offset (N),
+    log sigma (N), log rho, log kappa, log nu; ``mu``, ``s``, ``y`` (N,) in N.
+    ``weight``: each frame's share of the likelihood (1 / the times a frame appears in
+    ``y``)."""
+    from scipy.special import gammaln
+
+    theta = np.atleast_2d(theta)
+    g, b, ls, lr, lk, ln = (theta[:, i:i + 1] for i in range(len(PARAMS)))
+    ok = g[:, 0] > 0
+    for v, (lo, hi) in ((ls, priors.sigma_N), (lr, priors.rho), (lk, priors.kappa), (ln, priors.nu)):
+        ok &= (v[:, 0] >= np.log(lo)) & (v[:, 0] <= np.log(hi))
+    out = np.full(len(theta), -np.inf)
+    if not ok.any():
+        return out
+    g, b, ls, lr, lk, ln = g[ok], b[ok], ls[ok], lr[ok], lk[ok], ln[ok]
+    nu = np.exp(ln)
+    var = np.exp(2 * ls) + (np.exp(lr) * g * mu) ** 2 + (np.exp(lk) * g * s) ** 2
+    z2 = (y - g * mu - b) ** 2 / var
+    ll = (len(y) * (gammaln((nu[:, 0] + 1) / 2) - gammaln(nu[:, 0] / 2) - 0.5 * np.log(np.pi * nu[:, 0]))
+          - 0.5 * np.sum(np.log(var) + (nu + 1) * np.log1p(z2 / nu), axis=1))
+    shape, rate = priors.nu_gamma
+    # the Gamma prior on nu, sampled as log nu (Jacobian nu); a gain or offset of prior
+    # sd 0 is fixed (:func:`fixed_params`) and has no prior term
+    lp = shape * ln[:, 0] - rate * nu[:, 0]
+    if priors.gain_log_sd > 0:
+        lg = np.log(g[:, 0])
+        lp = lp - 0.5 * (lg / priors.gain_log_sd) ** 2 - lg
+    if priors.offset_sd_N > 0:
+        lp = lp - 0.5 * (b[:, 0] / priors.offset_sd_N) ** 2
+    out[ok] = weight * ll + lp
+    return out
+
+
+def fixed_params(priors: Priors) -> dict[int, float]:
+    """The parameters held fixed, by their index in :data:`PARAMS`: the gain at 1 where
+    ``gain_log_sd`` is 0, the offset at 0 N where ``offset_sd_N`` is 0 (a model already
+    fitted to the sensor's frames, whose residuals are left to the noise terms)."""
+    return {i: v for i, v, sd in ((0, 1.0, priors.gain_log_sd), (1, 0.0, priors.offset_sd_N))
+            if sd == 0}
+
+
+def _full(free: np.ndarray, fixed: dict[int, float]) -> np.ndarray:
+    """Parameter rows (W, 6) from rows of the free parameters, the fixed ones inserted."""
+    free = np.atleast_2d(free)
+    out = np.empty((len(free), len(PARAMS)))
+    out[:, [i for i in range(len(PARAMS)) if i not in fixed]] = free
+    for i, v in fixed.items():
+        out[:, i] = v
+    return out
+
+
+def _start(mu, s, y, priors: Priors, weight: float = 1.0) -> np.ndarray:
+    """The posterior's mode (Nelder-Mead from a least-squares line), to start the walkers:
+    a full parameter row, the fixed ones at their values."""
+    from scipy.optimize import minimize
+
+    fixed = fixed_params(priors)
+    if fixed:
+        g, b = fixed.get(0, 1.0), fixed.get(1, 0.0)
+        if 0 not in fixed:
+            g = max(float(np.sum((y - b) * mu) / max(np.sum(mu * mu), 1e-12)), 1e-3)
+        elif 1 not in fixed:
+            b = float(np.mean(y - g * mu))
+    else:
+        A = np.column_stack([mu, np.ones_like(mu)])
+        (g, b), *_ = np.linalg.lstsq(A, y, rcond=None)
+        g = g if g > 0 else 1.0
+    r = y - g * mu - b
+    x0 = np.array([g, b, np.log(max(np.std(r), 2 * priors.sigma_N[0])), np.log(0.05), 0.0,
+                   np.log(np.clip(20.0, *priors.nu))])
+    free = [i for i in range(len(PARAMS)) if i not in fixed]
+    best = minimize(lambda t: -log_posterior(_full(t, fixed), mu, s, y, priors, weight)[0], x0[free],
+                    method="Nelder-Mead", options={"maxiter": 4000, "xatol": 1e-6, "fatol": 1e-6})
+    x = _full(best.x if np.isfinite(best.fun) else x0[free], fixed)[0]
+    # inside the bounds, so that every walker of the ball around it starts finite
+    for i, (lo, hi) in zip((2, 3, 4, 5), (priors.sigma_N, priors.rho, priors.kappa, priors.nu)):
+        x[i] = np.clip(x[i], np.log(lo) + 0.05, np.log(hi) - 0.05)
+    return x
+
+
+def fit_calibration(mu, s, y, priors: Priors | None = None, sampler: Sampler | None = None,
+                    log=print, weight: float = 1.0) -> dict:
+    """Sample the sensor model's posterior on frames (network mean ``mu``, spread ``s``,
+    sensor ``y``; N). Returns ``{"posterior": {"names", "samples"}, "summary",
+    "diagnostics", "priors", "sampler"}``; ``diagnostics["ok"]``: the chain is long
+    enough and the acceptance fraction within 0.2-0.5. ``weight``: see
+    :func:`log_posterior`."""
+    import emcee
+
+    priors, sampler = priors or Priors(), sampler or Sampler()
+    mu, s, y = (np.asarray(a, dtype=np.float64).ravel() for a in (mu, s, y))
+    keep = np.isfinite(mu) & np.isfinite(s) & np.isfinite(y)
+    mu, s, y = mu[keep], s[keep], y[keep]
+    if len(y) < 10:
+        raise CalibrationError(f"too few frames to calibrate ({len(y)}; at least 10)")
+    rng = np.random.default_rng(sampler.seed)
+    fixed = fixed_params(priors)
+    free = [i for i in range(len(PARAMS)) if i not in fixed]
+    x0 = _start(mu, s, y, priors, weight)[free]
+    p0 = x0 + 1e-3 * rng.standard_normal((sampler.walkers, len(free))) * np.maximum(np.abs(x0), 0.1)
+    # differential-evolution moves shorten the autocorrelation; mixed with the stretch
+    # move (acceptance ~0.6 here) for an acceptance fraction within 0.2-0.5
+    moves = [(emcee.moves.DEMove(), 0.6), (emcee.moves.DESnookerMove(), 0.1),
+             (emcee.moves.StretchMove(), 0.3)]
+    ens = emcee.EnsembleSampler(sampler.walkers, len(free),
+                                lambda t: log_posterior(_full(t, fixed), mu, s, y, priors, weight),
+                                vectorize=True, moves=moves)
+    ens.random_state = np.random.RandomState(sampler.seed).get_state()  # replayable moves
+    state, tau, n = p0, None, 0
+    while n < sampler.max_steps:
+        state = ens.run_mcmc(state, sampler.chunk, progress=False)
+        n += sampler.chunk
+        tau = emcee.autocorr.integrated_time(ens.get_chain(), tol=0)
+        log(f"  calibration: {n} steps, autocorrelation time {np.max(tau):.1f} steps "
+            f"({n / np.max(tau):.0f} tau)")
+        if n >= sampler.min_tau_multiple * np.max(tau):
+            break
+    acc = ens.acceptance_fraction
+    burn = int(np.ceil(5 * np.max(tau)))
+    thin = max(1, int(np.max(tau) / 2))
+    flat = _full(ens.get_chain(discard=burn, thin=thin, flat=True), fixed)
+    if len(flat) > 4000:
+        flat = flat[rng.choice(len(flat), 4000, replace=False)]
+    diag = {"tau_steps": dict(zip([PARAMS[i] for i in free], map(float, tau))), "steps": int(n),
+            "walkers": sampler.walkers, "steps_over_tau_min": float(n / np.max(tau)),
+            "acceptance_fraction": {"mean": float(acc.mean()), "min": float(acc.min()),
+                                    "max": float(acc.max())},
+            "burn_in_steps": burn, "thin": thin, "n_samples": int(len(flat))}
+    diag["ok"] = bool(diag["steps_over_tau_min"] >= sampler.min_tau_multiple
+                      and 0.2 <= acc.mean() <= 0.5)
+    return {"posterior": {"names": list(PARAMS), "samples": flat.tolist()},
+            "summary": summarise(flat), "diagnostics": diag, "n_frames": int(len(y)),
+            "likelihood_weight": weight, "fixed": {PARAMS[i]: v for i, v in fixed.items()},
+            "priors": asdict(priors), "sampler": asdict(sampler)}
+
+
+def summarise(samples: np.ndarray) -> dict:
+    """Median and 2.5/5/95/97.5 % quantiles per parameter; sigma (N), rho, kappa and nu
+    also unlogged."""
+    samples = np.asarray(samples)
+    cols = dict(zip(PARAMS, samples.T))
+    for k in ("log_sigma_N", "log_rho", "log_kappa", "log_nu"):
+        cols[k[4:]] = np.exp(cols[k])
+    return {k: {"median": float(np.median(v)),
+                **{f"q{q:g}": float(np.percentile(v, q)) for q in (2.5, 5, 95, 97.5)}}
+            for k, v in cols.items()}
+
+
+def predictive(calibration: dict, mu, s, level: float = 0.9, seed: int = 0,
+               chunk: int = 1000, rig: RigPrior | None = None) -> dict:
+    """Each frame's sensor force under the posterior (N): ``median``, ``lo``, ``hi``
+    (the central ``level`` interval), from one draw per posterior sample; ``rig``: a
+    new rig's unknown gain and offset drawn on top of each sample (:class:`RigPrior`)."""
+    theta = np.asarray(calibration["posterior"]["samples"], dtype=np.float64)
+    g, b = theta[:, :1], theta[:, 1:2]
+    if rig is not None and (rig.gain_log_sd > 0 or rig.offset_sd_N > 0 or rig.gain_log_mean != 0):
+        draw = np.random.default_rng([seed, 1]).standard_normal((len(theta), 2))
+        g = g * np.exp(rig.gain_log_mean + rig.gain_log_sd * draw[:, :1])
+        b = b + rig.offset_sd_N * draw[:, 1:2]
+    sig, rho, kap, nu = (np.exp(theta[:, i:i + 1]) for i in (2, 3, 4, 5))
+    mu, s = np.asarray(mu, dtype=np.float64).ravel(), np.asarray(s, dtype=np.float64).ravel()
+    rng = np.random.default_rng(seed)
+    q = (50.0, 50 * (1 - level), 50 * (1 + level))
+    out = np.empty((3, len(mu)))
+    for i in range(0, len(mu), chunk):
+        m, sp = mu[None, i:i + chunk], s[None, i:i + chunk]
+        sd = np.sqrt(sig ** 2 + (rho * g * m) ** 2 + (kap * g * sp) ** 2)
+        draws = g * m + b + sd * rng.standard_t(np.broadcast_to(nu, sd.shape))
+        out[:, i:i + chunk] = np.percentile(draws, q, axis=0)
+    return {"median": out[0], "lo": out[1], "hi": out[2], "level": level}
+
+
+def coverage(y, band: dict) -> float:
+    """Fraction of frames whose ``y`` lies inside the band's interval."""
+    y = np.asarray(y, dtype=np.float64)
+    return float(np.mean((y >= band["lo"]) & (y <= band["hi"])))
+
+
+def read_calibration(path: str | Path) -> dict:
+    """A ``calibration.json`` (:func:`fit_calibration`'s output and its ``model``), or a
+    one-line :class:`CalibrationError`."""
+    path = Path(path)
+    if not path.is_file():
+        raise CalibrationError(f"no calibration at {path}")
+    try:
+        cal = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise CalibrationError(f"{path} is not JSON ({type(exc).__name__})") from None
+    samples = cal.get("posterior", {}).get("samples") if isinstance(cal, dict) else None
+    if not samples or np.asarray(samples).ndim != 2 or np.asarray(samples).shape[1] != len(PARAMS):
+        raise CalibrationError(f"{path} has no posterior samples ({', '.join(PARAMS)})")
+    return cal
+
+
+def corner_figure(calibration: dict, title: str = ""):
+    """Corner plot of the posterior (corner.py), 5/50/95 % quantiles marked; the
+    matplotlib figure (the caller saves and closes it)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import corner
+
+    samples = np.asarray(calibration["posterior"]["samples"])
+    keep = [i for i, p in enumerate(PARAMS) if p not in calibration.get("fixed", {})]
+    fig = corner.corner(samples[:, keep], labels=[LABELS[i] for i in keep], quantiles=[0.05, 0.5, 0.95],
+                        show_titles=True, title_fmt=".3f", title_kwargs={"fontsize": 8},
+                        label_kwargs={"fontsize": 9})
+    d = calibration["diagnostics"]
+    fig.suptitle(f"{title}\n{d['steps']} steps x {d['walkers']} walkers, "
+                 f"{d['steps_over_tau_min']:.0f} tau, acceptance {d['acceptance_fraction']['mean']:.2f}",
+                 fontsize=9, y=1.02)
+    return fig
+
+
+def shard_times(shards) -> np.ndarray:
+    """The camera time (s) of every frame of ingested shards, in order."""
+    t = []
+    for path in shards:
+        with np.load(path, allow_pickle=False) as f:
+            t.append(f["t_s"])
+    return np.concatenate(t)
+
+
+#: the cross-fitting choices of :func:`fold_units`
+FOLDS = ("object", "take", "half", "both")
+
+
+def fold_units(table, folds: str) -> list[np.ndarray]:
+    """The cross-fitting labellings of context frames (a table with ``take``, ``t_s``
+    and, for ``object``, ``object``): ``take`` (each take predicted by heads fitted
+    without it: a new scene), ``half`` (each take's second half by heads fitted on the
+    first halves, and back: a new moment of a seen scene), ``both``, or ``object`` (each
+    object predicted by heads fitted without any of its takes: a new object, as the test
+    objects are; with a single object, as ``take``: a new height is nearer a new object
+    than a seen take's other half is). A single take has halves only."""
+    if folds not in FOLDS:
+        raise ValueError(f"the folds must be one of {', '.join(FOLDS)}, not {folds!r}")
+    if folds == "object":
+        if "object" not in table:
+            raise ValueError("object folds need the frames' objects (an 'object' column)")
+        if table["object"].nunique() >= 2:
+            return [table["object"].to_numpy()]
+        folds = "take"
+    late = table.groupby("take")["t_s"].transform(lambda s: s > s.median()).to_numpy()
+    sets = []
+    if folds in ("take", "both") and table["take"].nunique() >= 2:
+        sets.append(table["take"].to_numpy())
+    if folds in ("half", "both") or not sets:
+        sets.append(np.where(late, "2nd half", "1st half"))
+    return sets
+
+
+def cross_fitted(model, features, force_N, units, fit, anchor=None):
+    """Each frame's ensemble mean and spread (N) from heads fitted without its unit
+    (``units``: a label per frame, e.g. its take): what the network does on frames it
+    has not seen, the residuals a calibration needs.
+
+    Each fold fits as many heads as the ensemble has (``fit.members``): a spread from
+    fewer heads is a noisier measure (that of 2 heads falls below a tenth of the
+    heads' true spread on 8 % of frames, that of 4 on 0.14 %: chi-square with M - 1
+    degrees of freedom), and a calibration fitted on it reads that noise as heavy
+    tails, which widens the intervals of the ensemble it is then applied to. ``anchor``
+    (:class:`finray.sim2real.adapt.SimAnchor`): fitted beside each fold's frames, its gain and
+    offset from them alone."""
+    from dataclasses import replace
+
+    from .adapt import fit_heads, head_forces
+
+    units = np.asarray(units)
+    mu, sd = np.full(len(units), np.nan), np.full(len(units), np.nan)
+    labels = sorted(set(units.tolist()))
+    if len(labels) < 2:
+        raise CalibrationError(f"cross-fitting needs at least two units of frames, got {labels}")
+    y = np.asarray(force_N, dtype=np.float32)
+    for j, u in enumerate(labels):
+        out = units == u
+        heads = fit_heads(model, features[~out], y[~out],
+                          replace(fit, seed=fit.seed + 101 * (j + 1)), anchor=anchor)
+        P = head_forces(model, heads, features[out])
+        mu[out], sd[out] = P.mean(0), spread(P)
+    return mu, sd
+
+
+def fit_rig(model, features, force_N, unit_sets, fit, priors: Priors | None = None,
+            sampler: Sampler | None = None, log=print, anchor=None):
+    """A rig's head ensemble (:func:`finray.sim2real.adapt.fit_heads` on every frame, beside
+    ``anchor``'s simulated frames where given) and its sensor calibration, sampled on the
+    cross-fitted predictions (:func:`cross_fitted`) of every labelling in ``unit_sets``
+    (each a label per frame; the frames enter once per labelling). Returns (heads,
+    calibration dict)."""
+    from .adapt import fit_heads
+
+    heads = fit_heads(model, features, force_N, fit, anchor=anchor)
+    y = np.asarray(force_N, dtype=np.float64)
+    parts = [cross_fitted(model, features, force_N, u, fit, anchor) for u in unit_sets]
+    mu, sd = (np.concatenate(a) for a in zip(*parts))
+    # each frame once per labelling: a likelihood weighted 1/len, so that the posterior
+    # is not narrowed as if there were more frames
+    cal = fit_calibration(mu, sd, np.tile(y, len(parts)), priors, sampler, log=log,
+                          weight=1.0 / len(parts))
+    cal["cross_fit"] = {"unit_sets": [sorted(set(np.asarray(u).tolist())) for u in unit_sets],
+                        "fold_members": fit.members,
+                        "nrmse_pct": [float(100 * np.sqrt(np.mean((m - y) ** 2)) / np.max(np.abs(y)))
+                                      for m, _ in parts]}
+    cal["heads"] = dict(vars(fit))
+    cal["sim_replay_frames"] = anchor.frames if anchor is not None else 0
+    return heads, cal
+
+
+def calibrate_takes(takes, model_path, out_json, ingest_params, fit, folds: str = "object",
+                    priors: Priors | None = None,
+                    sampler: Sampler | None = None, level: float = 0.9, log=print,
+                    no_context=None, replay_frames: int = 0) -> dict:
+    """``finray calibrate``: ingest the take folders (:func:`finray.recording.ingest`,
+    into ``<out>.ingest/<take>/``), fit the rig's head ensemble on the simulation-trained
+    model (``model.pt``, or the ``model.ts`` it was exported to, beside it), beside
+    ``replay_frames`` simulated frames of ``no_context`` (the same model's no-context
+    fit, :class:`finray.sim2real.adapt.SimAnchor`) where given, and sample
+    the sensor calibration on cross-fitted predictions. Writes ``out_json``, the adapted
+    model ``<out>.model.ts`` (+ ``.json``; what ``finray predict --calibration`` runs), the
+    takes' colour segmentation (``segment``: new frames are segmented as the takes were)
+    and the corner plot ``<out>.corner.png``; returns the calibration."""
+    from .adapt import HeadEnsemble, SimAnchor, encoder_features, export_ensemble
+    from ..dataset import load_frames
+    from ..recording import ingest
+    from ..recording.ingest import check_take
+    from ..train import load_checkpoint
+
+    out_json = Path(out_json)
+    model_path = Path(model_path)
+    pt = model_path if model_path.suffix == ".pt" else model_path.with_suffix(".pt")
+    ts_meta = Path(str(pt.with_suffix(".ts")) + ".json")
+    if not pt.is_file() or not ts_meta.is_file():
+        raise CalibrationError(f"{model_path}: need the trained model's model.pt and "
+                               "model.ts.json side by side (results/train/<model>/)")
+    model, _ = load_checkpoint(pt)
+    meta = json.loads(ts_meta.read_text())
+    stem = out_json.with_suffix("")
+    for take in map(Path, takes):  # every take checked before any is ingested (~25 s each)
+        check_take(take)
+    shards, names = [], []
+    for take in map(Path, takes):
+        log(f"ingest {take}")
+        ingest(take, Path(f"{stem}.ingest") / take.name, ingest_params, log=log)
+        shards.append(Path(f"{stem}.ingest") / take.name / "shard.npz")
+        names.append(take.name)
+    size = (model.cfg.height, model.cfg.width)
+    a, table = load_frames(shards, size)
+    t = [shard_times([path]) for path in shards]
+    table = table.assign(t_s=np.concatenate(t), take=np.repeat(names, [len(x) for x in t]))
+    feats = encoder_features(model, a["images"][:, None].astype(np.float32) / 255.0)
+    y = np.asarray(a["fx_N"], dtype=np.float64)
+    anchor = SimAnchor.from_file(model, no_context, replay_frames) if no_context is not None else None
+    heads, cal = fit_rig(model, feats, y, fold_units(table, folds), fit, priors, sampler, log=log,
+                         anchor=anchor)
+    ts_path = Path(f"{stem}.model.ts")
+    export_ensemble(HeadEnsemble(model, heads), ts_path, meta.get("preprocess", {}),
+                    {"base_model": str(pt), "takes": [str(p) for p in takes]}, meta)
+    with np.load(shards[0]) as f:  # the takes' finger colour, to segment new frames alike
+        colour = json.loads(str(f["meta"]))["colour"]
+    cal.update(model=ts_path.name, base_model=str(pt), takes=[str(p) for p in takes],
+               level=level, n_frames_takes=int(len(y)),
+               segment={"colour": colour, "stride": ingest_params.stride,
+                        "min_object_frac": ingest_params.min_object_frac,
+                        "max_hole_frac": ingest_params.max_hole_frac})
+    out_json.parent.mkdir(parents=True, exist_ok=True)
+    out_json.write_text(json.dumps(cal))
+    import matplotlib.pyplot as plt
+
+    fig = corner_figure(cal, f"calibration on {len(names)} take(s)")
+    fig.savefig(f"{stem}.corner.png", dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    return cal

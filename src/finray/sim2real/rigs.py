@@ -1,0 +1,115 @@
+"""Sim-to-real on many emulated rigs: each figure per rig, its mean and range over them.
+
+:func:`rigs_table` reads each rig's ``summary.json`` of :func:`finray.sim2real.experiment.
+run_sim2real`; :func:`write_rigs` writes the table (CSV, Markdown), a summary (JSON:
+per context count the mean, range and pooled interval coverage over the rigs, and
+whether every rig meets the targets) and a figure of error and coverage against the
+context count, one line per rig. Every rig is emulated (:mod:`finray.lab.rigs`).
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+
+def rigs_table(summaries: dict[str, dict]) -> pd.DataFrame:
+    """One row per rig and context count: NRMSE (%), MSE (N^2), coverage (%), frames."""
+    rows = []
+    for rig, s in summaries.items():
+        for k, m in sorted(s["by_context"].items(), key=lambda kv: int(kv[0])):
+            rows.append({"rig": rig, "context_objects": int(k), "nrmse_pct": m["nrmse_pct"],
+                         "mse_N2": m["mse_N2"], "coverage_pct": m["coverage_pct"],
+                         "n_frames": int(m["n_frames"])})
+    return pd.DataFrame(rows)
+
+
+def rigs_heights(summaries: dict[str, dict]) -> dict:
+    """Per rig and context count, each contact height's NRMSE (% of that height's largest
+    force) and interval coverage (%): ``{rig: {k: {height: {"nrmse_pct", "coverage_pct"}}}}``
+    (empty for a summary written before heights were recorded)."""
+    return {rig: {k: {h: {c: m[c] for c in ("nrmse_pct", "coverage_pct")}
+                      for h, m in sorted(node.get("per_height", {}).items(), key=lambda kv: float(kv[0]))}
+                  for k, node in sorted(s["by_context"].items(), key=lambda kv: int(kv[0]))}
+            for rig, s in summaries.items()}
+
+
+def rigs_summary(table: pd.DataFrame, level: float, max_nrmse_pct: float = 5.0) -> dict:
+    """Per context count: NRMSE mean and range over the rigs, the coverage pooled over
+    every rig's frames; per rig, whether the error falls with each context object and the
+    NRMSE with the most context objects is within ``max_nrmse_pct``."""
+    by_k = {}
+    for k, g in table.groupby("context_objects"):
+        by_k[str(k)] = {"nrmse_pct_mean": float(g["nrmse_pct"].mean()),
+                        "nrmse_pct_min": float(g["nrmse_pct"].min()),
+                        "nrmse_pct_max": float(g["nrmse_pct"].max()),
+                        "coverage_pct_pooled": float((g["coverage_pct"] * g["n_frames"]).sum()
+                                                     / g["n_frames"].sum()),
+                        "coverage_pct_min": float(g["coverage_pct"].min()),
+                        "coverage_pct_max": float(g["coverage_pct"].max())}
+    per_rig = {}
+    for rig, g in table.groupby("rig", sort=False):
+        g = g.sort_values("context_objects")
+        e = g["nrmse_pct"].to_numpy()
+        per_rig[rig] = {"error_falls": bool(np.all(np.diff(e) < 0)),
+                        "nrmse_pct_most_context": float(e[-1]),
+                        "within_target": bool(e[-1] <= max_nrmse_pct),
+                        # per context count (0, 1, ...), and the frames behind each coverage
+                        "nrmse_pct": [float(v) for v in e],
+                        "coverage_pct": [float(v) for v in g["coverage_pct"]],
+                        "n_frames": [int(v) for v in g["n_frames"]]}
+    return {"emulated": True, "rigs": list(per_rig), "level": level, "by_context": by_k,
+            "per_rig": per_rig, "max_nrmse_pct": max_nrmse_pct,
+            "all_fall": all(r["error_falls"] for r in per_rig.values()),
+            "all_within_target": all(r["within_target"] for r in per_rig.values())}
+
+
+def rigs_figure(table: pd.DataFrame, level: float, path) -> None:
+    """NRMSE and interval coverage against the number of context objects, a line per rig
+    (``path``: a PDF, a PNG beside it; or a PNG alone)."""
+    from ..evaluate.figures import _plt, _save
+
+    plt = _plt()
+    fig, axes = plt.subplots(1, 2, figsize=(8, 3.2))
+    for rig, g in table.groupby("rig", sort=False):
+        g = g.sort_values("context_objects")
+        style = {"lw": 2.2, "color": "k"} if rig == "default" else {"lw": 1.2}
+        for ax, col in zip(axes, ("nrmse_pct", "coverage_pct")):
+            ax.plot(g["context_objects"], g[col], "o-", label=rig, **style)
+    axes[0].set_ylabel("force NRMSE (%)")
+    axes[0].set_ylim(bottom=0)
+    axes[1].axhline(100 * level, color="grey", ls="--", lw=1)
+    axes[1].set_ylabel(f"frames inside the {level:.0%} interval (%)")
+    axes[1].set_ylim(0, 100)
+    for ax in axes:
+        ax.set_xlabel("context objects")
+        ax.set_xticks(sorted(table["context_objects"].unique()))
+    axes[1].legend(fontsize=7, title="emulated rig", title_fontsize=7)
+    fig.suptitle("Sim-to-real on emulated rigs (the configured one and drawn ones)", fontsize=9)
+    fig.tight_layout()
+    path = Path(path)
+    if path.suffix == ".png":
+        fig.savefig(path, dpi=150)
+        plt.close(fig)
+    else:
+        _save(fig, path)
+
+
+def write_rigs(summaries: dict[str, dict], rigs: dict, out) -> dict:
+    """The table, summary and figure (``out``: json, table, csv, figure paths); ``rigs``:
+    each drawn rig's settings, recorded beside its figures."""
+    table = rigs_table(summaries)
+    level = float(next(iter(summaries.values())).get("level", 0.9))
+    summary = rigs_summary(table, level) | {"settings": rigs, "per_height": rigs_heights(summaries)}
+    table.to_csv(out["csv"], index=False)
+    wide = table.pivot(index="rig", columns="context_objects", values=["nrmse_pct", "coverage_pct"])
+    wide = wide.loc[list(summaries)]
+    wide.columns = [f"{'NRMSE %' if c == 'nrmse_pct' else 'coverage %'}, {k} context" for c, k in wide.columns]
+    Path(out["table"]).write_text(
+        "# Sim-to-real on emulated rigs\n\nEvery rig is emulated (finray.lab.rigs): `default` is "
+        "config `lab:`, the others are drawn from `lab.rigs`.\n\n" + wide.round(2).to_markdown() + "\n")
+    Path(out["json"]).write_text(json.dumps(summary, indent=1, default=float))
+    rigs_figure(table, level, out["figure"])
+    return summary
