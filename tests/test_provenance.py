@@ -486,7 +486,7 @@ class Planner:
         def fn(w):
             p, readers, first = w.persistence, {}, set()
             for job in w.dag.jobs:
-                if job.rule.name in TARGETS:  # no output of their own
+                if not job.output:  # all and the studies' targets (fea_stability is its own)
                     continue
                 why = {"params"} if p.params_changed(job) else set()
                 if any(p.input_changed(job)):
@@ -497,7 +497,7 @@ class Planner:
                     readers.setdefault(job.rule.name, set()).update(why)
             for job in w.dag.needrun_jobs():
                 r = w.dag.reason(job)
-                if job.rule.name not in TARGETS and (r.is_provenance_triggered() or r._missing_output):
+                if job.output and (r.is_provenance_triggered() or r._missing_output):
                     first.add(job.rule.name)
             return readers, first
         return self._run(fn, configfile)
