@@ -326,6 +326,38 @@ def test_one_figure_builds_only_what_it_needs(tmp_path):
     assert not {"figure_speed", "summary", "manuscript", "fea_pareto"} & set(jobs)
 
 
+#: each study's own target (studies/<name>/) and rules whose jobs only the studies plan
+STUDY_RULES = {
+    "fea_cost": {"fea_pareto"}, "fea_stability": {"fea_stability"},
+    "fea_sweep": {"fea_sweep_batch", "fea_sweep_summary"},
+    "render_throughput": {"render_benchmark"}, "network_size": {"train_pareto"},
+    "realtime": {"realtime_benchmark"},
+    "seeds": {"spread_train", "spread_experiment", "spread_sim2real", "spread_summary", "spread_rigs"},
+    "training_budget": {"spread_train", "training_budget"},
+}
+
+
+def _planned(tmp_path, *targets):
+    """The rules a dry run of the smoke config plans for ``targets`` (none: rule all)."""
+    r = snakemake("-n", "--configfile", str(ROOT / "config" / "smoke.yaml"), "--directory",
+                  str(tmp_path), *targets, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    return {line.split()[0] for line in r.stdout.splitlines()
+            if len(line.split()) == 2 and line.split()[1].isdigit()}
+
+
+def test_default_run_plans_no_study_and_each_study_has_its_target(tmp_path):
+    """`snakemake` builds the product (the experiments, the models, the manuscript) and
+    plans no study job; each study's target plans its rules, `studies` all of them."""
+    every = set().union(*STUDY_RULES.values())
+    product = _planned(tmp_path)
+    assert {"train_model", "evaluate_experiment", "summary", "manuscript"} <= product
+    assert not every & product
+    for name, rules in STUDY_RULES.items():
+        assert rules <= _planned(tmp_path, name), name
+    assert every <= _planned(tmp_path, "studies")
+
+
 def test_pitch_augmentation_matches_the_pitched_renders(smoke_run):
     """The pitch augmentation applied to the front-view inputs of the pitch scene gives
     the silhouettes that the 3D renderer draws at that pitch (IoU >= 0.9 per frame;
