@@ -37,9 +37,10 @@ def fea_seconds_by_material(summary_paths) -> dict[str, float]:
 
 
 STAGE_ORDER = ["geometry", "fea", "render", "dataset", "train", "evaluate"]
-#: Sub-folder of the benchmark files of the studies (mesh study, stability suite,
-#: network study, render and latency benchmarks): they run in the DAG but are not
-#: stages of the pipeline, so they are reported apart.
+#: Sub-folder of the benchmark files of the studies (``studies/<name>/``, each built by
+#: its own target, not by the default run: their files are there where a study was
+#: built) and of the inference-latency job: not stages of the pipeline, so they are
+#: reported apart.
 STUDIES = "studies"
 #: What :func:`dag_span` measures, in words (it goes into speed.json).
 DAG_SPAN_COVERS = (
