@@ -135,6 +135,7 @@ READERS: list[tuple[str, set[str]]] = [
     ("train.lr", {"train_model"}),
     ("train.alpha_*", {"train_model", "summary"}),  # the manuscript states the loss
     ("train.contact_*", {"train_model"}),  # the contact head (the studies train without it)
+    ("train.force_*", {"train_model"}),  # the force term's weights (the network study's are its own)
     ("train.batch_size", {"train_model", "train_pareto", "summary"}),
     ("train.forces", {"train_model"}),
     ("train.device", {"train_model"}),  # not the CPU study (train_pareto)
@@ -281,6 +282,7 @@ def _with_wall(spec):
 #: flipped, last list item changed) is invalid or says nothing; a callable edits the
 #: config (a key the schema then requires comes with it)
 NEW_VALUES = {
+    "train.force_loss": "absolute",
     "extra_train_heights_mm": {"camera": [16.0]},
     "lab.rigs.height_span_mm": [12.0, 70.0],
     "finger.material": "neoprene",
