@@ -47,7 +47,7 @@ import copy
 import math
 import os
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Callable
 
 import numpy as np
@@ -190,6 +190,218 @@ def evaluate(model: FinRayNet, images: torch.Tensor, stress: torch.Tensor, force
     return out
 
 
+
+@dataclass
+class _TrainData:
+    """The training frames as tensors (CPU): images ``x``, log-stress ``s``, forces ``f``
+    (N), camera views ``c``, force weights ``w``, contact heights ``y`` (mm) and the
+    frames that train the contact head ``ym``."""
+
+    x: torch.Tensor
+    s: torch.Tensor
+    f: torch.Tensor
+    c: torch.Tensor | None
+    w: torch.Tensor | None
+    y: torch.Tensor | None
+    ym: torch.Tensor | None
+    contact: bool
+
+    @property
+    def n(self) -> int:
+        return len(self.x)
+
+    @classmethod
+    def checked(cls, images, stress, force_N, camera_images, force_weight, contact_mm,
+                net_cfg: NetConfig, cfg: TrainConfig) -> "_TrainData":
+        """The arrays as tensors, each checked against the images (one line per fault)."""
+        x = torch.as_tensor(images, dtype=torch.float32)
+        s = torch.as_tensor(stress, dtype=torch.float32)
+        f = torch.as_tensor(force_N, dtype=torch.float32).reshape(len(x), -1)
+        c = torch.as_tensor(camera_images, dtype=torch.float32) if camera_images is not None else None
+        if c is not None and c.shape != x.shape:
+            raise ValueError(f"camera images {tuple(c.shape)} do not match the images {tuple(x.shape)}")
+        w = None if force_weight is None else torch.as_tensor(force_weight, dtype=torch.float32).reshape(-1)
+        if w is not None and len(w) != len(x):
+            raise ValueError(f"{len(w)} force weights for {len(x)} frames")
+        if not (torch.isfinite(x).all() and torch.isfinite(s).all() and torch.isfinite(f).all()):
+            raise ValueError("training data contain NaN or infinite values")
+        contact = net_cfg.contact
+        if contact != (cfg.contact_weight > 0):
+            raise ValueError(f"train.contact_weight {cfg.contact_weight:g} and a network "
+                             f"{'with' if contact else 'without'} the contact head do not go together")
+        y = ym = None
+        if contact:
+            if contact_mm is None:
+                raise ValueError("train.contact_weight > 0 needs the frames' contact heights")
+            y = torch.as_tensor(contact_mm, dtype=torch.float32).reshape(-1)
+            if len(y) != len(x):
+                raise ValueError(f"{len(y)} contact heights for {len(x)} frames")
+            ym = contact_mask(y, f[:, 0], cfg.contact_min_force_N)
+            if not ym.any():
+                raise ValueError(f"train.contact_weight > 0, but no training frame has a contact "
+                                 f"height with |fx| above {cfg.contact_min_force_N:g} N (shards built "
+                                 "before the FEA wrote contact_y_mm?); rebuild them or set "
+                                 "train.contact_weight: 0")
+        return cls(x, s, f, c, w, y, ym, contact)
+
+    def batch(self, idx: torch.Tensor, augment, gen: torch.Generator):
+        """Images and stress of the frames ``idx``, augmented (``augment`` drawing from ``gen``)."""
+        x, s = self.x[idx], self.s[idx]
+        if augment is not None:
+            x, s = augment(x, s, gen) if self.c is None else augment(x, s, gen, self.c[idx])
+        return x, s
+
+    def bn_batches(self, epoch: int, cfg: TrainConfig, augment, size: int = 256):
+        """``cfg.bn_frames`` training frames, augmented as in training, from their own
+        generator (the training draws stay those of a run without re-estimates)."""
+        g = torch.Generator().manual_seed(cfg.seed * 100003 + epoch)
+        pick = torch.randperm(self.n, generator=g)[:min(cfg.bn_frames, self.n)]
+        for i in range(0, len(pick), size):
+            yield self.batch(pick[i:i + size], augment, g)[0]
+
+
+def _new_model(net_cfg: NetConfig, data: _TrainData, init_state: dict | None):
+    """A new network (CPU) with the training forces' normalisation (and the contact
+    heights'), or ``init_state``'s weights and normalisation; with the force mean and
+    scale (N) it trains with."""
+    model = FinRayNet(net_cfg)
+    mean = data.f.mean(0)
+    scale = data.f.std(0).clamp_min(1e-6)
+    model.set_force_normalisation(mean, scale)
+    if data.contact:
+        y_in = data.y[data.ym]
+        model.set_contact_normalisation(y_in.mean(), y_in.std().clamp_min(1e-3) if len(y_in) > 1 else 1.0)
+    if init_state is not None:  # fine-tuning: the start's weights, its force scale too
+        model.load_state_dict(init_state)
+        mean, scale = model.force_mean_N.clone(), model.force_scale_N.clone()
+    return model, mean, scale
+
+
+@dataclass
+class _ValSet:
+    """The validation frames as tensors (the contact heights ``c`` for a contact head)."""
+
+    x: torch.Tensor
+    s: torch.Tensor
+    f: torch.Tensor
+    c: torch.Tensor | None
+
+    @classmethod
+    def of(cls, val, contact: bool) -> "_ValSet | None":
+        if val is None:
+            return None
+        vx, vs, vf, *rest = (torch.as_tensor(a, dtype=torch.float32) for a in val)
+        return cls(vx, vs, vf.reshape(len(vx), -1), rest[0].reshape(-1) if contact and rest else None)
+
+
+class _Keeper:
+    """The kept epoch's weights: the lowest score offered (``train.keep``)."""
+
+    def __init__(self):
+        self.best, self.score = None, math.inf
+
+    def offer(self, score: float, model: FinRayNet) -> bool:
+        if score < self.score:
+            self.score, self.best = score, copy.deepcopy(model.state_dict())
+            return True
+        return False
+
+
+def _batch_loss(model: FinRayNet, data: _TrainData, idx: torch.Tensor, x: torch.Tensor,
+                s: torch.Tensor, cfg: TrainConfig, device: torch.device, bf16: bool):
+    """The loss of one batch (``x``, ``s`` augmented) and its terms: stress MSE, force MSE
+    (normalised; weighted by ``data.w``), contact MSE (None without the head)."""
+    f = data.f[idx].to(device)
+    x = _prep(x.to(device), cfg.channels_last)
+    s = s.to(device)
+    with _autocast(bf16, device):
+        s_pred, f_pred, c_pred = model.forward_normalised_all(x)
+    ls = nn.functional.mse_loss(s_pred.float(), s)
+    if data.w is None:
+        lf = nn.functional.mse_loss(f_pred.float(), model.normalise_force(f))
+    else:
+        se = ((f_pred.float() - model.normalise_force(f)) ** 2).mean(1)
+        lf = (se * data.w[idx].to(device)).mean()
+    loss = cfg.alpha_stress * ls + cfg.alpha_force * lf
+    lc = None
+    if data.contact:
+        lc = _masked_mse(c_pred.float(), model.normalise_contact(data.y[idx].to(device)),
+                         data.ym[idx].to(device))
+        loss = loss + cfg.contact_weight * lc
+    return loss, ls, lf, lc
+
+
+def _train_epoch(model, data: _TrainData, opt, sched, gen, augment, cfg: TrainConfig,
+                 device, bf16: bool, epoch: int, n_batches: int, hist: History, log) -> dict:
+    """One pass over the shuffled training frames; the summed loss and terms. The first
+    epoch's step times go into ``hist`` (a log line after 25 steps)."""
+    try:
+        from tqdm import tqdm
+    except ImportError:  # pragma: no cover
+        tqdm = None
+    model.train()
+    perm = torch.randperm(data.n, generator=gen)
+    tot = {"loss": 0.0, "s": 0.0, "f": 0.0, "c": 0.0}
+    it = range(n_batches)
+    bar = tqdm(it, desc=f"epoch {epoch}/{cfg.epochs}", leave=False,
+               disable=not cfg.progress) if tqdm else it
+    step_s: list[tuple[float, float]] = []  # first epoch's (wall, CPU) step times (s)
+    te = t_log = time.perf_counter()
+    for b in bar:
+        tb, cb = time.perf_counter(), time.thread_time()
+        idx = perm[b * cfg.batch_size:(b + 1) * cfg.batch_size]
+        x, s = data.batch(idx, augment, gen)
+        loss, ls, lf, lc = _batch_loss(model, data, idx, x, s, cfg, device, bf16)
+        if lc is not None:
+            tot["c"] += float(lc.detach())
+        if not torch.isfinite(loss):
+            raise FloatingPointError(f"loss became {float(loss)} at epoch {epoch}, batch {b}")
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        opt.step()
+        sched.step()
+        tot["loss"] += float(loss.detach())
+        tot["s"] += float(ls.detach())
+        tot["f"] += float(lf.detach())
+        now = time.perf_counter()
+        if epoch == 1:
+            step_s.append((now - tb, time.thread_time() - cb))
+            if len(step_s) == min(n_batches, 25):  # past the first steps' warm-up
+                _step_times(hist, step_s)
+                log(f"step time {hist.step_ms:.1f} ms ({hist.step_cpu_ms:.1f} ms CPU; "
+                    f"{hist.precision}, batch {cfg.batch_size}): about "
+                    f"{hist.step_ms * n_batches / 1e3:.0f} s per epoch")
+        if now - t_log >= cfg.log_every_s:
+            t_log = now
+            log(f"epoch {epoch}/{cfg.epochs}: batch {b + 1}/{n_batches}, train loss "
+                f"{tot['loss'] / (b + 1):.5f}, {now - te:.0f} s")
+        if tqdm and cfg.progress:
+            bar.set_postfix(loss=f"{tot['loss'] / (b + 1):.4f}")
+    if step_s:  # the whole first epoch (the log line had 25 steps)
+        _step_times(hist, step_s)
+    return tot
+
+
+def _validate(model: FinRayNet, vset: _ValSet | None, cfg: TrainConfig, hist: History,
+              epoch: int) -> tuple[str, float]:
+    """The epoch's log line and its score for ``train.keep`` (lower is better): the
+    validation metrics (into ``hist``), or the training loss without validation frames."""
+    msg = f"epoch {epoch}/{cfg.epochs}: train loss {hist.train_loss[-1]:.5f}"
+    if vset is None:
+        return msg, (hist.train_loss[-1] if cfg.keep != "last" else -epoch)
+    ev = evaluate(model, vset.x, vset.s, vset.f, cfg, contact_mm=vset.c)
+    hist.val_loss.append(ev["loss"])
+    hist.val_force_rmse_N.append(ev["force_rmse_N"])
+    hist.val_force_rmse_components_N.append(ev["force_rmse_components_N"])
+    msg += f", val loss {ev['loss']:.5f}, val force RMSE {ev['force_rmse_N']:.4f} N"
+    if "contact_rmse_mm" in ev:
+        hist.val_contact_rmse_mm.append(ev["contact_rmse_mm"])
+        msg += f", val contact RMSE {ev['contact_rmse_mm']:.2f} mm"
+    if hist.val_force_rmse_running_bn_N:
+        msg += f" ({hist.val_force_rmse_running_bn_N[-1]:.4f} N with training's batch-norm averages)"
+    return msg, {"val_force_rmse": ev["force_rmse_N"], "val_loss": ev["loss"]}.get(cfg.keep, -epoch)
+
+
 def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
           val: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
           net_cfg: NetConfig, cfg: TrainConfig,
@@ -232,66 +444,25 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
     cfg = replace(cfg, bf16=bf16)
     log(f"precision: {why}")
     log(f"device: {device_name(device)}")
-    x_all = torch.as_tensor(images, dtype=torch.float32)
-    s_all = torch.as_tensor(stress, dtype=torch.float32)
-    f_all = torch.as_tensor(force_N, dtype=torch.float32).reshape(len(x_all), -1)
-    c_all = (torch.as_tensor(camera_images, dtype=torch.float32)
-             if camera_images is not None else None)
-    if c_all is not None and c_all.shape != x_all.shape:
-        raise ValueError(f"camera images {tuple(c_all.shape)} do not match the images {tuple(x_all.shape)}")
-    w_all = None if force_weight is None else torch.as_tensor(force_weight, dtype=torch.float32).reshape(-1)
-    if w_all is not None and len(w_all) != len(x_all):
-        raise ValueError(f"{len(w_all)} force weights for {len(x_all)} frames")
-    if not (torch.isfinite(x_all).all() and torch.isfinite(s_all).all() and torch.isfinite(f_all).all()):
-        raise ValueError("training data contain NaN or infinite values")
-    contact = net_cfg.contact
-    if contact != (cfg.contact_weight > 0):
-        raise ValueError(f"train.contact_weight {cfg.contact_weight:g} and a network "
-                         f"{'with' if contact else 'without'} the contact head do not go together")
-    if contact:
-        if contact_mm is None:
-            raise ValueError("train.contact_weight > 0 needs the frames' contact heights")
-        y_all = torch.as_tensor(contact_mm, dtype=torch.float32).reshape(-1)
-        if len(y_all) != len(x_all):
-            raise ValueError(f"{len(y_all)} contact heights for {len(x_all)} frames")
-        ym_all = contact_mask(y_all, f_all[:, 0], cfg.contact_min_force_N)
-        if not ym_all.any():
-            raise ValueError(f"train.contact_weight > 0, but no training frame has a contact "
-                             f"height with |fx| above {cfg.contact_min_force_N:g} N (shards built "
-                             "before the FEA wrote contact_y_mm?); rebuild them or set "
-                             "train.contact_weight: 0")
-    model = FinRayNet(net_cfg)
-    mean = f_all.mean(0)
-    scale = f_all.std(0).clamp_min(1e-6)
-    model.set_force_normalisation(mean, scale)
-    if contact:
-        y_in = y_all[ym_all]
-        model.set_contact_normalisation(y_in.mean(), y_in.std().clamp_min(1e-3) if len(y_in) > 1 else 1.0)
-    if init_state is not None:  # fine-tuning: the start's weights, its force scale too
-        model.load_state_dict(init_state)
-        mean, scale = model.force_mean_N.clone(), model.force_scale_N.clone()
+    data = _TrainData.checked(images, stress, force_N, camera_images, force_weight,
+                              contact_mm, net_cfg, cfg)
+    model, mean, scale = _new_model(net_cfg, data, init_state)
     model = model.to(device)  # initialised on the CPU: the same weights on any device
     if cfg.channels_last:
         model = model.to(memory_format=torch.channels_last)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
-    mse = nn.MSELoss()
-    vc = None
-    if val is not None:
-        vx, vs, vf, *rest = (torch.as_tensor(a, dtype=torch.float32) for a in val)
-        vf = vf.reshape(len(vx), -1)
-        vc = rest[0].reshape(-1) if contact and rest else None
+    vset = _ValSet.of(val, data.contact)
     hist = History(precision="bfloat16" if bf16 else "float32", precision_reason=why,
                    device=device_name(device), force_mean_N=mean.tolist(),
                    force_std_N=scale.tolist())
-    if contact:
+    if data.contact:
         hist.contact_mean_mm = float(model.contact_mean_mm)
         hist.contact_std_mm = float(model.contact_scale_mm)
-        hist.n_contact_frames = int(ym_all.sum())
-        log(f"contact height: {hist.n_contact_frames} of {len(x_all)} training frames "
+        hist.n_contact_frames = int(data.ym.sum())
+        log(f"contact height: {hist.n_contact_frames} of {data.n} training frames "
             f"(|fx| > {cfg.contact_min_force_N:g} N), mean {hist.contact_mean_mm:.1f} mm, "
             f"sd {hist.contact_std_mm:.1f} mm; loss weight {cfg.contact_weight:g}")
-    best, best_loss = None, math.inf
-    n = len(x_all)
+    n = data.n
     n_batches = max(1, n // cfg.batch_size)  # drop the last partial batch (batch-norm)
     total = cfg.epochs * n_batches
     sched = torch.optim.lr_scheduler.LambdaLR(
@@ -301,113 +472,34 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
         + (f" after a {cfg.warmup_frac:.0%} warm-up" if cfg.schedule == "cosine" else "")
         + (f"; batch-norm re-estimated on {min(cfg.bn_frames, n)} frames per epoch"
            if cfg.bn_frames > 0 else "") + f"; kept: {cfg.keep.replace('_', ' ')}")
-
-    def bn_batches(epoch: int, size: int = 256):
-        """``bn_frames`` training frames, augmented as in training, from their own
-        generator (the training draws stay those of a run without re-estimates)."""
-        g = torch.Generator().manual_seed(cfg.seed * 100003 + epoch)
-        pick = torch.randperm(n, generator=g)[:min(cfg.bn_frames, n)]
-        for i in range(0, len(pick), size):
-            idx = pick[i:i + size]
-            x, s = x_all[idx], s_all[idx]
-            if augment is not None:
-                x, s = augment(x, s, g) if c_all is None else augment(x, s, g, c_all[idx])
-            yield x
-    step_s: list[tuple[float, float]] = []  # first epoch's (wall, CPU) step times (s)
+    keeper = _Keeper()
     t0 = time.perf_counter()
-    try:
-        from tqdm import tqdm
-    except ImportError:  # pragma: no cover
-        tqdm = None
     for epoch in range(1, cfg.epochs + 1):
-        model.train()
-        perm = torch.randperm(n, generator=gen)
-        tot = {"loss": 0.0, "s": 0.0, "f": 0.0, "c": 0.0}
-        it = range(n_batches)
-        bar = tqdm(it, desc=f"epoch {epoch}/{cfg.epochs}", leave=False,
-                   disable=not cfg.progress) if tqdm else it
-        te = t_log = time.perf_counter()
-        for b in bar:
-            tb, cb = time.perf_counter(), time.thread_time()
-            idx = perm[b * cfg.batch_size:(b + 1) * cfg.batch_size]
-            x, s, f = x_all[idx], s_all[idx], f_all[idx]
-            if augment is not None:
-                x, s = augment(x, s, gen) if c_all is None else augment(x, s, gen, c_all[idx])
-            x = _prep(x.to(device), cfg.channels_last)
-            s, f = s.to(device), f.to(device)
-            with _autocast(bf16, device):
-                s_pred, f_pred, c_pred = model.forward_normalised_all(x)
-            ls = mse(s_pred.float(), s)
-            if w_all is None:
-                lf = mse(f_pred.float(), model.normalise_force(f))
-            else:
-                se = ((f_pred.float() - model.normalise_force(f)) ** 2).mean(1)
-                lf = (se * w_all[idx].to(device)).mean()
-            loss = cfg.alpha_stress * ls + cfg.alpha_force * lf
-            if contact:
-                lc = _masked_mse(c_pred.float(), model.normalise_contact(y_all[idx].to(device)),
-                                 ym_all[idx].to(device))
-                loss = loss + cfg.contact_weight * lc
-                tot["c"] += float(lc.detach())
-            if not torch.isfinite(loss):
-                raise FloatingPointError(f"loss became {float(loss)} at epoch {epoch}, batch {b}")
-            opt.zero_grad(set_to_none=True)
-            loss.backward()
-            opt.step()
-            sched.step()
-            tot["loss"] += float(loss.detach())
-            tot["s"] += float(ls.detach())
-            tot["f"] += float(lf.detach())
-            now = time.perf_counter()
-            if epoch == 1:
-                step_s.append((now - tb, time.thread_time() - cb))
-                if len(step_s) == min(n_batches, 25):  # past the first steps' warm-up
-                    _step_times(hist, step_s)
-                    log(f"step time {hist.step_ms:.1f} ms ({hist.step_cpu_ms:.1f} ms CPU; "
-                        f"{hist.precision}, batch {cfg.batch_size}): about "
-                        f"{hist.step_ms * n_batches / 1e3:.0f} s per epoch")
-            if now - t_log >= cfg.log_every_s:
-                t_log = now
-                log(f"epoch {epoch}/{cfg.epochs}: batch {b + 1}/{n_batches}, train loss "
-                    f"{tot['loss'] / (b + 1):.5f}, {now - te:.0f} s")
-            if tqdm and cfg.progress:
-                bar.set_postfix(loss=f"{tot['loss'] / (b + 1):.4f}")
-        if epoch == 1 and step_s:  # the whole first epoch (the log line had 25 steps)
-            _step_times(hist, step_s)
+        te = time.perf_counter()
+        tot = _train_epoch(model, data, opt, sched, gen, augment, cfg, device, bf16, epoch,
+                           n_batches, hist, log)
         hist.epoch.append(epoch)
         hist.train_loss.append(tot["loss"] / n_batches)
         hist.train_stress_mse.append(tot["s"] / n_batches)
         hist.train_force_mse.append(tot["f"] / n_batches)
-        if contact:
+        if data.contact:
             hist.train_contact_mse.append(tot["c"] / n_batches)
         hist.lr.append(float(opt.param_groups[0]["lr"]))
-        if cfg.compare_running_bn and val is not None:
-            hist.val_force_rmse_running_bn_N.append(evaluate(model, vx, vs, vf, cfg)["force_rmse_N"])
+        if cfg.compare_running_bn and vset is not None:
+            hist.val_force_rmse_running_bn_N.append(
+                evaluate(model, vset.x, vset.s, vset.f, cfg)["force_rmse_N"])
         if cfg.bn_frames > 0:
-            recalibrate_batchnorm(model, bn_batches(epoch), device, cfg.channels_last, bf16)
+            recalibrate_batchnorm(model, data.bn_batches(epoch, cfg, augment), device,
+                                  cfg.channels_last, bf16)
         hist.wall_time_s.append(time.perf_counter() - t0)
-        msg = f"epoch {epoch}/{cfg.epochs}: train loss {hist.train_loss[-1]:.5f}"
-        if val is not None:
-            ev = evaluate(model, vx, vs, vf, cfg, contact_mm=vc)
-            hist.val_loss.append(ev["loss"])
-            hist.val_force_rmse_N.append(ev["force_rmse_N"])
-            hist.val_force_rmse_components_N.append(ev["force_rmse_components_N"])
-            msg += f", val loss {ev['loss']:.5f}, val force RMSE {ev['force_rmse_N']:.4f} N"
-            if "contact_rmse_mm" in ev:
-                hist.val_contact_rmse_mm.append(ev["contact_rmse_mm"])
-                msg += f", val contact RMSE {ev['contact_rmse_mm']:.2f} mm"
-            if hist.val_force_rmse_running_bn_N:
-                msg += f" ({hist.val_force_rmse_running_bn_N[-1]:.4f} N with training's batch-norm averages)"
-            score = {"val_force_rmse": ev["force_rmse_N"], "val_loss": ev["loss"]}.get(cfg.keep, -epoch)
-        else:
-            score = hist.train_loss[-1] if cfg.keep != "last" else -epoch
+        msg, score = _validate(model, vset, cfg, hist, epoch)
         hist.epoch_time_s.append(time.perf_counter() - te)
         msg += f", {hist.epoch_time_s[-1]:.0f} s"
-        if score < best_loss:
-            best_loss, best = score, copy.deepcopy(model.state_dict())
+        if keeper.offer(score, model):
             hist.best_epoch = epoch
             msg += " (best)"
         log(msg)
+    best = keeper.best
     model.load_state_dict(best)
     model = model.cpu().eval()  # checkpoints and exports load anywhere
     return model, hist
