@@ -4,6 +4,7 @@
 # reads (benchmarks.fea_*: FEA_STUDY_KEYS), so that editing them re-runs the study and nothing else.
 #   snakemake --cores 2 fea_cost
 
+
 localrules:
     fea_cost,
 
@@ -22,6 +23,16 @@ rule fea_pareto:
             category="FEA",
         ),
         summary=f"{RESULTS}/benchmarks/fea_pareto.md",
+    log:
+        f"{RESULTS}/logs/fea/benchmark_pareto.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/studies/fea_pareto.tsv"
+    conda:
+        "../../envs/finray.yaml"
+    threads: 1
+    resources:
+        mem_mb=1400,
+        runtime=12,
     params:
         fea=section("fea"),
         mesh=section("mesh"),
@@ -29,15 +40,5 @@ rule fea_pareto:
         materials=study_materials(),
         placement=section("placement"),
         sizes=section("benchmarks", keys=FEA_STUDY_KEYS),
-    log:
-        f"{RESULTS}/logs/fea/benchmark_pareto.log",
-    benchmark:
-        f"{RESULTS}/benchmarks/studies/fea_pareto.tsv"
-    threads: 1
-    resources:
-        mem_mb=1400,
-        runtime=12,
-    conda:
-        "../../envs/finray.yaml"
     script:
         "fea_pareto.py"

@@ -3,10 +3,21 @@
 # scene and the step; reads benchmarks.fea_* (FEA_STUDY_KEYS).
 #   snakemake --cores 2 fea_stability
 
+
 rule fea_stability:
     output:
         table=f"{RESULTS}/benchmarks/fea_stability.csv",
         summary=f"{RESULTS}/benchmarks/fea_stability.md",
+    log:
+        f"{RESULTS}/logs/fea/benchmark_stability.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/studies/fea_stability.tsv"
+    conda:
+        "../../envs/finray.yaml"
+    threads: 1
+    resources:
+        mem_mb=1200,
+        runtime=6,
     params:
         fea=section("fea"),
         mesh=section("mesh"),
@@ -14,15 +25,5 @@ rule fea_stability:
         materials=study_materials("neoprene"),  # a case of the suite
         placement=section("placement"),
         sizes=section("benchmarks", keys=FEA_STUDY_KEYS),
-    log:
-        f"{RESULTS}/logs/fea/benchmark_stability.log",
-    benchmark:
-        f"{RESULTS}/benchmarks/studies/fea_stability.tsv"
-    threads: 1
-    resources:
-        mem_mb=1200,
-        runtime=6,
-    conda:
-        "../../envs/finray.yaml"
     script:
         "fea_stability.py"

@@ -16,6 +16,18 @@ rule fea_sweep:
 rule fea_sweep_batch:
     output:
         table=f"{RESULTS}/benchmarks/fea_sweep/batch_{{batch}}.csv",
+    log:
+        f"{RESULTS}/logs/fea/sweep_batch_{{batch}}.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/studies/fea_sweep_batch_{{batch}}.tsv"
+    wildcard_constraints:
+        batch=r"\d+",
+    conda:
+        "../../envs/finray.yaml"
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=60,
     params:
         fea=section("fea"),
         mesh=section("mesh"),
@@ -23,18 +35,6 @@ rule fea_sweep_batch:
         materials=study_materials(),
         placement=section("placement"),
         sweep=section("benchmarks", keys=("fea_sweep",)),
-    wildcard_constraints:
-        batch=r"\d+",
-    log:
-        f"{RESULTS}/logs/fea/sweep_batch_{{batch}}.log",
-    benchmark:
-        f"{RESULTS}/benchmarks/studies/fea_sweep_batch_{{batch}}.tsv"
-    threads: 1
-    resources:
-        mem_mb=1000,
-        runtime=60,
-    conda:
-        "../../envs/finray.yaml"
     script:
         "fea_sweep.py"
 
@@ -48,15 +48,15 @@ rule fea_sweep_summary:
     output:
         summary=f"{RESULTS}/benchmarks/fea_sweep/summary.md",
         table=f"{RESULTS}/benchmarks/fea_sweep/scenes.csv",
-    params:
-        force_cap_N=config["fea"]["force_cap_N"],
     log:
         f"{RESULTS}/logs/fea/sweep_summary.log",
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=500,
         runtime=2,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        force_cap_N=config["fea"]["force_cap_N"],
     script:
         "fea_sweep_summary.py"

@@ -24,20 +24,33 @@ rule train_pareto:
             category="Training",
         ),
         summary=f"{RESULTS}/benchmarks/train_pareto.md",
-    params:
-        benchmarks=section("benchmarks", keys=TRAIN_STUDY_KEYS + ("latency_frames",)),
-        train=section("train", keys=("input_size", "base_channels", "val_fraction", "batch_size",
-                                     "seed", "bf16", "channels_last", "schedule", "warmup_frac",
-                                     "bn_frames", "keep")),
     log:
         f"{RESULTS}/logs/train/benchmark_pareto.log",
     benchmark:
         f"{RESULTS}/benchmarks/studies/train_pareto.tsv"
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=2600,
         runtime=19,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        benchmarks=section("benchmarks", keys=TRAIN_STUDY_KEYS + ("latency_frames",)),
+        train=section(
+            "train",
+            keys=(
+                "input_size",
+                "base_channels",
+                "val_fraction",
+                "batch_size",
+                "seed",
+                "bf16",
+                "channels_last",
+                "schedule",
+                "warmup_frac",
+                "bn_frames",
+                "keep",
+            ),
+        ),
     script:
         "train_pareto.py"

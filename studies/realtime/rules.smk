@@ -24,18 +24,20 @@ rule realtime_benchmark:
     output:
         json=f"{RESULTS}/benchmarks/realtime.json",
         table=f"{RESULTS}/benchmarks/realtime.md",
-    params:
-        benchmarks=section("benchmarks", keys=("realtime_seconds", "realtime_sizes", "realtime_pitch_deg")),
-        work=lambda w, output: os.path.splitext(output.json)[0],  # streams and runs' outputs
     log:
         f"{RESULTS}/logs/train/benchmark_realtime.log",
     benchmark:
         f"{RESULTS}/benchmarks/studies/realtime.tsv"
+    conda:
+        "../../envs/finray.yaml"
     threads: 2
     resources:
         mem_mb=1500,
         runtime=5,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        benchmarks=section(
+            "benchmarks", keys=("realtime_seconds", "realtime_sizes", "realtime_pitch_deg")
+        ),
+        work=lambda w, output: os.path.splitext(output.json)[0],  # streams and runs' outputs
     script:
         "realtime_benchmark.py"

@@ -17,19 +17,19 @@ rule render_benchmark:
         result=render_benchmark_input,
     output:
         json=f"{RESULTS}/benchmarks/render_throughput.json",
-    params:
-        render=render_params(),
-        dataset=section("dataset", keys=SHARD_KEYS),
-        extrusion_mm=config["finger"]["extrusion_mm"],
     log:
         f"{RESULTS}/logs/render/benchmark.log",
     benchmark:
         f"{RESULTS}/benchmarks/studies/render_throughput.tsv"
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=700,
         runtime=1,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        render=render_params(),
+        dataset=section("dataset", keys=SHARD_KEYS),
+        extrusion_mm=config["finger"]["extrusion_mm"],
     script:
         "render_benchmark.py"

@@ -10,6 +10,7 @@
 # fp32 (false) or bf16 (true). Its models, experiments and sim-to-real live in
 # results/evaluate/spread/<variant>/, with the same rules' scripts as the run's own.
 
+
 wildcard_constraints:
     variant=r"s\d+_(auto|fp32|bf16)(_[A-Za-z0-9]+)?",
 
@@ -34,24 +35,26 @@ rule spread_train:
         onnx_force=f"{SPREAD}/{{variant}}/train/{{model}}/model.force.onnx",
         history=f"{SPREAD}/{{variant}}/train/{{model}}/history.json",
         curves=f"{SPREAD}/{{variant}}/train/{{model}}/curves.png",
-    params:
-        train=spread_train_params,
-        augment=model_augment,
-        dataset=section("dataset", keys=SEGMENT_KEYS + ("crop_x_mm", "crop_y_mm", "occlusion_levels",
-                                                        "base_band")),
-        render=section("render", keys=("window_y_mm",)),
-        finger=section("finger", keys=("extrusion_mm", "base_width_mm")),
-        diagnostics=True,  # validation with training's running batch-norm averages too
     log:
         f"{RESULTS}/logs/spread/{{variant}}/train_{{model}}.log",
     benchmark:
         f"{RESULTS}/benchmarks/studies/spread/{{variant}}_train_{{model}}.tsv"
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=2600,
         runtime=60,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        train=spread_train_params,
+        augment=model_augment,
+        dataset=section(
+            "dataset",
+            keys=SEGMENT_KEYS + ("crop_x_mm", "crop_y_mm", "occlusion_levels", "base_band"),
+        ),
+        render=section("render", keys=("window_y_mm",)),
+        finger=section("finger", keys=("extrusion_mm", "base_width_mm")),
+        diagnostics=True,  # validation with training's running batch-norm averages too
     script:
         "../../workflow/scripts/train_model.py"
 
@@ -144,46 +147,51 @@ rule spread_rigs:
         json=f"{SPREAD}/rigs/summary.json",
         table=f"{SPREAD}/rigs/rigs.md",
         csv=f"{SPREAD}/rigs/rigs.csv",
-        figure=report(f"{SPREAD}/rigs/rigs.png", caption="caption_rigs.rst",
-                      category="Sim-to-real"),
-    params:
-        variants=spread_variants(),
-        default=spread_variant(config["train"]["seed"], config["train"]["bf16"]),
+        figure=report(f"{SPREAD}/rigs/rigs.png", caption="caption_rigs.rst", category="Sim-to-real"),
     log:
         f"{RESULTS}/logs/spread/rigs.log",
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=1000,
         runtime=2,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        variants=spread_variants(),
+        default=spread_variant(config["train"]["seed"], config["train"]["bf16"]),
     script:
         "spread_rigs.py"
 
 
 rule spread_summary:
     input:
-        experiments=expand(f"{SPREAD}/{{variant}}/{{experiment}}/metrics.json",
-                           variant=spread_variants(), experiment=variant_experiments()),
+        experiments=expand(
+            f"{SPREAD}/{{variant}}/{{experiment}}/metrics.json",
+            variant=spread_variants(),
+            experiment=variant_experiments(),
+        ),
         sim2real=expand(f"{SPREAD}/{{variant}}/sim2real/summary.json", variant=spread_variants()),
-        histories=expand(f"{SPREAD}/{{variant}}/train/{{model}}/history.json",
-                         variant=spread_variants(), model=spread_models()),
+        histories=expand(
+            f"{SPREAD}/{{variant}}/train/{{model}}/history.json",
+            variant=spread_variants(),
+            model=spread_models(),
+        ),
     output:
         json=f"{SPREAD}/summary.json",
         table=f"{SPREAD}/spread.md",
         csv=f"{SPREAD}/spread.csv",
         figure=report(f"{SPREAD}/spread.png", caption="caption.rst", category="Training"),
-    params:
-        variants=spread_variants(),
-        # the variant that is the run's own set-up (its seed and numeric type)
-        default=spread_variant(config["train"]["seed"], config["train"]["bf16"]),
     log:
         f"{RESULTS}/logs/spread/summary.log",
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=1000,
         runtime=5,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        variants=spread_variants(),
+        # the variant that is the run's own set-up (its seed and numeric type)
+        default=spread_variant(config["train"]["seed"], config["train"]["bf16"]),
     script:
         "spread_summary.py"

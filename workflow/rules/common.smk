@@ -8,8 +8,14 @@ from types import SimpleNamespace
 import yaml
 from snakemake.utils import update_config
 
-from finray.config import (ConfigError, extra_train_heights, resolve_extends, scenes,
-                           sim2real_model_name, validate_config)
+from finray.config import (
+    ConfigError,
+    extra_train_heights,
+    resolve_extends,
+    scenes,
+    sim2real_model_name,
+    validate_config,
+)
 from finray.dataset import pitch_object
 from finray.dataset.params import SHARD_KEYS
 
@@ -26,8 +32,11 @@ elif "extends" in config:
     # a config file that extends another (config/diverse.yaml: config.yaml plus the
     # generated objects): that file under the given ones, the path relative to the last
     # given file that names it
-    _named = [f for f in workflow.config_settings.configfiles
-              if "extends" in (yaml.safe_load(open(f)) or {})]
+    _named = [
+        f
+        for f in workflow.config_settings.configfiles
+        if "extends" in (yaml.safe_load(open(f)) or {})
+    ]
     try:
         _merged = resolve_extends(dict(config), os.path.dirname(_named[-1]))
     except ConfigError as _err:
@@ -47,6 +56,7 @@ except ConfigError as _err:
     sys.exit(1)
 config.clear()
 config.update(_validated)
+
 
 def script_path(name):
     """workflow/scripts/<name> from anywhere: a rule that another file reuses (``use rule
@@ -93,8 +103,9 @@ def canonical(value):
 def section(name, keys=None, drop=()):
     """Config section ``name`` (only ``keys`` if given, without ``drop``), canonical."""
     sec = config[name]
-    return canonical({k: v for k, v in sec.items()
-                      if (keys is None or k in keys) and k not in drop})
+    return canonical(
+        {k: v for k, v in sec.items() if (keys is None or k in keys) and k not in drop}
+    )
 
 
 wildcard_constraints:
@@ -126,22 +137,31 @@ def rendered_views():
     return views
 
 
-def shard_files(splits=None, pitch=None, exclude_objects=(), model=None, every_height=False,
-                paper_heights=False):
+def shard_files(
+    splits=None, pitch=None, exclude_objects=(), model=None, every_height=False, paper_heights=False
+):
     """Shards of every rendered view (optionally of some splits, or one pitch only, less
     those of ``exclude_objects``), sorted: the order of the objects in the config does not
     change what a job reads. Of the training objects' extra heights (``extra_train_heights_mm``)
     only those of ``model``, or all where ``every_height``: what reads shards without a
     model in mind sees the paper's heights and the face heights (``face_heights_mm``).
     ``paper_heights``: the paper's heights (heights_mm) only."""
-    skip = set() if every_height else (
-        set(extra_train_heights(config)) - set(extra_train_heights(config, model) if model else ()))
+    skip = (
+        set()
+        if every_height
+        else (
+            set(extra_train_heights(config))
+            - set(extra_train_heights(config, model) if model else ())
+        )
+    )
     paper = {float(h) for h in config["heights_mm"]}
     return sorted(
         f"{DATASET}/shards/{s.object}/{s.material}/h{s.height_mm:g}/p{pitch_label(p)}.npz"
         for s, p in rendered_views()
-        if (splits is None or s.split in splits) and (pitch is None or p == pitch)
-        and s.object not in exclude_objects and not (s.split == "train" and s.height_mm in skip)
+        if (splits is None or s.split in splits)
+        and (pitch is None or p == pitch)
+        and s.object not in exclude_objects
+        and not (s.split == "train" and s.height_mm in skip)
         and (not paper_heights or s.height_mm in paper)
     )
 

@@ -10,12 +10,12 @@ rule dataset_manifest:
         manifest=f"{DATASET}/manifest.csv",
     log:
         f"{RESULTS}/logs/dataset/manifest.log",
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=2000,
         runtime=10,
-    conda:
-        "../../envs/finray.yaml"
     script:
         "../scripts/dataset_manifest.py"
 
@@ -30,16 +30,19 @@ rule dataset_examples:
             category="Dataset",
         ),
         png=f"{DATASET}/examples.png",
-    params:
-        dataset=section("dataset", keys=SEGMENT_KEYS + ("crop_x_mm", "crop_y_mm", "noise_levels",
-                                                        "occlusion_levels", "occluder_value")),
     log:
         f"{RESULTS}/logs/dataset/examples.log",
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=2000,
         runtime=10,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        dataset=section(
+            "dataset",
+            keys=SEGMENT_KEYS
+            + ("crop_x_mm", "crop_y_mm", "noise_levels", "occlusion_levels", "occluder_value"),
+        ),
     script:
         "../scripts/dataset_examples.py"

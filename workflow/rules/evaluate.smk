@@ -17,19 +17,19 @@ rule evaluate_baseline:
     output:
         model=f"{EVALUATE}/baseline/ridge.npz",
         info=f"{EVALUATE}/baseline/fit.json",
-    params:
-        size=config["train"]["input_size"],
-        seed=config["evaluate"]["seed"],
     log:
         f"{RESULTS}/logs/evaluate/baseline.log",
     benchmark:
         f"{RESULTS}/benchmarks/evaluate/baseline.tsv"
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=1600,
         runtime=1,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        size=config["train"]["input_size"],
+        seed=config["evaluate"]["seed"],
     script:
         "../scripts/evaluate_baseline.py"
 
@@ -45,24 +45,29 @@ rule evaluate_experiment:
         examples=f"{EVALUATE}/{{experiment}}/examples.npz",
         heights=f"{EVALUATE}/{{experiment}}/heights.csv",
         checks=f"{EVALUATE}/{{experiment}}/checks.json",  # pitch: augmentation vs renders
+    log:
+        f"{RESULTS}/logs/evaluate/{{experiment}}.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/evaluate/{{experiment}}.tsv"
+    conda:
+        "../../envs/finray.yaml"
+    threads: 1
+    resources:
+        mem_mb=1300,
+        runtime=5,
     params:
         size=config["train"]["input_size"],
         setup=experiment_params,
         occlusion_levels=section("dataset", keys=("occlusion_levels",))["occlusion_levels"],
         seed=config["evaluate"]["seed"],
-        pitch_geometry=canonical(pitch_geometry(config["dataset"], config["render"],
-                                                config["train"]["input_size"][0],
-                                                config["finger"]["extrusion_mm"])),
-    log:
-        f"{RESULTS}/logs/evaluate/{{experiment}}.log",
-    benchmark:
-        f"{RESULTS}/benchmarks/evaluate/{{experiment}}.tsv"
-    threads: 1
-    resources:
-        mem_mb=1300,
-        runtime=5,
-    conda:
-        "../../envs/finray.yaml"
+        pitch_geometry=canonical(
+            pitch_geometry(
+                config["dataset"],
+                config["render"],
+                config["train"]["input_size"][0],
+                config["finger"]["extrusion_mm"],
+            )
+        ),
     script:
         script_path("evaluate_experiment.py")  # (also run by the seeds study's `use rule`)
 
@@ -75,19 +80,19 @@ rule sim2real_no_context:
         sim_test=shard_files(splits=["shape"], pitch=0.0),
     output:
         no_context=f"{EVALUATE}/sim2real/no_context.pt",
-    params:
-        size=config["train"]["input_size"],
-        sim2real=no_context_params(),
     log:
         f"{RESULTS}/logs/evaluate/sim2real_no_context.log",
     benchmark:
         f"{RESULTS}/benchmarks/evaluate/sim2real_no_context.tsv"
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=1100,
         runtime=3,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        size=config["train"]["input_size"],
+        sim2real=no_context_params(),
     script:
         script_path("sim2real_no_context.py")  # (also run by the seeds study's `use rule`)
 
@@ -104,21 +109,24 @@ rule sim2real:
         frames=f"{EVALUATE}/sim2real/frames.csv",
         summary=f"{EVALUATE}/sim2real/summary.json",
         calibrations=f"{EVALUATE}/sim2real/calibrations.json",
-        corner=report(f"{EVALUATE}/sim2real/corner.pdf", caption="../report/sim2real_corner.rst",
-                      category="Sim-to-real"),
-    params:
-        size=config["train"]["input_size"],
-        sim2real=sim2real_params(),
+        corner=report(
+            f"{EVALUATE}/sim2real/corner.pdf",
+            caption="../report/sim2real_corner.rst",
+            category="Sim-to-real",
+        ),
     log:
         f"{RESULTS}/logs/evaluate/sim2real.log",
     benchmark:
         f"{RESULTS}/benchmarks/evaluate/sim2real.tsv"
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=1100,
         runtime=7,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        size=config["train"]["input_size"],
+        sim2real=sim2real_params(),
     script:
         script_path("sim2real.py")  # (also run by the seeds study's `use rule`)
 
@@ -137,22 +145,25 @@ rule evaluate_diversity:
     output:
         table=f"{DIVERSITY_DIR}/table.csv",
         summary=f"{DIVERSITY_DIR}/summary.json",
-        experiments=expand(f"{DIVERSITY_DIR}/{{test}}/{{name}}", test=DIVERSITY_TESTS,
-                           name=["metrics.csv", "metrics.json", "frames.csv", "examples.npz"]),
-    params:
-        size=config["train"]["input_size"],
-        diversity=diversity_params,
+        experiments=expand(
+            f"{DIVERSITY_DIR}/{{test}}/{{name}}",
+            test=DIVERSITY_TESTS,
+            name=["metrics.csv", "metrics.json", "frames.csv", "examples.npz"],
+        ),
     log:
         f"{RESULTS}/logs/evaluate/diversity.log",
     benchmark:
         f"{RESULTS}/benchmarks/evaluate/diversity.tsv"
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     # as the shape and material experiments together (47 + 45 s, 0.67 GB RSS each in
     # the paper's run), which score a third model and the camera path besides
     resources:
         mem_mb=1300,
         runtime=5,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        size=config["train"]["input_size"],
+        diversity=diversity_params,
     script:
         "../scripts/evaluate_diversity.py"

@@ -9,6 +9,17 @@ rule fea_scene:
         result=f"{FEA}/{{object}}/{{material}}/h{{height}}/result.npz",
         forces=f"{FEA}/{{object}}/{{material}}/h{{height}}/forces.csv",
         summary=f"{FEA}/{{object}}/{{material}}/h{{height}}/summary.json",
+    log:
+        f"{RESULTS}/logs/fea/{{object}}_{{material}}_h{{height}}.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/fea/{{object}}_{{material}}_h{{height}}.tsv"
+    priority: 20
+    conda:
+        "../../envs/finray.yaml"
+    threads: 1
+    resources:
+        mem_mb=600,
+        runtime=1,
     params:
         fea=section("fea"),
         material=material_params,
@@ -17,17 +28,6 @@ rule fea_scene:
         split=object_split,
         # not an output: Snakemake deletes a failed job's outputs, this report stays
         failure_report=f"{FEA}/failed/{{object}}_{{material}}_h{{height}}.json",
-    log:
-        f"{RESULTS}/logs/fea/{{object}}_{{material}}_h{{height}}.log",
-    benchmark:
-        f"{RESULTS}/benchmarks/fea/{{object}}_{{material}}_h{{height}}.tsv"
-    threads: 1
-    priority: 20
-    resources:
-        mem_mb=600,
-        runtime=1,
-    conda:
-        "../../envs/finray.yaml"
     script:
         "../scripts/fea_scene.py"
 
@@ -43,17 +43,15 @@ rule fea_figures:
             category="FEA",
         ),
         curves_png=f"{FEA}/force_displacement.png",
-        jamming=report(
-            f"{FEA}/jamming.png", caption="../report/fea_jamming.rst", category="FEA"
-        ),
+        jamming=report(f"{FEA}/jamming.png", caption="../report/fea_jamming.rst", category="FEA"),
         table=f"{RESULTS}/benchmarks/fea_scenes.csv",
     log:
         f"{RESULTS}/logs/fea/figures.log",
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=2000,
         runtime=10,
-    conda:
-        "../../envs/finray.yaml"
     script:
         "../scripts/fea_figures.py"

@@ -8,20 +8,20 @@ rule geometry_finger:
         summary=f"{GEOMETRY}/finger.json",
         surface=f"{GEOMETRY}/finger_surface.ply",
         surface_npz=f"{GEOMETRY}/finger_surface.npz",
-    params:
-        finger=section("finger"),
-        mesh=section("mesh"),
     log:
         f"{RESULTS}/logs/geometry/finger.log",
     benchmark:
         f"{RESULTS}/benchmarks/geometry/finger.tsv"
-    threads: 1
     priority: 20
+    conda:
+        "../../envs/finray.yaml"
+    threads: 1
     resources:
         mem_mb=200,
         runtime=1,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        finger=section("finger"),
+        mesh=section("mesh"),
     script:
         "../scripts/geometry_finger.py"
 
@@ -33,23 +33,23 @@ rule geometry_object:
     output:
         npz=f"{GEOMETRY}/objects/{{object}}_h{{height}}.npz",
         vtu=f"{GEOMETRY}/objects/{{object}}_h{{height}}.vtu",
+    log:
+        f"{RESULTS}/logs/geometry/{{object}}_h{{height}}.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/geometry/{{object}}_h{{height}}.tsv"
+    priority: 20
+    conda:
+        "../../envs/finray.yaml"
+    threads: 1
+    resources:
+        mem_mb=100,
+        runtime=1,
     params:
         spec=object_spec,
         deformable=object_deformable,
         finger=section("finger"),
         mesh=section("mesh", keys=("size_mm", "min_angle_deg")),
         placement=section("placement"),
-    log:
-        f"{RESULTS}/logs/geometry/{{object}}_h{{height}}.log",
-    benchmark:
-        f"{RESULTS}/benchmarks/geometry/{{object}}_h{{height}}.tsv"
-    threads: 1
-    priority: 20
-    resources:
-        mem_mb=100,
-        runtime=1,
-    conda:
-        "../../envs/finray.yaml"
     script:
         "../scripts/geometry_object.py"
 
@@ -65,15 +65,15 @@ rule geometry_gallery:
             category="Geometry",
         ),
         png=f"{GEOMETRY}/gallery.png",
-    params:
-        splits=object_splits(),
     log:
         f"{RESULTS}/logs/geometry/gallery.log",
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=2000,
         runtime=10,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        splits=object_splits(),
     script:
         "../scripts/geometry_gallery.py"

@@ -3,6 +3,7 @@
 # emulator's truth. Only these rules and the summary (which says how the takes were
 # made) read `lab:`; ingest reads the take only.
 
+
 rule lab_finger:
     output:
         npz=f"{LAB}/geometry/finger.npz",
@@ -10,19 +11,19 @@ rule lab_finger:
         summary=f"{LAB}/geometry/finger.json",
         surface=f"{LAB}/geometry/finger_surface.ply",
         surface_npz=f"{LAB}/geometry/finger_surface.npz",
-    params:
-        finger=lab_finger(),
-        mesh=section("mesh"),
     log:
         f"{RESULTS}/logs/lab/finger.log",
     benchmark:
         f"{RESULTS}/benchmarks/lab/finger.tsv"
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=200,
         runtime=1,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        finger=lab_finger(),
+        mesh=section("mesh"),
     script:
         "../scripts/geometry_finger.py"
 
@@ -34,22 +35,22 @@ rule lab_object:
     output:
         npz=f"{LAB}/geometry/objects/{{object}}_h{{height}}.npz",
         vtu=f"{LAB}/geometry/objects/{{object}}_h{{height}}.vtu",
+    log:
+        f"{RESULTS}/logs/lab/{{object}}_h{{height}}_object.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/lab/{{object}}_h{{height}}_object.tsv"
+    conda:
+        "../../envs/finray.yaml"
+    threads: 1
+    resources:
+        mem_mb=100,
+        runtime=1,
     params:
         spec=lab_object_spec,
         deformable=False,  # printed PLA: rigid against the finger
         finger=lab_finger(),
         mesh=section("mesh", keys=("size_mm", "min_angle_deg")),
         placement=canonical({"gap_mm": config["lab"]["motion"]["gap_mm"]}),
-    log:
-        f"{RESULTS}/logs/lab/{{object}}_h{{height}}_object.log",
-    benchmark:
-        f"{RESULTS}/benchmarks/lab/{{object}}_h{{height}}_object.tsv"
-    threads: 1
-    resources:
-        mem_mb=100,
-        runtime=1,
-    conda:
-        "../../envs/finray.yaml"
     script:
         "../scripts/geometry_object.py"
 
@@ -62,22 +63,27 @@ rule lab_fea:
         result=f"{LAB}/fea/{{object}}_h{{height}}/result.npz",
         forces=f"{LAB}/fea/{{object}}_h{{height}}/forces.csv",
         summary=f"{LAB}/fea/{{object}}_h{{height}}/summary.json",
-    params:
-        fea=canonical(as_built_fea(config["fea"], config["lab"]["as_built"], config["lab"]["motion"])),
-        finger=finger_fea_params(),
-        finger_material=canonical(as_built_material(config["materials"][config["finger"]["material"]],
-                                                    config["lab"]["as_built"])),
-        failure_report=f"{LAB}/fea/failed/{{object}}_h{{height}}.json",
     log:
         f"{RESULTS}/logs/lab/{{object}}_h{{height}}_fea.log",
     benchmark:
         f"{RESULTS}/benchmarks/lab/{{object}}_h{{height}}_fea.tsv"
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=500,
         runtime=1,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        fea=canonical(
+            as_built_fea(config["fea"], config["lab"]["as_built"], config["lab"]["motion"])
+        ),
+        finger=finger_fea_params(),
+        finger_material=canonical(
+            as_built_material(
+                config["materials"][config["finger"]["material"]], config["lab"]["as_built"]
+            )
+        ),
+        failure_report=f"{LAB}/fea/failed/{{object}}_h{{height}}.json",
     script:
         "../scripts/lab_fea.py"
 
@@ -92,20 +98,20 @@ rule lab_take:
         masks=f"{LAB}/{{object}}_h{{height}}/truth/masks.npz",
         frames=f"{LAB}/{{object}}_h{{height}}/truth/frames.csv",
         truth=f"{LAB}/{{object}}_h{{height}}/truth/truth.json",
-    params:
-        lab=section("lab", keys=("motion", "camera", "scene", "sensor")),
-        seed=lab_take_seed,
-        extrusion_mm=config["finger"]["extrusion_mm"],
     log:
         f"{RESULTS}/logs/lab/{{object}}_h{{height}}_take.log",
     benchmark:
         f"{RESULTS}/benchmarks/lab/{{object}}_h{{height}}_take.tsv"
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=1100,
         runtime=1,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        lab=section("lab", keys=("motion", "camera", "scene", "sensor")),
+        seed=lab_take_seed,
+        extrusion_mm=config["finger"]["extrusion_mm"],
     script:
         "../scripts/lab_take.py"
 
@@ -122,21 +128,21 @@ rule lab_ingest:
         summary=f"{LAB}/ingest/{{object}}_h{{height}}/ingest.json",
         qa=f"{LAB}/ingest/{{object}}_h{{height}}/qa.png",
         masks=f"{LAB}/ingest/{{object}}_h{{height}}/masks.npz",
+    log:
+        f"{RESULTS}/logs/lab/{{object}}_h{{height}}_ingest.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/lab/{{object}}_h{{height}}_ingest.tsv"
+    conda:
+        "../../envs/finray.yaml"
+    threads: 1
+    resources:
+        mem_mb=900,
+        runtime=1,
     params:
         # what a real rig's take would be ingested with: the dataset's crop and the
         # nominal finger, never lab:
         dataset=section("dataset", keys=("sizes", "crop_x_mm", "crop_y_mm")),
         base_width_mm=config["finger"]["base_width_mm"],
-    log:
-        f"{RESULTS}/logs/lab/{{object}}_h{{height}}_ingest.log",
-    benchmark:
-        f"{RESULTS}/benchmarks/lab/{{object}}_h{{height}}_ingest.tsv"
-    threads: 1
-    resources:
-        mem_mb=900,
-        runtime=1,
-    conda:
-        "../../envs/finray.yaml"
     script:
         "../scripts/lab_ingest.py"
 
@@ -157,18 +163,18 @@ rule lab_qa:
         frames=f"{LAB}/qa_frames.csv",
         summary=f"{LAB}/qa.json",
         figure=f"{LAB}/qa.png",
-    params:
-        size=config["train"]["input_size"],
-        others=list(eval_models("camera")),
     log:
         f"{RESULTS}/logs/lab/qa.log",
     benchmark:
         f"{RESULTS}/benchmarks/lab/qa.tsv"
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=1400,
         runtime=2,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        size=config["train"]["input_size"],
+        others=list(eval_models("camera")),
     script:
         "../scripts/lab_qa.py"

@@ -5,8 +5,17 @@ from finray.evaluate.summary import setup_summary
 from finray.paper_reference import paper_reference
 
 PAPER = "paper"
-FIGURES = ["shape_generalisation", "material_generalisation", "occlusion", "viewpoint", "speed",
-           "sim2real", "annotated"] + (["sim2real_rigs"] if rig_names() else [])  # lab.rigs
+FIGURES = [
+    "shape_generalisation",
+    "material_generalisation",
+    "occlusion",
+    "viewpoint",
+    "speed",
+    "sim2real",
+    "annotated",
+] + (
+    ["sim2real_rigs"] if rig_names() else []
+)  # lab.rigs
 FIGURES += ["face"] if config["face_heights_mm"].get("shape") else []  # contacts over the face
 
 
@@ -18,15 +27,15 @@ rule figure_face:
         png=f"{PAPER}/figures/face.png",
     log:
         f"{RESULTS}/logs/paper/face.log",
-    params:
-        figure="face",
-        labels=list(face_figure_runs()),
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=1000,
         runtime=5,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        figure="face",
+        labels=list(face_figure_runs()),
     script:
         "../scripts/paper_figure.py"
 
@@ -39,22 +48,23 @@ rule evaluate_speed:
         stages=[f"{DATASET}/manifest.csv"]
         + expand(f"{TRAIN}/{{model}}/model.ts", model=model_names())
         + expand(f"{EVALUATE}/{{experiment}}/metrics.json", experiment=EXPERIMENTS)
-        + diversity_files(),  # (with generated training objects: the comparison)
+        + diversity_files(),
+        # (with generated training objects: the comparison)
         # the studies' timings where they were built (never a reason to build one)
         studies=built(study_targets()),
     output:
         json=f"{EVALUATE}/speed/speed.json",
         table=f"{EVALUATE}/speed/speed.md",
-    params:
-        benchmarks=lambda w, input: os.path.dirname(input.fea_scenes),
     log:
         f"{RESULTS}/logs/evaluate/speed.log",
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=2000,
         runtime=10,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        benchmarks=lambda w, input: os.path.dirname(input.fea_scenes),
     script:
         "../scripts/evaluate_speed.py"
 
@@ -63,18 +73,22 @@ rule figure_shape_generalisation:
     input:
         metrics=f"{EVALUATE}/shape/metrics.json",
     output:
-        pdf=report(f"{PAPER}/figures/shape_generalisation.pdf", caption="../report/shape.rst", category="Paper"),
+        pdf=report(
+            f"{PAPER}/figures/shape_generalisation.pdf",
+            caption="../report/shape.rst",
+            category="Paper",
+        ),
         png=f"{PAPER}/figures/shape_generalisation.png",
     log:
         f"{RESULTS}/logs/paper/shape_generalisation.log",
-    params:
-        figure="shape_generalisation",
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=2000,
         runtime=10,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        figure="shape_generalisation",
     script:
         "../scripts/paper_figure.py"
 
@@ -85,19 +99,22 @@ rule figure_material_generalisation:
         fea_summaries=fea_files("summary.json", splits=["material"]),
         latency=f"{RESULTS}/benchmarks/inference_latency.json",
     output:
-        pdf=report(f"{PAPER}/figures/material_generalisation.pdf", caption="../report/material.rst",
-                   category="Paper"),
+        pdf=report(
+            f"{PAPER}/figures/material_generalisation.pdf",
+            caption="../report/material.rst",
+            category="Paper",
+        ),
         png=f"{PAPER}/figures/material_generalisation.png",
     log:
         f"{RESULTS}/logs/paper/material_generalisation.log",
-    params:
-        figure="material_generalisation",
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=2000,
         runtime=10,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        figure="material_generalisation",
     script:
         "../scripts/paper_figure.py"
 
@@ -106,18 +123,20 @@ rule figure_occlusion:
     input:
         metrics=f"{EVALUATE}/occlusion/metrics.json",
     output:
-        pdf=report(f"{PAPER}/figures/occlusion.pdf", caption="../report/occlusion.rst", category="Paper"),
+        pdf=report(
+            f"{PAPER}/figures/occlusion.pdf", caption="../report/occlusion.rst", category="Paper"
+        ),
         png=f"{PAPER}/figures/occlusion.png",
     log:
         f"{RESULTS}/logs/paper/occlusion.log",
-    params:
-        figure="occlusion",
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=2000,
         runtime=10,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        figure="occlusion",
     script:
         "../scripts/paper_figure.py"
 
@@ -126,19 +145,21 @@ rule figure_viewpoint:
     input:
         metrics=f"{EVALUATE}/viewpoint/metrics.json",
     output:
-        pdf=report(f"{PAPER}/figures/viewpoint.pdf", caption="../report/viewpoint.rst", category="Paper"),
+        pdf=report(
+            f"{PAPER}/figures/viewpoint.pdf", caption="../report/viewpoint.rst", category="Paper"
+        ),
         png=f"{PAPER}/figures/viewpoint.png",
     log:
         f"{RESULTS}/logs/paper/viewpoint.log",
-    params:
-        figure="viewpoint",
-        usable_nrmse_pct=config["evaluate"]["usable_nrmse_pct"],
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=2000,
         runtime=10,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        figure="viewpoint",
+        usable_nrmse_pct=config["evaluate"]["usable_nrmse_pct"],
     script:
         "../scripts/paper_figure.py"
 
@@ -151,19 +172,21 @@ rule figure_annotated:
         video=f"{LAB}/{lab_takes()[0]}/take.mp4",
         ingest=f"{LAB}/ingest/{lab_takes()[0]}/ingest.json",
     output:
-        pdf=report(f"{PAPER}/figures/annotated.pdf", caption="../report/annotated.rst", category="Paper"),
+        pdf=report(
+            f"{PAPER}/figures/annotated.pdf", caption="../report/annotated.rst", category="Paper"
+        ),
         png=f"{PAPER}/figures/annotated.png",
     log:
         f"{RESULTS}/logs/paper/annotated.log",
-    params:
-        figure="annotated",
-        pitch_deg=config["benchmarks"]["realtime_pitch_deg"],
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=2000,
         runtime=10,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        figure="annotated",
+        pitch_deg=config["benchmarks"]["realtime_pitch_deg"],
     script:
         "../scripts/paper_figure.py"
 
@@ -176,14 +199,14 @@ rule figure_speed:
         png=f"{PAPER}/figures/speed.png",
     log:
         f"{RESULTS}/logs/paper/speed.log",
-    params:
-        figure="speed",
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=2000,
         runtime=10,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        figure="speed",
     script:
         "../scripts/paper_figure.py"
 
@@ -193,18 +216,20 @@ rule figure_sim2real:
         frames=f"{EVALUATE}/sim2real/frames.csv",
         summary=f"{EVALUATE}/sim2real/summary.json",
     output:
-        pdf=report(f"{PAPER}/figures/sim2real.pdf", caption="../report/sim2real.rst", category="Paper"),
+        pdf=report(
+            f"{PAPER}/figures/sim2real.pdf", caption="../report/sim2real.rst", category="Paper"
+        ),
         png=f"{PAPER}/figures/sim2real.png",
     log:
         f"{RESULTS}/logs/paper/sim2real.log",
-    params:
-        figure="sim2real",
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=2000,
         runtime=10,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        figure="sim2real",
     script:
         "../scripts/paper_figure.py"
 
@@ -228,20 +253,20 @@ rule summary:
         spread=manuscript_spread(),  # none unless evaluate.spread.manuscript
     output:
         json=f"{RESULTS}/summary.json",
+    log:
+        f"{RESULTS}/logs/paper/summary.log",
+    conda:
+        "../../envs/finray.yaml"
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
     params:
         usable_nrmse_pct=config["evaluate"]["usable_nrmse_pct"],
         setup=canonical(setup_summary(config)),
         paper=canonical(paper_reference()["values"]),  # a changed reference value reruns the summary
         lab=section("lab", keys=("as_built", "motion", "camera", "sensor")),  # how the takes were emulated
         evaluate=lambda w, input: os.path.dirname(os.path.dirname(input.experiments[0])),
-    log:
-        f"{RESULTS}/logs/paper/summary.log",
-    threads: 1
-    resources:
-        mem_mb=2000,
-        runtime=10,
-    conda:
-        "../../envs/finray.yaml"
     script:
         "../scripts/summary.py"
 
@@ -256,16 +281,18 @@ rule manuscript:
         studies=built(study_targets()),
     output:
         md=f"{PAPER}/manuscript.md",
-        html=report(f"{PAPER}/manuscript.html", caption="../report/manuscript.rst", category="Paper"),
-    params:
-        studies=manuscript_studies(),
+        html=report(
+            f"{PAPER}/manuscript.html", caption="../report/manuscript.rst", category="Paper"
+        ),
     log:
         f"{RESULTS}/logs/paper/manuscript.log",
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=2000,
         runtime=10,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        studies=manuscript_studies(),
     script:
         "../scripts/manuscript.py"

@@ -11,6 +11,17 @@ rule render_scene:
     output:
         index=f"{RENDER}/{{object}}/{{material}}/h{{height}}/p{{pitch}}/index.json",
         shard=f"{DATASET}/shards/{{object}}/{{material}}/h{{height}}/p{{pitch}}.npz",
+    log:
+        f"{RESULTS}/logs/render/{{object}}_{{material}}_h{{height}}_p{{pitch}}.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/render/{{object}}_{{material}}_h{{height}}_p{{pitch}}.tsv"
+    priority: 20
+    conda:
+        "../../envs/finray.yaml"
+    threads: 1
+    resources:
+        mem_mb=800,
+        runtime=1,
     params:
         render=render_params(),
         dataset=section("dataset", keys=SHARD_KEYS),
@@ -18,17 +29,6 @@ rule render_scene:
         scene=shard_scene_params,
         camera_views=scene_camera_views,
         base_width_mm=config["finger"]["base_width_mm"],
-    log:
-        f"{RESULTS}/logs/render/{{object}}_{{material}}_h{{height}}_p{{pitch}}.log",
-    benchmark:
-        f"{RESULTS}/benchmarks/render/{{object}}_{{material}}_h{{height}}_p{{pitch}}.tsv"
-    threads: 1
-    priority: 20
-    resources:
-        mem_mb=800,
-        runtime=1,
-    conda:
-        "../../envs/finray.yaml"
     script:
         "../scripts/render_scene.py"
 
@@ -40,21 +40,21 @@ rule viewpoint_render:
         result=f"{FEA}/{{object}}/{{material}}/h{{height}}/result.npz",
     output:
         index=f"{RENDER}/viewpoint/{{object}}/{{material}}/h{{height}}/index.json",
+    log:
+        f"{RESULTS}/logs/render/viewpoint_{{object}}_{{material}}_h{{height}}.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/render/viewpoint_{{object}}_{{material}}_h{{height}}.tsv"
+    conda:
+        "../../envs/finray.yaml"
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=1,
     params:
         render=render_params(),
         view=section("evaluate")["viewpoint"],
         pitches=series_pitches(),
         extrusion_mm=config["finger"]["extrusion_mm"],
         scene=render_scene_params,
-    log:
-        f"{RESULTS}/logs/render/viewpoint_{{object}}_{{material}}_h{{height}}.log",
-    benchmark:
-        f"{RESULTS}/benchmarks/render/viewpoint_{{object}}_{{material}}_h{{height}}.tsv"
-    threads: 1
-    resources:
-        mem_mb=1000,
-        runtime=1,
-    conda:
-        "../../envs/finray.yaml"
     script:
         "../scripts/viewpoint_render.py"

@@ -18,13 +18,13 @@ use rule lab_finger as rig_finger with:
         summary=f"{RIGS}/{{rig}}/geometry/finger.json",
         surface=f"{RIGS}/{{rig}}/geometry/finger_surface.ply",
         surface_npz=f"{RIGS}/{{rig}}/geometry/finger_surface.npz",
-    params:
-        finger=lambda w: lab_finger(rig_lab(w.rig)),
-        mesh=section("mesh"),
     log:
         f"{RESULTS}/logs/lab/rigs/{{rig}}/finger.log",
     benchmark:
         f"{RESULTS}/benchmarks/lab/rigs/{{rig}}/finger.tsv"
+    params:
+        finger=lambda w: lab_finger(rig_lab(w.rig)),
+        mesh=section("mesh"),
 
 
 use rule lab_object as rig_object with:
@@ -34,16 +34,16 @@ use rule lab_object as rig_object with:
     output:
         npz=f"{RIGS}/{{rig}}/geometry/objects/{{object}}_h{{height}}.npz",
         vtu=f"{RIGS}/{{rig}}/geometry/objects/{{object}}_h{{height}}.vtu",
+    log:
+        f"{RESULTS}/logs/lab/rigs/{{rig}}/{{object}}_h{{height}}_object.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/lab/rigs/{{rig}}/{{object}}_h{{height}}_object.tsv"
     params:
         spec=lambda w: canonical(rig_lab(w.rig)["objects"][w.object]),
         deformable=False,
         finger=lambda w: lab_finger(rig_lab(w.rig)),
         mesh=section("mesh", keys=("size_mm", "min_angle_deg")),
         placement=lambda w: canonical({"gap_mm": rig_lab(w.rig)["motion"]["gap_mm"]}),
-    log:
-        f"{RESULTS}/logs/lab/rigs/{{rig}}/{{object}}_h{{height}}_object.log",
-    benchmark:
-        f"{RESULTS}/benchmarks/lab/rigs/{{rig}}/{{object}}_h{{height}}_object.tsv"
 
 
 use rule lab_fea as rig_fea with:
@@ -54,17 +54,21 @@ use rule lab_fea as rig_fea with:
         result=f"{RIGS}/{{rig}}/fea/{{object}}_h{{height}}/result.npz",
         forces=f"{RIGS}/{{rig}}/fea/{{object}}_h{{height}}/forces.csv",
         summary=f"{RIGS}/{{rig}}/fea/{{object}}_h{{height}}/summary.json",
-    params:
-        fea=lambda w: canonical(as_built_fea(config["fea"], rig_lab(w.rig)["as_built"],
-                                             rig_lab(w.rig)["motion"])),
-        finger=finger_fea_params(),
-        finger_material=lambda w: canonical(as_built_material(
-            config["materials"][config["finger"]["material"]], rig_lab(w.rig)["as_built"])),
-        failure_report=lambda w: f"{RIGS}/{w.rig}/fea/failed/{w.object}_h{w.height}.json",
     log:
         f"{RESULTS}/logs/lab/rigs/{{rig}}/{{object}}_h{{height}}_fea.log",
     benchmark:
         f"{RESULTS}/benchmarks/lab/rigs/{{rig}}/{{object}}_h{{height}}_fea.tsv"
+    params:
+        fea=lambda w: canonical(
+            as_built_fea(config["fea"], rig_lab(w.rig)["as_built"], rig_lab(w.rig)["motion"])
+        ),
+        finger=finger_fea_params(),
+        finger_material=lambda w: canonical(
+            as_built_material(
+                config["materials"][config["finger"]["material"]], rig_lab(w.rig)["as_built"]
+            )
+        ),
+        failure_report=lambda w: f"{RIGS}/{w.rig}/fea/failed/{w.object}_h{w.height}.json",
 
 
 use rule lab_take as rig_take with:
@@ -77,14 +81,16 @@ use rule lab_take as rig_take with:
         masks=f"{RIGS}/{{rig}}/{{object}}_h{{height}}/truth/masks.npz",
         frames=f"{RIGS}/{{rig}}/{{object}}_h{{height}}/truth/frames.csv",
         truth=f"{RIGS}/{{rig}}/{{object}}_h{{height}}/truth/truth.json",
-    params:
-        lab=lambda w: canonical({k: rig_lab(w.rig)[k] for k in ("motion", "camera", "scene", "sensor")}),
-        seed=rig_take_seed,
-        extrusion_mm=config["finger"]["extrusion_mm"],
     log:
         f"{RESULTS}/logs/lab/rigs/{{rig}}/{{object}}_h{{height}}_take.log",
     benchmark:
         f"{RESULTS}/benchmarks/lab/rigs/{{rig}}/{{object}}_h{{height}}_take.tsv"
+    params:
+        lab=lambda w: canonical(
+            {k: rig_lab(w.rig)[k] for k in ("motion", "camera", "scene", "sensor")}
+        ),
+        seed=rig_take_seed,
+        extrusion_mm=config["finger"]["extrusion_mm"],
 
 
 use rule lab_ingest as rig_ingest with:
@@ -99,13 +105,13 @@ use rule lab_ingest as rig_ingest with:
         summary=f"{RIGS}/{{rig}}/ingest/{{object}}_h{{height}}/ingest.json",
         qa=f"{RIGS}/{{rig}}/ingest/{{object}}_h{{height}}/qa.png",
         masks=f"{RIGS}/{{rig}}/ingest/{{object}}_h{{height}}/masks.npz",
-    params:
-        dataset=section("dataset", keys=("sizes", "crop_x_mm", "crop_y_mm")),
-        base_width_mm=config["finger"]["base_width_mm"],
     log:
         f"{RESULTS}/logs/lab/rigs/{{rig}}/{{object}}_h{{height}}_ingest.log",
     benchmark:
         f"{RESULTS}/benchmarks/lab/rigs/{{rig}}/{{object}}_h{{height}}_ingest.tsv"
+    params:
+        dataset=section("dataset", keys=("sizes", "crop_x_mm", "crop_y_mm")),
+        base_width_mm=config["finger"]["base_width_mm"],
 
 
 use rule sim2real as rig_sim2real with:
@@ -135,20 +141,25 @@ rule sim2real_rigs:
         json=f"{RIGS_EVAL}/summary.json",
         table=f"{RIGS_EVAL}/rigs.md",
         csv=f"{RIGS_EVAL}/rigs.csv",
-        figure=report(f"{RIGS_EVAL}/rigs.png", caption="../report/sim2real_rigs.rst",
-                      category="Sim-to-real"),
-    params:
-        # how each rig was emulated (its objects: in its takes' take.json)
-        rigs=lambda w: canonical({r: {k: rig_lab(r)[k] for k in ("as_built", "camera", "heights_mm")}
-                                  for r in rig_names()}),
+        figure=report(
+            f"{RIGS_EVAL}/rigs.png", caption="../report/sim2real_rigs.rst", category="Sim-to-real"
+        ),
     log:
         f"{RESULTS}/logs/evaluate/sim2real_rigs.log",
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=600,
         runtime=2,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        # how each rig was emulated (its objects: in its takes' take.json)
+        rigs=lambda w: canonical(
+            {
+                r: {k: rig_lab(r)[k] for k in ("as_built", "camera", "heights_mm")}
+                for r in rig_names()
+            }
+        ),
     script:
         script_path("sim2real_rigs.py")  # (also run by the seeds study's `use rule`)
 
@@ -163,17 +174,21 @@ rule sim2real_selection_rigs:
         table=f"{RIGS_EVAL}/selection/rigs.md",
         csv=f"{RIGS_EVAL}/selection/rigs.csv",
         figure=f"{RIGS_EVAL}/selection/rigs.png",
-    params:
-        rigs=lambda w: canonical({r: {k: rig_lab(r)[k] for k in ("as_built", "camera", "heights_mm")}
-                                  for r in selection_rig_names()}),
     log:
         f"{RESULTS}/logs/evaluate/sim2real_selection_rigs.log",
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=600,
         runtime=2,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        rigs=lambda w: canonical(
+            {
+                r: {k: rig_lab(r)[k] for k in ("as_built", "camera", "heights_mm")}
+                for r in selection_rig_names()
+            }
+        ),
     script:
         script_path("sim2real_rigs.py")  # (also run by the seeds study's `use rule`)
 
@@ -183,18 +198,21 @@ rule figure_sim2real_rigs:
         csv=f"{RIGS_EVAL}/rigs.csv",
         summary=f"{RIGS_EVAL}/summary.json",
     output:
-        pdf=report(f"{PAPER}/figures/sim2real_rigs.pdf", caption="../report/sim2real_rigs.rst",
-                   category="Paper"),
+        pdf=report(
+            f"{PAPER}/figures/sim2real_rigs.pdf",
+            caption="../report/sim2real_rigs.rst",
+            category="Paper",
+        ),
         png=f"{PAPER}/figures/sim2real_rigs.png",
     log:
         f"{RESULTS}/logs/paper/sim2real_rigs.log",
-    params:
-        figure="sim2real_rigs",
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=1000,
         runtime=2,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        figure="sim2real_rigs",
     script:
         "../scripts/paper_figure.py"

@@ -11,18 +11,18 @@ rule inference_latency:
         renders=render_index_files(pitch=0.0),
     output:
         json=f"{RESULTS}/benchmarks/inference_latency.json",
-    params:
-        benchmarks=section("benchmarks", keys=("latency_frames", "latency_repeats")),
     log:
         f"{RESULTS}/logs/train/benchmark_latency.log",
     benchmark:
         f"{RESULTS}/benchmarks/studies/inference_latency.tsv"
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=700,
         runtime=1,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        benchmarks=section("benchmarks", keys=("latency_frames", "latency_repeats")),
     script:
         "../scripts/inference_latency.py"
 
@@ -33,15 +33,15 @@ rule train_time:
         benchmarks=expand(f"{RESULTS}/benchmarks/train/{{model}}.tsv", model=model_names()),
     output:
         table=f"{RESULTS}/benchmarks/train_time.csv",
-    params:
-        models=model_names(),
     log:
         f"{RESULTS}/logs/train/benchmark_train_time.log",
+    conda:
+        "../../envs/finray.yaml"
     threads: 1
     resources:
         mem_mb=2000,
         runtime=10,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        models=model_names(),
     script:
         "../scripts/train_time.py"

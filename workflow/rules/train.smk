@@ -18,25 +18,27 @@ rule train_model:
             caption="../report/train_curves.rst",
             category="Training",
         ),
-    params:
-        train=model_train_params,  # device too: the rounding follows it
-        augment=model_augment,
-        dataset=section("dataset", keys=SEGMENT_KEYS + ("crop_x_mm", "crop_y_mm", "occlusion_levels",
-                                                        "base_band")),
-        render=section("render", keys=("window_y_mm",)),
-        finger=section("finger", keys=("extrusion_mm", "base_width_mm")),
     log:
         f"{RESULTS}/logs/train/{{model}}.log",
     benchmark:
         f"{RESULTS}/benchmarks/train/{{model}}.tsv"
-    threads: 1
     # the longest jobs start first: training, and what it waits for (geometry, FEA and
     # render at priority 20), before the studies, the lab and the evaluations
     priority: 30
+    conda:
+        "../../envs/finray.yaml"
+    threads: 1
     resources:
         mem_mb=2600,
         runtime=40,
-    conda:
-        "../../envs/finray.yaml"
+    params:
+        train=model_train_params,  # device too: the rounding follows it
+        augment=model_augment,
+        dataset=section(
+            "dataset",
+            keys=SEGMENT_KEYS + ("crop_x_mm", "crop_y_mm", "occlusion_levels", "base_band"),
+        ),
+        render=section("render", keys=("window_y_mm",)),
+        finger=section("finger", keys=("extrusion_mm", "base_width_mm")),
     script:
         "../scripts/train_model.py"

@@ -21,41 +21,62 @@ def experiment_setup(wildcards):
     if e in ("shape", "material"):  # also scored through the camera path on the renders
         # every model on the held-out shapes (each one's generalisation and its spread)
         names = ("plain", "camera", "occlusion", "pitch") if e == "shape" else ("plain", "camera")
-        return {"shards": shard_files(splits=[e], pitch=0.0),
-                "models": eval_models(*names, train_dir=d),
-                "group_col": "object" if e == "shape" else "material", "conditions": None,
-                "renders": render_index_files(pitch=0.0, splits=[e])}
+        return {
+            "shards": shard_files(splits=[e], pitch=0.0),
+            "models": eval_models(*names, train_dir=d),
+            "group_col": "object" if e == "shape" else "material",
+            "conditions": None,
+            "renders": render_index_files(pitch=0.0, splits=[e]),
+        }
     if e == "occlusion":
-        return {"shards": shard_files(splits=["shape"], pitch=0.0),
-                "models": eval_models("plain", "occlusion", train_dir=d), "group_col": "object",
-                "conditions": [[lvl, {"occlusion": lvl}] for lvl in occlusion_level_order()],
-                "renders": []}
+        return {
+            "shards": shard_files(splits=["shape"], pitch=0.0),
+            "models": eval_models("plain", "occlusion", train_dir=d),
+            "group_col": "object",
+            "conditions": [[lvl, {"occlusion": lvl}] for lvl in occlusion_level_order()],
+            "renders": [],
+        }
     if e == "viewpoint":  # perspective renders of the held-out shapes (evaluate.viewpoint)
-        return {"shards": shard_files(splits=["shape"], pitch=0.0, paper_heights=True),
-                "models": eval_models("plain", "pitch", "camera", train_dir=d),
-                "group_col": "distance_mm",
-                "conditions": [[f"{p:g}", {"pitch_deg": p}] for p in series_pitches()],
-                "renders": viewpoint_indices()}
+        return {
+            "shards": shard_files(splits=["shape"], pitch=0.0, paper_heights=True),
+            "models": eval_models("plain", "pitch", "camera", train_dir=d),
+            "group_col": "distance_mm",
+            "conditions": [[f"{p:g}", {"pitch_deg": p}] for p in series_pitches()],
+            "renders": viewpoint_indices(),
+        }
     # the camera model too: trained on perspective views, it is scored on the same pitches
-    return {"shards": pitch_series_shards(), "models": eval_models("plain", "pitch", "camera", train_dir=d),
-            "group_col": None,
-            "conditions": [[f"{p:g}", {"pitch_deg": p}] for p in series_pitches()], "renders": []}
+    return {
+        "shards": pitch_series_shards(),
+        "models": eval_models("plain", "pitch", "camera", train_dir=d),
+        "group_col": None,
+        "conditions": [[f"{p:g}", {"pitch_deg": p}] for p in series_pitches()],
+        "renders": [],
+    }
 
 
 def viewpoint_indices():
     """index.json of the viewpoint experiment's renders: every held-out shape scene at the
     paper's heights (heights_mm; not the face heights: the 3D renders cost most)."""
     paper = {float(h) for h in config["heights_mm"]}
-    return sorted(f"{RENDER}/viewpoint/{s.object}/{s.material}/h{s.height_mm:g}/index.json"
-                  for s in scenes(config) if s.split == "shape" and s.height_mm in paper)
+    return sorted(
+        f"{RENDER}/viewpoint/{s.object}/{s.material}/h{s.height_mm:g}/index.json"
+        for s in scenes(config)
+        if s.split == "shape" and s.height_mm in paper
+    )
 
 
 def experiment_params(wildcards):
     """Models (name, in the order compared), grouping and conditions (ordered [name,
     settings] pairs) of an experiment; the shards and model files are its inputs."""
     setup = experiment_setup(wildcards)
-    return canonical({"models": list(setup["models"]), "group_col": setup["group_col"],
-                      "conditions": setup["conditions"], "train_heights_mm": train_heights()})
+    return canonical(
+        {
+            "models": list(setup["models"]),
+            "group_col": setup["group_col"],
+            "conditions": setup["conditions"],
+            "train_heights_mm": train_heights(),
+        }
+    )
 
 
 def train_heights():
@@ -67,8 +88,11 @@ def experiment_inputs(wildcards):
     """Test shards, model files (model.ts; its model.ts.json comes with it) and, for the
     camera path, the test views' render indices."""
     setup = experiment_setup(wildcards)
-    return {"shards": setup["shards"], "models": list(setup["models"].values()),
-            "renders": setup["renders"]}
+    return {
+        "shards": setup["shards"],
+        "models": list(setup["models"].values()),
+        "renders": setup["renders"],
+    }
 
 
 def sim2real_model(train_dir=TRAIN):
@@ -85,18 +109,25 @@ def diversity_files():
 
 def _diversity_or_stop():
     if not DIVERSITY:
-        raise ValueError(f"{DIVERSITY_DIR} needs generated training objects (generated.count > 0, "
-                         "split train) and generated.compare_model: see config/diverse.yaml")
+        raise ValueError(
+            f"{DIVERSITY_DIR} needs generated training objects (generated.count > 0, "
+            "split train) and generated.compare_model: see config/diverse.yaml"
+        )
     return DIVERSITY
 
 
 def diversity_inputs(wildcards):
     """Test shards of the shape and material experiments; both models and their histories."""
     paper, model = _diversity_or_stop()
-    tests = {f"{t}_shards": experiment_setup(SimpleNamespace(experiment=t))["shards"]
-             for t in DIVERSITY_TESTS}
-    return {**tests, "models": [model_file(paper), model_file(model)],
-            "histories": [f"{TRAIN}/{m}/history.json" for m in (paper, model)]}
+    tests = {
+        f"{t}_shards": experiment_setup(SimpleNamespace(experiment=t))["shards"]
+        for t in DIVERSITY_TESTS
+    }
+    return {
+        **tests,
+        "models": [model_file(paper), model_file(model)],
+        "histories": [f"{TRAIN}/{m}/history.json" for m in (paper, model)],
+    }
 
 
 def diversity_params(wildcards):
@@ -105,11 +136,23 @@ def diversity_params(wildcards):
     paper, model = _diversity_or_stop()
     train = [n for n, o in config["objects"].items() if o["split"] == "train"]
     n_gen = sum(n in GENERATED_TRAIN for n in train)
-    return canonical({
-        "tests": {t: experiment_setup(SimpleNamespace(experiment=t))["group_col"] for t in DIVERSITY_TESTS},
-        "setup": {"model": model, "models": {"paper_objects": paper, "with_generated": model},
-                  "n_generated": n_gen,
-                  "train_objects": {"paper_objects": len(train) - n_gen, "with_generated": len(train)}}})
+    return canonical(
+        {
+            "tests": {
+                t: experiment_setup(SimpleNamespace(experiment=t))["group_col"]
+                for t in DIVERSITY_TESTS
+            },
+            "setup": {
+                "model": model,
+                "models": {"paper_objects": paper, "with_generated": model},
+                "n_generated": n_gen,
+                "train_objects": {
+                    "paper_objects": len(train) - n_gen,
+                    "with_generated": len(train),
+                },
+            },
+        }
+    )
 
 
 # The rig prior's FEA (rig_prior.smk): evaluate.sim2real.rig_prior.gain
@@ -168,8 +211,10 @@ def rig_prior_geometry(wildcards):
         base = f"{rig_prior_dir()}/{wildcards.variant}/geometry"
     else:
         base = GEOMETRY
-    return {"finger": f"{base}/finger.npz",
-            "object": f"{base}/objects/{wildcards.object}_h{wildcards.height}.npz"}
+    return {
+        "finger": f"{base}/finger.npz",
+        "object": f"{base}/objects/{wildcards.object}_h{wildcards.height}.npz",
+    }
 
 
 def face_figure_runs():

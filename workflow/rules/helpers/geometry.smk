@@ -3,11 +3,13 @@ from finray.config import object_is_meshed
 
 
 def object_geometry_files():
-    return sorted(expand(
-        f"{GEOMETRY}/objects/{{object}}_h{{height}}.npz",
-        object=list(config["objects"]),
-        height=height_labels(),
-    ))
+    return sorted(
+        expand(
+            f"{GEOMETRY}/objects/{{object}}_h{{height}}.npz",
+            object=list(config["objects"]),
+            height=height_labels(),
+        )
+    )
 
 
 def polygon_file_input(wildcards):

@@ -3,7 +3,12 @@ import functools
 import zlib
 
 from finray.lab.as_built import as_built_fea, as_built_finger, as_built_material
-from finray.lab.rigs import draw_rig, rig_index, rig_names as _rig_names, selection_rig_names as _selection
+from finray.lab.rigs import (
+    draw_rig,
+    rig_index,
+    rig_names as _rig_names,
+    selection_rig_names as _selection,
+)
 
 
 def lab_takes(lab=None):

@@ -36,12 +36,14 @@ def render_benchmark_input(wildcards):
 
 def render_scene_params(wildcards):
     """Scene description copied into the render index (and from there into the shard)."""
-    return canonical({
-        "object": wildcards.object,
-        "material": wildcards.material,
-        "height_mm": float(wildcards.height),
-        "split": config["objects"][wildcards.object]["split"],
-    })
+    return canonical(
+        {
+            "object": wildcards.object,
+            "material": wildcards.material,
+            "height_mm": float(wildcards.height),
+            "split": config["objects"][wildcards.object]["split"],
+        }
+    )
 
 
 def scene_camera_views(wildcards):

@@ -26,9 +26,13 @@ def drop_default_rate_limit(wf):
     cluster run (not local) and a limit a user sets keep theirs."""
     limit = getattr(wf.scheduling_settings, "max_jobs_per_timespan", None)
     scheduler = getattr(wf, "scheduler", None)
-    if (limit is None or not wf.local_exec or scheduler is None
-            or getattr(scheduler, "job_rate_limiter", None) is None
-            or (limit.max_jobs, float(limit.timespan)) != (100, 1.0)):
+    if (
+        limit is None
+        or not wf.local_exec
+        or scheduler is None
+        or getattr(scheduler, "job_rate_limiter", None) is None
+        or (limit.max_jobs, float(limit.timespan)) != (100, 1.0)
+    ):
         return False
     scheduler.job_rate_limiter = None
     return True

@@ -25,8 +25,11 @@ def spread_models():
 
 def variant_experiments():
     """The experiments a variant runs: those that compare at least one of its models."""
-    return [e for e in EXPERIMENTS
-            if experiment_setup(SimpleNamespace(experiment=e, variant="s0_auto"))["models"]]
+    return [
+        e
+        for e in EXPERIMENTS
+        if experiment_setup(SimpleNamespace(experiment=e, variant="s0_auto"))["models"]
+    ]
 
 
 def manuscript_spread():
@@ -49,7 +52,9 @@ def budget_points():
 def budget_variants():
     """point -> its variants (one per seed of benchmarks.training_budget, the run's bf16)."""
     seeds = config["benchmarks"]["training_budget"]["seeds"]
-    return {p: [spread_variant(s, config["train"]["bf16"], p) for s in seeds] for p in budget_points()}
+    return {
+        p: [spread_variant(s, config["train"]["bf16"], p) for s in seeds] for p in budget_points()
+    }
 
 
 def spread_train_params(wildcards):
@@ -57,5 +62,12 @@ def spread_train_params(wildcards):
     model's own settings (its epochs win over the point's)."""
     seed, kind, *point = wildcards.variant[1:].split("_")
     over = config["benchmarks"]["training_budget"]["points"][point[0]] if point else {}
-    return canonical({**section("train", drop=("models",)), **over, "seed": int(seed),
-                      "bf16": SPREAD_TYPES[kind], **model_overrides(wildcards.model)})
+    return canonical(
+        {
+            **section("train", drop=("models",)),
+            **over,
+            "seed": int(seed),
+            "bf16": SPREAD_TYPES[kind],
+            **model_overrides(wildcards.model),
+        }
+    )

@@ -4,11 +4,24 @@
 # <name>` one (functions and constants only: the Snakefile includes the rule files).
 
 #: the config keys the FEA studies read (benchmarks.fea_*)
-FEA_STUDY_KEYS = ("fea_reference_mesh_mm", "fea_mesh_sizes_mm", "fea_p1_mesh_sizes_mm",
-                  "fea_arc_chord_sizes_mm", "fea_fine_mesh_mm", "fea_coarse_mesh_mm")
+FEA_STUDY_KEYS = (
+    "fea_reference_mesh_mm",
+    "fea_mesh_sizes_mm",
+    "fea_p1_mesh_sizes_mm",
+    "fea_arc_chord_sizes_mm",
+    "fea_fine_mesh_mm",
+    "fea_coarse_mesh_mm",
+)
 #: the config keys the network-size study reads (benchmarks.train_*)
-TRAIN_STUDY_KEYS = ("train_sizes", "train_base_channels", "train_epochs", "train_every", "train_lr",
-                    "train_budget_ms", "train_tolerance")
+TRAIN_STUDY_KEYS = (
+    "train_sizes",
+    "train_base_channels",
+    "train_epochs",
+    "train_every",
+    "train_lr",
+    "train_budget_ms",
+    "train_tolerance",
+)
 
 
 def study_registry():
@@ -17,29 +30,47 @@ def study_registry():
     study only where its model (benchmarks.realtime_model) is trained."""
     bench = f"{RESULTS}/benchmarks"
     reg = {
-        "fea_cost": {"title": "FEA cost against accuracy (mesh and element order)",
-                     "files": [f"{bench}/fea_pareto.{e}" for e in ("csv", "png", "md")],
-                     "figure": f"{bench}/fea_pareto.png"},
-        "fea_stability": {"title": "FEA stability on the hard scenes",
-                          "files": [f"{bench}/fea_stability.{e}" for e in ("csv", "md")],
-                          "figure": None},
-        "fea_sweep": {"title": "FEA sweep over the whole face",
-                      "files": [f"{bench}/fea_sweep/summary.md", f"{bench}/fea_sweep/scenes.csv"],
-                      "figure": None},
-        "render_throughput": {"title": "Render throughput (2D rasteriser and 3D renderer)",
-                              "files": [f"{bench}/render_throughput.json"], "figure": None},
-        "network_size": {"title": "Network size: run time against error",
-                         "files": [f"{bench}/train_pareto.{e}" for e in ("csv", "png", "md")],
-                         "figure": f"{bench}/train_pareto.png"},
-        "realtime": {"title": "Real time: finray predict on live 30 FPS streams",
-                     "files": [f"{bench}/realtime.json", f"{bench}/realtime.md"], "figure": None},
-        "seeds": {"title": "Seeds and numeric types: one training is one draw",
-                  "files": [f"{SPREAD}/summary.json", f"{SPREAD}/spread.md", f"{SPREAD}/spread.png"]
-                  + ([f"{SPREAD}/rigs/summary.json", f"{SPREAD}/rigs/rigs.png"] if rig_names() else []),
-                  "figure": f"{SPREAD}/spread.png"},
-        "training_budget": {"title": "Training budget: CPU time against error",
-                            "files": [f"{bench}/training_budget.{e}" for e in ("json", "md", "csv", "png")],
-                            "figure": f"{bench}/training_budget.png"},
+        "fea_cost": {
+            "title": "FEA cost against accuracy (mesh and element order)",
+            "files": [f"{bench}/fea_pareto.{e}" for e in ("csv", "png", "md")],
+            "figure": f"{bench}/fea_pareto.png",
+        },
+        "fea_stability": {
+            "title": "FEA stability on the hard scenes",
+            "files": [f"{bench}/fea_stability.{e}" for e in ("csv", "md")],
+            "figure": None,
+        },
+        "fea_sweep": {
+            "title": "FEA sweep over the whole face",
+            "files": [f"{bench}/fea_sweep/summary.md", f"{bench}/fea_sweep/scenes.csv"],
+            "figure": None,
+        },
+        "render_throughput": {
+            "title": "Render throughput (2D rasteriser and 3D renderer)",
+            "files": [f"{bench}/render_throughput.json"],
+            "figure": None,
+        },
+        "network_size": {
+            "title": "Network size: run time against error",
+            "files": [f"{bench}/train_pareto.{e}" for e in ("csv", "png", "md")],
+            "figure": f"{bench}/train_pareto.png",
+        },
+        "realtime": {
+            "title": "Real time: finray predict on live 30 FPS streams",
+            "files": [f"{bench}/realtime.json", f"{bench}/realtime.md"],
+            "figure": None,
+        },
+        "seeds": {
+            "title": "Seeds and numeric types: one training is one draw",
+            "files": [f"{SPREAD}/summary.json", f"{SPREAD}/spread.md", f"{SPREAD}/spread.png"]
+            + ([f"{SPREAD}/rigs/summary.json", f"{SPREAD}/rigs/rigs.png"] if rig_names() else []),
+            "figure": f"{SPREAD}/spread.png",
+        },
+        "training_budget": {
+            "title": "Training budget: CPU time against error",
+            "files": [f"{bench}/training_budget.{e}" for e in ("json", "md", "csv", "png")],
+            "figure": f"{bench}/training_budget.png",
+        },
     }
     if config["benchmarks"]["realtime_model"] not in config["train"]["models"]:
         del reg["realtime"]
@@ -72,8 +103,15 @@ def manuscript_studies():
     out = []
     for name, s in study_registry().items():
         done = all(os.path.exists(f) for f in s["files"])
-        out.append({"name": name, "title": s["title"], "readme": f"studies/{name}/README.md",
-                    "built": done, "result": s["files"][0],
-                    "figure": os.path.relpath(s["figure"], PAPER) if done and s["figure"] else None,
-                    "command": f"snakemake --cores 2 {name}"})
+        out.append(
+            {
+                "name": name,
+                "title": s["title"],
+                "readme": f"studies/{name}/README.md",
+                "built": done,
+                "result": s["files"][0],
+                "figure": os.path.relpath(s["figure"], PAPER) if done and s["figure"] else None,
+                "command": f"snakemake --cores 2 {name}",
+            }
+        )
     return out

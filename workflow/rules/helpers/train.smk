@@ -1,8 +1,12 @@
 # Helpers of the train rules (train.smk): each model's training shards and augmentation; the
 # models an experiment compares.
-from finray.config import (MODEL_TRAINING_KEYS, diversity_models, generated_training_objects,
-                           model_augment_settings, model_start)
-
+from finray.config import (
+    MODEL_TRAINING_KEYS,
+    diversity_models,
+    generated_training_objects,
+    model_augment_settings,
+    model_start,
+)
 
 # The diversity comparison (generated.compare_model): (paper-objects model, model), or None
 # where no generated object trains. The paper-objects model is the job a config without
@@ -23,12 +27,15 @@ def train_shards(wildcards):
     too); the paper-objects model of the diversity comparison gets those of the
     non-generated objects only."""
     exclude = GENERATED_TRAIN if DIVERSITY and wildcards.model == DIVERSITY[0] else ()
-    return shard_files(splits=["train"], pitch=0.0, exclude_objects=exclude,
-                       model=trained_model(wildcards.model))
+    return shard_files(
+        splits=["train"], pitch=0.0, exclude_objects=exclude, model=trained_model(wildcards.model)
+    )
 
 
 def model_augment(wildcards):
-    return canonical(model_augment_settings(config["train"]["models"][trained_model(wildcards.model)]))
+    return canonical(
+        model_augment_settings(config["train"]["models"][trained_model(wildcards.model)])
+    )
 
 
 def model_overrides(name):
