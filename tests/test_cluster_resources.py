@@ -1,7 +1,6 @@
 """Every rule asks a cluster for memory and time; the run comparison catches differences."""
 import importlib.util
 import json
-import sys
 from pathlib import Path
 
 import numpy as np

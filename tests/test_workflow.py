@@ -55,7 +55,7 @@ def smoke_run(tmp_path_factory):
     return work
 
 
-def test_smoke_geometry_outputs(smoke_run):  # noqa: D103
+def test_smoke_geometry_outputs(smoke_run):
     cfg = yaml.safe_load((ROOT / "config" / "smoke.yaml").read_text())
     geo = smoke_run / "results" / "geometry"
     finger = TriMesh.load(geo / "finger.npz")

@@ -408,7 +408,7 @@ class Window:
 
             from PIL import ImageTk  # noqa: F401 - Pillow's Tk support, checked here
             self._root = tkinter.Tk()
-        except Exception as exc:  # noqa: BLE001 - Tcl/Tk's and Pillow's own error types
+        except Exception as exc:
             raise RuntimeError(f"cannot open a window ({str(exc).splitlines()[0]})") from None
         self._root.title(title)
         self._label = tkinter.Label(self._root)

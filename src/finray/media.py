@@ -267,7 +267,7 @@ class LiveFrames:
             return
         try:
             self._container.close()
-        except Exception:  # noqa: BLE001 - closing a broken stream: nothing left to save
+        except Exception:  # closing a broken stream: nothing left to save
             pass
 
 

@@ -14,7 +14,7 @@ import numpy as np
 from .errors import DeviceInputError, FrameError, InputError  # noqa: F401 - callers import them here
 from .media import (IMAGE_SUFFIXES, VIDEO_SUFFIXES, LiveFrames, MediaError, is_live,
                     read_image, video_frames)
-from .predictor import Predictor  # noqa: F401 - the API: finray.predict.Predictor
+from .predictor import Predictor  # the API: finray.predict.Predictor
 
 
 def read_frames(path: str | Path):

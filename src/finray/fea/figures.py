@@ -7,14 +7,14 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-from matplotlib.colors import LogNorm  # noqa: E402
-from scipy.spatial import cKDTree  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+from matplotlib.colors import LogNorm
+from scipy.spatial import cKDTree
 
-from ..geometry.surface import P2_SUBTRIANGLES  # noqa: E402
-from .simulate import boundary_loops  # noqa: E402
+from ..geometry.surface import P2_SUBTRIANGLES
+from .simulate import boundary_loops
 
 
 def _load(results, summaries):

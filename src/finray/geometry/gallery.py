@@ -6,11 +6,11 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.collections import LineCollection  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.collections import LineCollection
 
-from .mesh import BOUNDARY_TAGS, TriMesh  # noqa: E402
+from .mesh import BOUNDARY_TAGS, TriMesh
 
 TAG_COLOURS = {"base": "black", "front": "tab:red", "back": "tab:blue", "tip": "tab:purple",
                "cavity": "tab:green", "object": "0.2", "object_inner": "0.5"}

@@ -26,13 +26,13 @@ if not os.environ.get("DISPLAY"):
     # no X server: straight to EGL (VTK would try X first and warn on stderr)
     os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-from ..geometry.mesh import TriMesh  # noqa: E402
-from ..geometry.surface import extrude  # noqa: E402
-from .camera import PinholeCamera, set_vtk_camera  # noqa: E402
-from .params import RenderParams  # noqa: E402
-from .raster import to_uint8  # noqa: E402
+from ..geometry.mesh import TriMesh
+from ..geometry.surface import extrude
+from .camera import PinholeCamera, set_vtk_camera
+from .params import RenderParams
+from .raster import to_uint8
 
 #: Distance of the camera from the window centre (mm); any value outside the scene
 #: gives the same orthographic image.
