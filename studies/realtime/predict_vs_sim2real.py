@@ -131,7 +131,9 @@ def main() -> int:
             t = pred.merge(labels, on="frame", how="left").assign(rig=rig, take=take.name,
                                                                     finder=res["finder"])
             if sim is not None:
-                s = sim[sim["take"] == take.name][["frame", "pred_N", "net_mean_N"]]
+                # sim-to-real names a take <object>_lab_h<h>_p<pitch>_<take folder>
+                named = (sim["take"] == take.name) | sim["take"].str.endswith("_" + take.name)
+                s = sim[named][["frame", "pred_N", "net_mean_N"]]
                 t = t.merge(s.rename(columns={"pred_N": "sim2real_N",
                                               "net_mean_N": "sim2real_net_N"}),
                             on="frame", how="left")
