@@ -343,6 +343,7 @@ NEW_VALUES = {
     "lab.objects.cylinder.type": lambda cfg: cfg["lab"]["objects"]["cylinder"].update(
         type="square", side_mm=15.0),
     "lab.scene.finger_colour": "orange",
+    "lab.scene.clutter": [{"kind": "hand", "centre_mm": [30.0, 20.0], "size_mm": [20.0, 40.0]}],
     "lab.scene.lights": [{"position_mm": [-200.0, 300.0, 300.0], "intensity": 0.8}],
     "lab.camera.video_pix_fmt": "yuv420p",
     "lab.rigs.uniform": {"camera.distance_mm": [180.0, 240.0]},
