@@ -15,22 +15,16 @@ import json
 import sys
 from pathlib import Path
 
-import numpy as np
 import torch
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tests"))
 
-from recording_synth import background, render_frame  # noqa: E402
-
 from finray.benchmarks.realtime import stream_benchmark, write_stream_video  # noqa: E402
 from finray.model import FinRayNet, NetConfig  # noqa: E402
 from finray.train import export_onnx, export_torchscript  # noqa: E402
+from frame_cpu import PREPROCESS, frames_at  # noqa: E402  (this folder: the same synthetic finger)
 
-PREPROCESS = {"base_width_mm": 30.0, "crop_x_mm": [-5.0, 35.0], "crop_y_mm": [0.0, 80.0],
-              "base_band": 0.03,
-              "segment": {"threshold": "isodata", "foreground": "bright", "min_object_frac": 1e-3,
-                          "max_hole_frac": 2e-4, "keep_largest": True}}
 KEYS = ("fps", "cpu_ms_per_frame", "cpu_ms_per_frame_run", "dropped_steady", "predicted",
         "received")
 
@@ -45,9 +39,7 @@ def main() -> None:
     export_onnx(net, work / "model.onnx")
     out = {}
     for h, w in ((480, 640), (720, 1280)):
-        bg = background((h, w), 0)
-        frames = [render_frame(bg, h / 120.0, (0.45 * w, 0.88 * h), d, 0.0)[0]
-                  for d in np.linspace(0, 5, 12)]
+        frames = frames_at(h, w)
         video = write_stream_video(frames, work / f"stream_{w}x{h}.ts", (h, w), 300)
         r = stream_benchmark(work / "model.ts", video, work / f"out_{w}x{h}", "force", cores=(1, 0))
         out[f"{w}x{h}"] = {k: r[k] for k in KEYS}
