@@ -5,6 +5,7 @@ A page holds ``<!-- finray:config-reference -->`` or ``<!-- finray:cli-reference
 the hook replaces the marker with the generated Markdown, so the site never carries a
 stale copy. ``tests/test_docs.py`` calls the same functions.
 """
+
 from __future__ import annotations
 
 import json

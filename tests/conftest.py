@@ -3,6 +3,7 @@ another's fixture). Markers (pyproject.toml): ``slow`` (the integration tests: t
 smoke workflow, provenance, the FEA scenes, the runner, the CLI, tutorials run by
 Snakemake) and ``workflow`` (those that run Snakemake); ``pytest -m "not slow"`` is the
 quick run, CI (.ci/run) runs everything."""
+
 import pytest
 import torch
 
@@ -20,9 +21,13 @@ def render_png(tmp_path_factory):
     """A camera frame of the fabricated scene (test_render_fixture.py), front view."""
     tmp = tmp_path_factory.mktemp("render")
     res = write_synthetic_fea_result(tmp / "result.npz", n_frames=4)
-    render_scene(res, tmp / "p0", 0.0, params=RenderParams(frames_per_scene=3),
-                 scene={"object": "ellipse_16x9", "material": "steel", "height_mm": 30.0,
-                        "split": "shape"})
+    render_scene(
+        res,
+        tmp / "p0",
+        0.0,
+        params=RenderParams(frames_per_scene=3),
+        scene={"object": "ellipse_16x9", "material": "steel", "height_mm": 30.0, "split": "shape"},
+    )
     frames = load_render_index(tmp / "p0")["frames"]
     return tmp / "p0" / frames[-1]["image"]
 
@@ -39,17 +44,29 @@ def scene(tmp_path_factory):
     indices, shards = [], []
     for h in (20.0, 30.0):
         d = tmp / f"h{h:g}" / "p0"
-        meta = render_shard(res, d, tmp / f"h{h:g}.npz", 0.0, render_params=rp, params=params,
-                            scene={"object": "ellipse_16x9", "material": "steel", "height_mm": h,
-                                   "split": "shape"})
+        meta = render_shard(
+            res,
+            d,
+            tmp / f"h{h:g}.npz",
+            0.0,
+            render_params=rp,
+            params=params,
+            scene={"object": "ellipse_16x9", "material": "steel", "height_mm": h, "split": "shape"},
+        )
         assert meta["n_frames"] == 5
         indices.append(d / "index.json")
         shards.append(tmp / f"h{h:g}.npz")
     torch.manual_seed(0)
-    net = FinRayNet(NetConfig(in_channels=1, base_channels=4, height=size[0], width=size[1],
-                              n_forces=2))
+    net = FinRayNet(
+        NetConfig(in_channels=1, base_channels=4, height=size[0], width=size[1], n_forces=2)
+    )
     net.set_force_normalisation([3.0, -0.5], [2.0, 0.4])
     net.eval()
     export_torchscript(net, tmp / "model.ts", PREPROCESS, ["fx_N", "fy_N"])
-    return {"tmp": tmp, "indices": indices, "shards": shards, "model": tmp / "model.ts",
-            "size": size}
+    return {
+        "tmp": tmp,
+        "indices": indices,
+        "shards": shards,
+        "model": tmp / "model.ts",
+        "size": size,
+    }

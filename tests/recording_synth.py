@@ -7,6 +7,7 @@ proportion to a known force profile, and the finger and clamp move down a little
 Known truth: the finger masks (after the disc and the clamp are drawn over it), the
 force at each frame and the clock offset (camera time = sensor time + offset).
 """
+
 from __future__ import annotations
 
 import json
@@ -56,7 +57,7 @@ def _bend(pts, defl_mm, height_mm):
     and away from the contact height."""
     x, y = pts[:, 0], pts[:, 1]
     rel = np.clip((x - _front(y)) / np.maximum(_back(y) - _front(y), 1e-6), 0, 1)
-    dx = defl_mm * np.exp(-((y - height_mm) / 18.0) ** 2) * (1 - 0.8 * rel)
+    dx = defl_mm * np.exp(-(((y - height_mm) / 18.0) ** 2)) * (1 - 0.8 * rel)
     return np.stack([x + dx, y], axis=1)
 
 
@@ -91,18 +92,39 @@ def render_frame(bg, ppm, origin_px, defl_mm, drop_mm, height_mm=30.0, obj_r_mm=
     obj[rr, cc] = True
     shade = 1.0 - 0.15 * np.linspace(0, 1, H)[:, None, None]  # light from above
     img = np.clip(np.rint(bg), 0, 255).astype(np.uint8)
-    for region, colour in ((finger, FINGER_RGB * shade), (clamp, CLAMP_RGB + 0.3 * (bg - 140)),
-                           (obj, OBJECT_RGB * shade)):
+    for region, colour in (
+        (finger, FINGER_RGB * shade),
+        (clamp, CLAMP_RGB + 0.3 * (bg - 140)),
+        (obj, OBJECT_RGB * shade),
+    ):
         rows, cols = np.nonzero(region)
         img[rows, cols] = np.clip(np.rint(np.broadcast_to(colour, bg.shape)[rows, cols]), 0, 255)
     truth = finger & ~clamp & ~obj
     return img, truth
 
 
-def write_take(folder, *, fps=30.0, duration_s=3.0, size=(480, 360), ppm=None, offset_s=-1000.047,
-               sensor_hz=250.0, starts=(0.6,), ramp=0.7, hold=0.5, force_max_N=5.0,
-               defl_max_mm=5.0, drop_max_mm=2.0, kind="mp4", noise_N=0.02, seed=0,
-               take_json=None, force_fn=None, pix_fmt="yuv420p") -> dict:
+def write_take(
+    folder,
+    *,
+    fps=30.0,
+    duration_s=3.0,
+    size=(480, 360),
+    ppm=None,
+    offset_s=-1000.047,
+    sensor_hz=250.0,
+    starts=(0.6,),
+    ramp=0.7,
+    hold=0.5,
+    force_max_N=5.0,
+    defl_max_mm=5.0,
+    drop_max_mm=2.0,
+    kind="mp4",
+    noise_N=0.02,
+    seed=0,
+    take_json=None,
+    force_fn=None,
+    pix_fmt="yuv420p",
+) -> dict:
     """Write a take (video ``take.mp4``/``take.avi`` or ``frames/`` + ``frames.csv``,
     ``forces.csv``, ``take.json``) into ``folder``; returns the truth: ``masks``
     (F, H, W) bool, ``t_s`` (camera), ``force_N`` (at each frame), ``offset_s``."""
@@ -128,7 +150,8 @@ def write_take(folder, *, fps=30.0, duration_s=3.0, size=(480, 360), ppm=None, o
         for name, img in zip(names, frames):
             Image.fromarray(img).save(folder / "frames" / name)
         (folder / "frames.csv").write_text(
-            "frame,t_s\n" + "".join(f"{a},{b:.6f}\n" for a, b in zip(names, t)))
+            "frame,t_s\n" + "".join(f"{a},{b:.6f}\n" for a, b in zip(names, t))
+        )
     else:
         write_video(folder / f"take.{kind}", frames, fps, pix_fmt)
     # the sensor: its clock runs from before the video to after it
@@ -141,14 +164,25 @@ def write_take(folder, *, fps=30.0, duration_s=3.0, size=(480, 360), ppm=None, o
     fx = 0.05 * f_true + rng.normal(0, noise_N, len(ts))
     fy = rng.normal(0, noise_N, len(ts))
     (folder / "forces.csv").write_text(
-        "t_s,fx_N,fy_N,fz_N\n" + "".join(f"{a:.6f},{b:.5f},{c:.5f},{d:.5f}\n"
-                                          for a, b, c, d in zip(ts, fx, fy, fz)))
-    meta = {"object": "cylinder", "contact_height_mm": 30.0, "push_axis": "-fz",
-            "camera": {"px_per_mm": ppm}, "emulated": "tests/recording_synth.py"}
+        "t_s,fx_N,fy_N,fz_N\n"
+        + "".join(f"{a:.6f},{b:.5f},{c:.5f},{d:.5f}\n" for a, b, c, d in zip(ts, fx, fy, fz))
+    )
+    meta = {
+        "object": "cylinder",
+        "contact_height_mm": 30.0,
+        "push_axis": "-fz",
+        "camera": {"px_per_mm": ppm},
+        "emulated": "tests/recording_synth.py",
+    }
     meta.update(take_json or {})
     (folder / "take.json").write_text(json.dumps(meta))
-    return {"masks": np.stack(masks), "t_s": t, "force_N": force_max_N * prof + 0.0,
-            "offset_s": offset_s, "frames": frames}
+    return {
+        "masks": np.stack(masks),
+        "t_s": t,
+        "force_N": force_max_N * prof + 0.0,
+        "offset_s": offset_s,
+        "frames": frames,
+    }
 
 
 def write_video(path, frames, fps, pix_fmt="yuv420p"):

@@ -1,5 +1,6 @@
 """The rig's head ensemble: fitting, export, the Predictor's members, and `finray
 predict --calibration` / `finray calibrate` errors."""
+
 import csv
 import json
 
@@ -7,8 +8,15 @@ import numpy as np
 import pytest
 import torch
 
-from finray.adapt import (HeadEnsemble, HeadFit, SimAnchor, encoder_features, export_ensemble, fit_heads,
-                          head_forces)
+from finray.adapt import (
+    HeadEnsemble,
+    HeadFit,
+    SimAnchor,
+    encoder_features,
+    export_ensemble,
+    fit_heads,
+    head_forces,
+)
 from finray.cli import main
 from finray.model import FinRayNet, NetConfig
 from finray.predict import InputError, Predictor
@@ -74,12 +82,21 @@ def test_sim_anchor_maps_the_simulation_to_the_rig(net):
     and offset that map the no-context heads' reading to the context's sensor: a rig
     reading 1.7 times the heads plus 0.4 N gets ``frames`` simulated forces 1.7 F + 0.4 N."""
     g = torch.Generator().manual_seed(2)
-    heads0 = fit_heads(net, encoder_features(net, torch.rand(32, 1, 64, 32, generator=g)),
-                       np.linspace(0, 4, 32), HeadFit(members=2, steps=5))
-    f_sim, sim_N = encoder_features(net, torch.rand(50, 1, 64, 32, generator=g)), np.linspace(0, 9, 50)
+    heads0 = fit_heads(
+        net,
+        encoder_features(net, torch.rand(32, 1, 64, 32, generator=g)),
+        np.linspace(0, 4, 32),
+        HeadFit(members=2, steps=5),
+    )
+    f_sim, sim_N = (
+        encoder_features(net, torch.rand(50, 1, 64, 32, generator=g)),
+        np.linspace(0, 9, 50),
+    )
     f = encoder_features(net, torch.rand(20, 1, 64, 32, generator=g))
     rig = 1.7 * head_forces(net, heads0, f).mean(0) + 0.4
-    feats, force = SimAnchor(f_sim, sim_N, tuple(heads0), frames=30).with_context(net, f, rig, seed=0)
+    feats, force = SimAnchor(f_sim, sim_N, tuple(heads0), frames=30).with_context(
+        net, f, rig, seed=0
+    )
     assert feats.shape == (20 + 30, f.shape[1]) and force.shape == (50,)
     assert torch.equal(feats[:20], f) and np.allclose(force[:20], rig, atol=1e-5)
     rows = [int(np.flatnonzero((f_sim == r).all(1).numpy())[0]) for r in feats[20:]]
@@ -91,8 +108,10 @@ def test_a_sim_anchor_of_no_frames_changes_nothing(net):
     y = np.linspace(0, 3, 24)
     anchor = SimAnchor(f, y, tuple(fit_heads(net, f, y, HeadFit(members=1, steps=2))), frames=0)
     fit = HeadFit(members=2, steps=10)
-    np.testing.assert_array_equal(head_forces(net, fit_heads(net, f, y, fit), f),
-                                  head_forces(net, fit_heads(net, f, y, fit, anchor=anchor), f))
+    np.testing.assert_array_equal(
+        head_forces(net, fit_heads(net, f, y, fit), f),
+        head_forces(net, fit_heads(net, f, y, fit, anchor=anchor), f),
+    )
 
 
 def test_fit_heads_rejects_bad_labels(net):
@@ -106,7 +125,9 @@ def test_fit_heads_rejects_bad_labels(net):
 @pytest.fixture(scope="module")
 def ensemble(net, tmp_path_factory):
     x = torch.rand(64, 1, 64, 32)
-    heads = fit_heads(net, encoder_features(net, x), np.linspace(0, 5, 64), HeadFit(members=3, steps=20))
+    heads = fit_heads(
+        net, encoder_features(net, x), np.linspace(0, 5, 64), HeadFit(members=3, steps=20)
+    )
     d = tmp_path_factory.mktemp("ens")
     export_ensemble(HeadEnsemble(net, heads), d / "rig.model.ts", PREPROCESS, {"takes": ["t"]})
     return net, heads, d
@@ -134,15 +155,37 @@ def test_predict_with_calibration(ensemble, render_png, tmp_path, capsys):
     and writes them to forces.csv; a --model that is not the calibrated one is refused."""
     _, _, d = ensemble
     rng = np.random.default_rng(0)
-    samples = np.column_stack([rng.normal(2.0, 0.01, 500), rng.normal(0.5, 0.01, 500),
-                               np.full(500, np.log(0.1)), np.full(500, np.log(0.01)),
-                               np.full(500, np.log(0.01)),   # kappa 0.01: the spread hardly counts
-                               np.full(500, np.log(200.0))])  # nu 200: nearly normal
+    samples = np.column_stack(
+        [
+            rng.normal(2.0, 0.01, 500),
+            rng.normal(0.5, 0.01, 500),
+            np.full(500, np.log(0.1)),
+            np.full(500, np.log(0.01)),
+            np.full(500, np.log(0.01)),  # kappa 0.01: the spread hardly counts
+            np.full(500, np.log(200.0)),
+        ]
+    )  # nu 200: nearly normal
     cal = d / "calibration.json"
-    cal.write_text(json.dumps({"model": "rig.model.ts", "level": 0.9,
-                               "posterior": {"names": [], "samples": samples.tolist()}}))
-    rc = main(["predict", "--calibration", str(cal), str(render_png), "--out", str(tmp_path / "p"),
-               "--force-only"])
+    cal.write_text(
+        json.dumps(
+            {
+                "model": "rig.model.ts",
+                "level": 0.9,
+                "posterior": {"names": [], "samples": samples.tolist()},
+            }
+        )
+    )
+    rc = main(
+        [
+            "predict",
+            "--calibration",
+            str(cal),
+            str(render_png),
+            "--out",
+            str(tmp_path / "p"),
+            "--force-only",
+        ]
+    )
     assert rc == 0
     line = capsys.readouterr().out.strip().splitlines()[-1]
     assert "calibrated" in line and "90 %" in line
@@ -151,14 +194,32 @@ def test_predict_with_calibration(ensemble, render_png, tmp_path, capsys):
     assert f == pytest.approx(2.0 * fx + 0.5, abs=0.05)  # the posterior's gain and offset
     sd = np.hypot(0.1, 0.01 * f)  # sigma and rho g mu; 500 draws: quantiles within ~20 %
     assert lo < f < hi and hi - lo == pytest.approx(2 * 1.645 * sd, rel=0.2)
-    rc = main(["predict", "--calibration", str(cal), "--model", str(tmp_path / "other.ts"),
-               str(render_png), "--out", str(tmp_path / "q")])
+    rc = main(
+        [
+            "predict",
+            "--calibration",
+            str(cal),
+            "--model",
+            str(tmp_path / "other.ts"),
+            str(render_png),
+            "--out",
+            str(tmp_path / "q"),
+        ]
+    )
     assert rc == 2 and "is not the model" in capsys.readouterr().err
 
 
 def test_calibrate_errors_are_one_line(tmp_path, capsys):
-    rc = main(["calibrate", str(tmp_path), "--model", str(tmp_path / "model.pt"),
-               "--out", str(tmp_path / "c.json")])
+    rc = main(
+        [
+            "calibrate",
+            str(tmp_path),
+            "--model",
+            str(tmp_path / "model.pt"),
+            "--out",
+            str(tmp_path / "c.json"),
+        ]
+    )
     err = capsys.readouterr().err.strip()
     assert rc == 2 and len(err.splitlines()) == 1 and "model.pt" in err
 
@@ -176,8 +237,10 @@ def test_fit_heads_fits_the_last_layers_only(net):
         for i, (a, b) in enumerate(zip(lin[:-1], sim[:-1])):
             assert torch.equal(a.weight, b.weight) == (i < kept)
         bn = [m for m in head if isinstance(m, torch.nn.BatchNorm1d)]
-        assert all(torch.equal(a.running_mean, b.running_mean) for a, b in
-                   zip(bn, [m for m in net.force_head if isinstance(m, torch.nn.BatchNorm1d)]))
+        assert all(
+            torch.equal(a.running_mean, b.running_mean)
+            for a, b in zip(bn, [m for m in net.force_head if isinstance(m, torch.nn.BatchNorm1d)])
+        )
 
 
 def test_calibrate_checks_every_take_before_ingesting_any(net, tmp_path, capsys):
@@ -188,11 +251,22 @@ def test_calibrate_checks_every_take_before_ingesting_any(net, tmp_path, capsys)
 
     save_checkpoint(net, History(), tmp_path / "model.pt")
     export_torchscript(net, tmp_path / "model.ts", PREPROCESS)
-    write_take(tmp_path / "good", size=(320, 240), duration_s=1.0, starts=(0.2,), ramp=0.3, hold=0.1)
+    write_take(
+        tmp_path / "good", size=(320, 240), duration_s=1.0, starts=(0.2,), ramp=0.3, hold=0.1
+    )
     write_take(tmp_path / "bad", size=(320, 240), duration_s=1.0, starts=(0.2,), ramp=0.3, hold=0.1)
     (tmp_path / "bad" / "forces.csv").unlink()
-    rc = main(["calibrate", str(tmp_path / "good"), str(tmp_path / "bad"), "--model",
-               str(tmp_path / "model.pt"), "--out", str(tmp_path / "c.json")])
+    rc = main(
+        [
+            "calibrate",
+            str(tmp_path / "good"),
+            str(tmp_path / "bad"),
+            "--model",
+            str(tmp_path / "model.pt"),
+            "--out",
+            str(tmp_path / "c.json"),
+        ]
+    )
     err = capsys.readouterr().err.strip()
     assert rc == 2 and len(err.splitlines()) == 1 and "forces.csv" in err, err
     assert not (tmp_path / "c.ingest").exists() and not (tmp_path / "c.json").exists()
@@ -228,7 +302,10 @@ def _one_head_at_a_time(model, features, force_N, fit):
     from torch import nn
 
     from finray.adapt import _single_output
-    target = (torch.tensor(force_N, dtype=torch.float32) - model.force_mean_N[0]) / model.force_scale_N[0]
+
+    target = (
+        torch.tensor(force_N, dtype=torch.float32) - model.force_mean_N[0]
+    ) / model.force_scale_N[0]
     template = _single_output(model.force_head, 0).eval()
     linear = [i for i, mod in enumerate(template) if isinstance(mod, nn.Linear)]
     start = linear[-fit.layers] if 0 < fit.layers < len(linear) else 0
@@ -272,8 +349,18 @@ def test_calibrate_refuses_a_missing_no_context_file(net, tmp_path, capsys):
     from recording_synth import write_take
 
     write_take(tmp_path / "t", size=(320, 240), duration_s=1.0, starts=(0.2,), ramp=0.3, hold=0.1)
-    rc = main(["calibrate", str(tmp_path / "t"), "--model", str(tmp_path / "model.pt"),
-               "--no-context", str(tmp_path / "none.pt"), "--out", str(tmp_path / "c.json")])
+    rc = main(
+        [
+            "calibrate",
+            str(tmp_path / "t"),
+            "--model",
+            str(tmp_path / "model.pt"),
+            "--no-context",
+            str(tmp_path / "none.pt"),
+            "--out",
+            str(tmp_path / "c.json"),
+        ]
+    )
     err = capsys.readouterr().err.strip()
     assert rc == 2 and len(err.splitlines()) == 1 and "--no-context" in err, err
     assert not (tmp_path / "c.ingest").exists() and not (tmp_path / "c.json").exists()
@@ -289,14 +376,20 @@ def test_the_no_context_file_keeps_the_simulated_frames(net, tmp_path):
     f = encoder_features(net, torch.rand(16, 1, 64, 32, generator=torch.Generator().manual_seed(4)))
     y = np.linspace(0, 2, 16)
     heads = fit_heads(net, f, y, HeadFit(members=2, steps=5))
-    result = {"heads": [h.state_dict() for h in heads], "calibration": {}, "simulated_test": {},
-              "anchor": {"features": f.half(), "force_N": torch.tensor(y, dtype=torch.float32)}}
+    result = {
+        "heads": [h.state_dict() for h in heads],
+        "calibration": {},
+        "simulated_test": {},
+        "anchor": {"features": f.half(), "force_N": torch.tensor(y, dtype=torch.float32)},
+    }
     save_no_context(result, tmp_path / "nc.pt")
     anchor = SimAnchor.from_file(net, tmp_path / "nc.pt", 40)
     assert anchor.frames == 40 and SimAnchor.from_file(net, tmp_path / "nc.pt", 0) is None
     np.testing.assert_allclose(anchor.features.numpy(), f.numpy(), rtol=1e-3, atol=1e-3)
     np.testing.assert_allclose(anchor.force_N, y, rtol=1e-6)
-    np.testing.assert_array_equal(head_forces(net, list(anchor.heads), f), head_forces(net, heads, f))
+    np.testing.assert_array_equal(
+        head_forces(net, list(anchor.heads), f), head_forces(net, heads, f)
+    )
     torch.save({"heads": result["heads"], "info": "{}"}, tmp_path / "old.pt")
     with pytest.raises(CalibrationError, match="no simulated frames"):
         SimAnchor.from_file(net, tmp_path / "old.pt", 40)

@@ -1,4 +1,5 @@
 """The helpers every study shares: the Pareto front and the timer."""
+
 import numpy as np
 import pytest
 
@@ -17,8 +18,9 @@ def test_pareto_front_keeps_the_non_dominated_points():
 def test_pareto_front_ties_and_missing_values():
     np.testing.assert_array_equal(pareto_front([1.0, 1.0], [2.0, 2.0]), [True, True])  # ties kept
     # a NaN point is not on the front and does not hide the others
-    np.testing.assert_array_equal(pareto_front([1.0, np.nan, 2.0], [2.0, 0.1, 1.0]),
-                                  [True, False, True])
+    np.testing.assert_array_equal(
+        pareto_front([1.0, np.nan, 2.0], [2.0, 0.1, 1.0]), [True, False, True]
+    )
     np.testing.assert_array_equal(pareto_front([0.5, 1.0], [np.inf, 1.0]), [False, True])
     assert pareto_front([], []).shape == (0,)
 

@@ -1,4 +1,5 @@
 """The FEA studies' helpers: cost/accuracy (finray.benchmarks.fea_pareto) and robustness (fea_stability)."""
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -23,13 +24,31 @@ def test_richardson_refuses_non_monotone_data():
 
 def _study_rows():
     # Fx = 8 + 0.2 h^2 + 4 c^2 (mesh h, chord c): the converged value is 8
-    rows = [("default", 1.0, 0.1), ("mesh", 0.5, 0.1), ("mesh", 0.35, 0.1),
-            ("reference", 0.25, 0.1), ("arc chord", 1.0, 0.25), ("arc chord", 1.0, 0.05)]
-    return pd.DataFrame([{"variant": f"{f} {h} {c}" if f != "default" else f, "factor": f,
-                          "mesh_size_mm": h, "arc_chord_mm": c, "order": 2, "n_nodes": 1,
-                          "wall_time_s": 1 / h**2, "cpu_time_s": 1 / h**2,
-                          "newton_iterations": 1, "fx_10mm_N": 8.0 + 0.2 * h**2 + 4.0 * c**2}
-                         for f, h, c in rows])
+    rows = [
+        ("default", 1.0, 0.1),
+        ("mesh", 0.5, 0.1),
+        ("mesh", 0.35, 0.1),
+        ("reference", 0.25, 0.1),
+        ("arc chord", 1.0, 0.25),
+        ("arc chord", 1.0, 0.05),
+    ]
+    return pd.DataFrame(
+        [
+            {
+                "variant": f"{f} {h} {c}" if f != "default" else f,
+                "factor": f,
+                "mesh_size_mm": h,
+                "arc_chord_mm": c,
+                "order": 2,
+                "n_nodes": 1,
+                "wall_time_s": 1 / h**2,
+                "cpu_time_s": 1 / h**2,
+                "newton_iterations": 1,
+                "fx_10mm_N": 8.0 + 0.2 * h**2 + 4.0 * c**2,
+            }
+            for f, h, c in rows
+        ]
+    )
 
 
 def test_converged_estimate_adds_chord_correction():
@@ -41,8 +60,10 @@ def test_converged_estimate_adds_chord_correction():
 
 
 def test_write_pareto_outputs(tmp_path):
-    cfg = {"mesh": {"size_mm": 1.0, "arc_chord_mm": 0.1, "order": 2},
-           "fea": {"max_step_mm": 0.5, "dhat_mm": 0.02}}
+    cfg = {
+        "mesh": {"size_mm": 1.0, "arc_chord_mm": 0.1, "order": 2},
+        "fea": {"max_step_mm": 0.5, "dhat_mm": 0.02},
+    }
     df = write_pareto(_study_rows(), cfg, tmp_path / "p.csv", tmp_path / "p.png")
     assert (tmp_path / "p.png").stat().st_size > 0
     err = df.set_index("variant")["rel_error_pct"]
@@ -63,6 +84,7 @@ def smoke_cfg():
 def _raiser(exc):
     def run(cfg, cache=None, **scene):
         raise exc
+
     return run
 
 
@@ -73,13 +95,19 @@ def test_stability_suite_accepts_the_expected_refusal(smoke_cfg, tmp_path):
     from finray.benchmarks.fea_stability import Refusal, stability_suite
 
     cases = {"overlap": ({}, {}, Refusal(SimulationError, "intersects the finger"))}
-    df = stability_suite(smoke_cfg, tmp_path / "s.csv", cases=cases, log=lambda *a: None,
-                         run=_raiser(SimulationError(INTERSECTS, step=0, cause="x")))
+    df = stability_suite(
+        smoke_cfg,
+        tmp_path / "s.csv",
+        cases=cases,
+        log=lambda *a: None,
+        run=_raiser(SimulationError(INTERSECTS, step=0, cause="x")),
+    )
     assert df["ok"].tolist() == [True] and not df["unexpected_error"].any()
 
 
-@pytest.mark.parametrize("exc", [TypeError("unsupported operand"),
-                                 "SimulationError with another message"])
+@pytest.mark.parametrize(
+    "exc", [TypeError("unsupported operand"), "SimulationError with another message"]
+)
 def test_stability_suite_fails_on_a_wrong_refusal(smoke_cfg, tmp_path, exc):
     """A refused case that raises the wrong error type, or the right type with the
     wrong message, fails the suite (after writing the table)."""
@@ -89,8 +117,9 @@ def test_stability_suite_fails_on_a_wrong_refusal(smoke_cfg, tmp_path, exc):
         exc = SimulationError("load step 3 failed: line search failed", step=3, cause="ls")
     cases = {"overlap": ({}, {}, Refusal(SimulationError, "intersects the finger"))}
     with pytest.raises(StabilityFailure, match=r"unexpected error in overlap \(expected refuse"):
-        stability_suite(smoke_cfg, tmp_path / "s.csv", cases=cases, log=lambda *a: None,
-                        run=_raiser(exc))
+        stability_suite(
+            smoke_cfg, tmp_path / "s.csv", cases=cases, log=lambda *a: None, run=_raiser(exc)
+        )
     df = pd.read_csv(tmp_path / "s.csv")
     assert df["ok"].tolist() == [False] and df["unexpected_error"].tolist() == [True]
 
@@ -101,12 +130,22 @@ def test_stability_suite_converge_case(smoke_cfg, tmp_path):
     from finray.benchmarks.fea_stability import StabilityFailure, stability_suite
 
     cases = {"hard": ({}, {}, "converge")}
-    df = stability_suite(smoke_cfg, tmp_path / "s.csv", cases=cases, log=lambda *a: None,
-                         run=_raiser(SimulationError("load step 2 failed", step=2, cause="c")))
+    df = stability_suite(
+        smoke_cfg,
+        tmp_path / "s.csv",
+        cases=cases,
+        log=lambda *a: None,
+        run=_raiser(SimulationError("load step 2 failed", step=2, cause="c")),
+    )
     assert df["ok"].tolist() == [False] and not df["unexpected_error"].any()
     with pytest.raises(StabilityFailure, match="hard"):
-        stability_suite(smoke_cfg, tmp_path / "s.csv", cases=cases, log=lambda *a: None,
-                        run=_raiser(KeyError("fx")))
+        stability_suite(
+            smoke_cfg,
+            tmp_path / "s.csv",
+            cases=cases,
+            log=lambda *a: None,
+            run=_raiser(KeyError("fx")),
+        )
 
 
 def test_stability_cases_name_their_refusals():

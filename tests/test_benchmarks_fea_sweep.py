@@ -1,5 +1,6 @@
 """The FEA sweep over the whole face: its scenes (seeded, placeable down to the clamped
 base) and its summary (outcomes, CPU per band)."""
+
 import numpy as np
 import pandas as pd
 
@@ -31,13 +32,20 @@ def test_scenes_are_seeded_cover_the_face_and_can_be_placed():
 
 
 def test_summary_counts_outcomes_and_bands():
-    df = pd.DataFrame({
-        "scene": ["s0", "s1", "s2", "s3"], "kind": ["circle", "square", "ellipse", "polygon"],
-        "spec": ["{}"] * 4, "height_mm": [5.0, 8.0, 35.0, 69.0],
-        "outcome": ["force_cap", "failed", "complete", "complete"],
-        "cause": ["", "no convergence", "", ""], "message": ["", "load step 9 failed", "", ""],
-        "push_reached_mm": [0.4, np.nan, 10.0, 10.0], "max_force_N": [41.0, 90.0, 8.0, 2.0],
-        "cpu_s": [3.0, 60.0, 5.0, 4.0]})
+    df = pd.DataFrame(
+        {
+            "scene": ["s0", "s1", "s2", "s3"],
+            "kind": ["circle", "square", "ellipse", "polygon"],
+            "spec": ["{}"] * 4,
+            "height_mm": [5.0, 8.0, 35.0, 69.0],
+            "outcome": ["force_cap", "failed", "complete", "complete"],
+            "cause": ["", "no convergence", "", ""],
+            "message": ["", "load step 9 failed", "", ""],
+            "push_reached_mm": [0.4, np.nan, 10.0, 10.0],
+            "max_force_N": [41.0, 90.0, 8.0, 2.0],
+            "cpu_s": [3.0, 60.0, 5.0, 4.0],
+        }
+    )
     md = sweep_summary(df, 40.0)
     assert "**3/4 (75.0 %)" in md and "failed 1" in md
     assert "[no convergence] load step 9 failed" in md

@@ -1,4 +1,5 @@
 """Stage times, study times and the DAG's wall time from Snakemake's benchmark files."""
+
 import os
 
 import numpy as np
@@ -38,8 +39,10 @@ def test_stage_times_count_the_pipeline_only(bench):
 
 
 def test_study_times_are_apart(bench):
-    assert study_times(bench) == {"fea_pareto": {"wall_s": 50.0, "cpu_s": 49.0},
-                                  "train_pareto": {"wall_s": 40.0, "cpu_s": 39.0}}
+    assert study_times(bench) == {
+        "fea_pareto": {"wall_s": 50.0, "cpu_s": 49.0},
+        "train_pareto": {"wall_s": 40.0, "cpu_s": 39.0},
+    }
 
 
 def test_dag_span_from_the_file_times(bench):
@@ -60,22 +63,32 @@ def test_dag_span_without_benchmark_files(tmp_path):
 
 
 def test_speed_table_lists_studies_and_the_dag(bench):
-    speed = {"fea_seconds_per_scene": {"steel": {"median": 12.0, "n": 3}},
-             "network_ms_per_frame": 1.0, "network_force_only_ms_per_frame": 0.5,
-             "paper_network_ms_per_frame": 8.0, "studies": study_times(bench),
-             "dag": dag_span(bench)}
+    speed = {
+        "fea_seconds_per_scene": {"steel": {"median": 12.0, "n": 3}},
+        "network_ms_per_frame": 1.0,
+        "network_force_only_ms_per_frame": 0.5,
+        "paper_network_ms_per_frame": 8.0,
+        "studies": study_times(bench),
+        "dag": dag_span(bench),
+    }
     md = speed_table(speed)
     assert "| study: fea_pareto | 0.8 min |" in md and "| study: train_pareto | 0.7 min |" in md
-    assert "| whole DAG, wall | 2.5 min | 6 benchmarked jobs, 3.8 min of job time; pipeline " \
-           "stages alone 2.2 min |" in md
+    assert (
+        "| whole DAG, wall | 2.5 min | 6 benchmarked jobs, 3.8 min of job time; pipeline "
+        "stages alone 2.2 min |" in md
+    )
 
 
 def test_speed_figure_shows_stages_and_studies(bench, tmp_path):
     from finray.evaluate.figures import speed_figure
 
-    speed = {"fea_seconds_per_scene": {"steel": {"median": 12.0, "n": 3}},
-             "network_ms_per_frame": 1.0, "stages": stage_times(bench),
-             "studies": study_times(bench), "dag": dag_span(bench)}
+    speed = {
+        "fea_seconds_per_scene": {"steel": {"median": 12.0, "n": 3}},
+        "network_ms_per_frame": 1.0,
+        "stages": stage_times(bench),
+        "studies": study_times(bench),
+        "dag": dag_span(bench),
+    }
     speed_figure(speed, tmp_path / "speed.pdf")
     assert (tmp_path / "speed.pdf").stat().st_size > 0
 

@@ -1,17 +1,30 @@
 """Seeded smooth random polygons (finray.geometry.blobs) and their generated objects."""
+
 import numpy as np
 import pytest
 import shapely
 from shapely.geometry import Polygon
 
-from finray.geometry.blobs import (blob_diameter, blob_name, blob_outline, feret_diameter,
-                                   generated_objects)
+from finray.geometry.blobs import (
+    blob_diameter,
+    blob_name,
+    blob_outline,
+    feret_diameter,
+    generated_objects,
+)
 from finray.geometry.finger import FingerParams, GeometryError, outer_polygon
 from finray.geometry.mesh import BOUNDARY_TAGS
 from finray.geometry.objects import object_geometry, object_shape
 
-GEN = {"count": 300, "seed": 0, "size_mm": [5.0, 25.0], "harmonics": 5, "amplitude": 0.4,
-       "split": "train", "materials": ["steel"]}
+GEN = {
+    "count": 300,
+    "seed": 0,
+    "size_mm": [5.0, 25.0],
+    "harmonics": 5,
+    "amplitude": 0.4,
+    "split": "train",
+    "materials": ["steel"],
+}
 
 
 @pytest.fixture(scope="module")
@@ -86,17 +99,20 @@ def test_smooth_ones_are_convex():
     assert r.max() - r.min() < 1e-3 and r.mean() == pytest.approx(5.0, abs=1e-3)
 
 
-@pytest.mark.parametrize("kwargs, key", [
-    ({"seed": -1}, "objects.b.seed"),
-    ({"seed": 1.5}, "objects.b.seed"),
-    ({"diameter_mm": 0.0}, "objects.b.diameter_mm"),
-    ({"diameter_mm": float("nan")}, "objects.b.diameter_mm"),
-    ({"harmonics": 0}, "objects.b.harmonics"),
-    ({"harmonics": 17}, "objects.b.harmonics"),
-    ({"amplitude": 0.7}, "objects.b.amplitude"),
-    ({"amplitude": -0.1}, "objects.b.amplitude"),
-    ({"max_chord_mm": 0.0}, "objects.b.max_chord_mm"),
-])
+@pytest.mark.parametrize(
+    "kwargs, key",
+    [
+        ({"seed": -1}, "objects.b.seed"),
+        ({"seed": 1.5}, "objects.b.seed"),
+        ({"diameter_mm": 0.0}, "objects.b.diameter_mm"),
+        ({"diameter_mm": float("nan")}, "objects.b.diameter_mm"),
+        ({"harmonics": 0}, "objects.b.harmonics"),
+        ({"harmonics": 17}, "objects.b.harmonics"),
+        ({"amplitude": 0.7}, "objects.b.amplitude"),
+        ({"amplitude": -0.1}, "objects.b.amplitude"),
+        ({"max_chord_mm": 0.0}, "objects.b.max_chord_mm"),
+    ],
+)
 def test_bad_parameters_one_line(kwargs, key):
     args = {"seed": 1, "diameter_mm": 10.0, **kwargs}
     with pytest.raises(GeometryError) as err:
@@ -125,6 +141,7 @@ def test_largest_blob_placed_and_meshed_as_rigid(specs, height):
 
 
 def test_deformable_blob_is_meshed(specs):
-    m = object_geometry("blob_s001", specs["blob_s001"], FingerParams(), 30.0, size_mm=1.0,
-                        deformable=True)
+    m = object_geometry(
+        "blob_s001", specs["blob_s001"], FingerParams(), 30.0, size_mm=1.0, deformable=True
+    )
     assert len(m.triangles) > 0 and m.meta["quality"]["min_angle_deg"] > 20

@@ -1,5 +1,6 @@
 """The training-budget study's table: per point and figure the mean and range over seeds,
 each point's training CPU time, and the worst condition of the multi-condition experiments."""
+
 import json
 
 import pytest
@@ -7,15 +8,36 @@ import pytest
 from finray.benchmarks.budget import budget_table, cpu_seconds, with_worst, write_budget
 
 FIGURES = {
-    "default": {"s0_auto": {"shape | none | camera | force NRMSE %": 1.9, "pitch | 0 | pitch | force NRMSE %": 1.0,
-                            "pitch | 30 | pitch | force NRMSE %": 3.0, "sim2real | 2 context | NRMSE %": 3.4},
-                "s1_auto": {"shape | none | camera | force NRMSE %": 2.1, "pitch | 0 | pitch | force NRMSE %": 2.0,
-                            "pitch | 30 | pitch | force NRMSE %": 1.5, "sim2real | 2 context | NRMSE %": 3.2}},
-    "f4": {"s0_auto_f4": {"shape | none | camera | force NRMSE %": 2.0, "pitch | 0 | pitch | force NRMSE %": 1.2,
-                          "pitch | 30 | pitch | force NRMSE %": 2.4, "sim2real | 2 context | NRMSE %": 3.0}},
+    "default": {
+        "s0_auto": {
+            "shape | none | camera | force NRMSE %": 1.9,
+            "pitch | 0 | pitch | force NRMSE %": 1.0,
+            "pitch | 30 | pitch | force NRMSE %": 3.0,
+            "sim2real | 2 context | NRMSE %": 3.4,
+        },
+        "s1_auto": {
+            "shape | none | camera | force NRMSE %": 2.1,
+            "pitch | 0 | pitch | force NRMSE %": 2.0,
+            "pitch | 30 | pitch | force NRMSE %": 1.5,
+            "sim2real | 2 context | NRMSE %": 3.2,
+        },
+    },
+    "f4": {
+        "s0_auto_f4": {
+            "shape | none | camera | force NRMSE %": 2.0,
+            "pitch | 0 | pitch | force NRMSE %": 1.2,
+            "pitch | 30 | pitch | force NRMSE %": 2.4,
+            "sim2real | 2 context | NRMSE %": 3.0,
+        }
+    },
 }
-CPU = {"default": {"s0_auto": {"camera": 2880.0, "pitch": 1200.0}, "s1_auto": {"camera": 2820.0, "pitch": 1260.0}},
-       "f4": {"s0_auto_f4": {"camera": 720.0, "pitch": 300.0}}}
+CPU = {
+    "default": {
+        "s0_auto": {"camera": 2880.0, "pitch": 1200.0},
+        "s1_auto": {"camera": 2820.0, "pitch": 1260.0},
+    },
+    "f4": {"s0_auto_f4": {"camera": 720.0, "pitch": 300.0}},
+}
 
 
 def test_worst_condition_is_the_largest_error_per_predictor():
@@ -38,8 +60,10 @@ def test_budget_table_gives_mean_and_range_over_seeds_and_the_cpu_minutes():
 
 
 def test_write_budget_round_trips_through_json(tmp_path):
-    out = {k: tmp_path / f"training_budget.{e}" for k, e in
-           (("json", "json"), ("csv", "csv"), ("table", "md"), ("figure", "png"))}
+    out = {
+        k: tmp_path / f"training_budget.{e}"
+        for k, e in (("json", "json"), ("csv", "csv"), ("table", "md"), ("figure", "png"))
+    }
     write_budget(FIGURES, CPU, {"default": {}, "f4": {"frame_every": 4}}, out, "Test CPU")
     s = json.loads(out["json"].read_text())
     assert s["cpu"] == "Test CPU" and s["points"]["f4"] == {"frame_every": 4}

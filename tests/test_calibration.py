@@ -1,13 +1,24 @@
 """The emcee force calibration: recovery of known parameters, predictive intervals,
 its convergence diagnostics, cross-fitting labels and one-line errors."""
+
 import json
 
 import numpy as np
 import pandas as pd
 import pytest
 
-from finray.calibration import (PARAMS, CalibrationError, Priors, RigPrior, coverage, fit_calibration,
-                                fold_units, log_posterior, predictive, read_calibration)
+from finray.calibration import (
+    PARAMS,
+    CalibrationError,
+    Priors,
+    RigPrior,
+    coverage,
+    fit_calibration,
+    fold_units,
+    log_posterior,
+    predictive,
+    read_calibration,
+)
 
 FREE = Priors(gain_log_sd=0.5, offset_sd_N=1.0)  # gain and offset sampled
 TRUE = {"gain": 1.3, "offset_N": 0.2, "sigma_N": 0.08, "rho": 0.04, "kappa": 1.5}
@@ -19,7 +30,9 @@ def synthetic(n, seed):
     mu = 4 * np.abs(rng.normal(0, 1, n))
     s = np.exp(rng.uniform(np.log(0.005), np.log(0.5), n))
     t = TRUE
-    sd = np.sqrt(t["sigma_N"] ** 2 + (t["rho"] * t["gain"] * mu) ** 2 + (t["kappa"] * t["gain"] * s) ** 2)
+    sd = np.sqrt(
+        t["sigma_N"] ** 2 + (t["rho"] * t["gain"] * mu) ** 2 + (t["kappa"] * t["gain"] * s) ** 2
+    )
     return mu, s, t["gain"] * mu + t["offset_N"] + sd * rng.standard_normal(n)
 
 
@@ -46,7 +59,9 @@ def test_heavy_tailed_noise_gives_few_degrees_of_freedom():
     rng = np.random.default_rng(7)
     mu, s = 4 * np.abs(rng.normal(0, 1, 600)), np.full(600, 1e-3)
     y = 1.1 * mu - 0.1 + 0.05 * rng.standard_t(3, 600)
-    q = fit_calibration(mu, s, y, Priors(gain_log_sd=0.5, offset_sd_N=1.0, rho=(1e-4, 1.0)), log=lambda m: None)["summary"]
+    q = fit_calibration(
+        mu, s, y, Priors(gain_log_sd=0.5, offset_sd_N=1.0, rho=(1e-4, 1.0)), log=lambda m: None
+    )["summary"]
     assert 2 <= q["nu"]["median"] < 6 and q["nu"]["q97.5"] < 20
     assert q["gain"]["q2.5"] < 1.1 < q["gain"]["q97.5"]
     assert q["sigma_N"]["q2.5"] < 0.05 < q["sigma_N"]["q97.5"]
@@ -79,7 +94,10 @@ def test_rig_prior_covers_rigs_of_unknown_gain(fitted):
     ys, mus, ss = [], [], []
     for _ in range(60):  # 60 rigs of 200 frames
         mu, s, y = synthetic(200, int(rng.integers(1 << 30)))
-        g, b = np.exp(prior.gain_log_sd * rng.standard_normal()), prior.offset_sd_N * rng.standard_normal()
+        g, b = (
+            np.exp(prior.gain_log_sd * rng.standard_normal()),
+            prior.offset_sd_N * rng.standard_normal(),
+        )
         ys.append(g * (y - TRUE["offset_N"]) + TRUE["offset_N"] + b)
         mus.append(mu), ss.append(s)
     y, mu, s = (np.concatenate(a) for a in (ys, mus, ss))
@@ -94,10 +112,15 @@ def test_log_posterior_is_minus_infinity_outside_the_priors():
     mu, s, y = synthetic(20, 3)
     p = FREE
     inside = [1.0, 0.0, np.log(0.1), np.log(0.05), 0.0, np.log(10.0)]
-    rows = np.array([inside, [-1.0, *inside[1:]],                    # negative gain
-                     [*inside[:2], np.log(p.sigma_N[1]) + 1, *inside[3:]],  # sigma above its bound
-                     [*inside[:4], np.log(p.kappa[0]) - 1, inside[5]],  # kappa below its bound
-                     [*inside[:5], np.log(p.nu[0]) - 0.1]])           # nu below its bound
+    rows = np.array(
+        [
+            inside,
+            [-1.0, *inside[1:]],  # negative gain
+            [*inside[:2], np.log(p.sigma_N[1]) + 1, *inside[3:]],  # sigma above its bound
+            [*inside[:4], np.log(p.kappa[0]) - 1, inside[5]],  # kappa below its bound
+            [*inside[:5], np.log(p.nu[0]) - 0.1],
+        ]
+    )  # nu below its bound
     lp = log_posterior(rows, mu, s, y, p)
     assert np.isfinite(lp[0]) and np.all(np.isneginf(lp[1:]))
 
@@ -113,7 +136,9 @@ def test_fold_units():
     assert list(take) == list(t["take"])
     assert list(half) == ["1st half"] * 2 + ["2nd half"] * 2 + ["1st half"] * 2 + ["2nd half"] * 2
     assert len(fold_units(t, "take")) == 1 and len(fold_units(t, "half")) == 1
-    assert [list(u) for u in fold_units(t[t["take"] == "a"], "take")] == [list(half[:4])]  # one take: halves
+    assert [list(u) for u in fold_units(t[t["take"] == "a"], "take")] == [
+        list(half[:4])
+    ]  # one take: halves
     with pytest.raises(ValueError, match="object, take, half, both"):
         fold_units(t, "objects")
     with pytest.raises(ValueError, match="an 'object' column"):

@@ -1,5 +1,6 @@
 """The camera path of an experiment: rendered full frames through the Predictor, scored
 against the FEA beside the shard path on the same frames (finray.evaluate.camera)."""
+
 import json
 
 import numpy as np
@@ -19,8 +20,15 @@ SIZE = (64, 32)  # the size of the scene fixture (conftest.py)
 
 def test_camera_rows_beside_the_shard_rows(scene, tmp_path):
     out = tmp_path / "shape"
-    m = run_experiment(out, scene["shards"], SIZE, {"plain": str(scene["model"])},
-                       group_col="object", render_indices=scene["indices"], log=lambda *_: None)
+    m = run_experiment(
+        out,
+        scene["shards"],
+        SIZE,
+        {"plain": str(scene["model"])},
+        group_col="object",
+        render_indices=scene["indices"],
+        log=lambda *_: None,
+    )
     allrows = m[m["group"] == "all"].set_index(["path", "frames"])
     assert set(allrows.index) == {("shard", "all"), ("shard", "rendered"), ("camera", "rendered")}
     assert allrows.loc[("shard", "all"), "n"] == 10
@@ -29,7 +37,8 @@ def test_camera_rows_beside_the_shard_rows(scene, tmp_path):
     # at pitch 0 the base-anchored crop is the shards' window: the same inputs, same forces
     for col in ("mse_N2", "nrmse_pct", "stress_mse_log"):
         assert allrows.loc[("camera", "rendered"), col] == pytest.approx(
-            allrows.loc[("shard", "rendered"), col], rel=1e-5, abs=1e-9)
+            allrows.loc[("shard", "rendered"), col], rel=1e-5, abs=1e-9
+        )
     frames = pd.read_csv(out / "frames.csv")
     cam = frames[frames["path"] == "camera"]
     assert sorted(cam["frame"].unique()) == [0, 2, 4]
@@ -47,8 +56,10 @@ def test_camera_rows_beside_the_shard_rows(scene, tmp_path):
     shard = frames[frames["path"] == "shard"]
     want = force_metrics(shard["fy_N"], shard["pred_fy_plain"])
     assert s["all"]["fy_mse_N2"] == pytest.approx(want["mse_N2"])
-    mag = force_metrics(np.hypot(shard["fx_N"], shard["fy_N"]),
-                        np.hypot(shard["pred_plain"], shard["pred_fy_plain"]))
+    mag = force_metrics(
+        np.hypot(shard["fx_N"], shard["fy_N"]),
+        np.hypot(shard["pred_plain"], shard["pred_fy_plain"]),
+    )
     assert s["all"]["mag_nrmse_pct"] == pytest.approx(mag["nrmse_pct"])
     assert s["camera"]["all"]["fy_rmse_N"] >= 0
 
@@ -67,7 +78,7 @@ def test_camera_path_reads_the_rendered_images(scene, tmp_path):
     # left, 5 px below the base (the crop follows the finger)
     bg = rgb[0, 0]
     big = np.broadcast_to(bg, (rgb.shape[0] + 42, rgb.shape[1] + 11, 3)).copy()
-    big[37:37 + rgb.shape[0], 11:] = rgb
+    big[37 : 37 + rgb.shape[0], 11:] = rgb
     write_png(d / name, big)
     p = Predictor(scene["model"], backend="torchscript")
     moved, _ = camera_test_set([d / "index.json"], p)
@@ -91,11 +102,15 @@ def test_renders_and_shards_of_different_runs_are_refused(scene):
     _, shard_table = load_test_set(scene["shards"], SIZE)
     other = shard_table.copy()
     other.loc[other["frame"] == 4, "fx_N"] += 0.5
-    with pytest.raises(ValueError, match=r"FEA force of frame 4 of ellipse_16x9_steel_h\d+_p0 "
-                                         r"differs .* by 0\.5 N"):
+    with pytest.raises(
+        ValueError,
+        match=r"FEA force of frame 4 of ellipse_16x9_steel_h\d+_p0 "
+        r"differs .* by 0\.5 N",
+    ):
         rendered_subset(other, table)
-    with pytest.raises(ValueError, match="rendered frame 0 of ellipse_16x9_steel_h20_p0 is not in "
-                                         "the test shards"):
+    with pytest.raises(
+        ValueError, match="rendered frame 0 of ellipse_16x9_steel_h20_p0 is not in the test shards"
+    ):
         rendered_subset(shard_table[shard_table["height_mm"] == 30.0], table)
 
 

@@ -1,5 +1,6 @@
 """The randomised training cameras: replayable draws within their ranges, and the camera
 views' network inputs (a far, square-on camera sees the front view)."""
+
 import numpy as np
 import pytest
 
@@ -20,7 +21,8 @@ def test_draws_are_replayable_and_within_their_ranges():
         assert d[key].min() >= lo and d[key].max() <= hi
         assert d[key].max() - d[key].min() > 0.9 * (hi - lo)  # the whole range is drawn
     assert {(int(w), int(h)) for w, h in zip(d["width_px"], d["height_px"])} == {
-        (h, w) for w, h in v.frames_px}  # every stream size, portrait
+        (h, w) for w, h in v.frames_px
+    }  # every stream size, portrait
     assert np.abs(d["cx_offset_px"]).max() <= v.principal_offset_px
 
 
@@ -37,7 +39,8 @@ def test_a_drawn_camera_looks_at_its_target_from_its_distance():
         assert 2 * np.degrees(np.arctan(0.5 * cam.height / cam.fy)) == pytest.approx(r["hfov_deg"])
         # pitch: the camera is above the finger's plane by distance x sin(pitch)
         assert cam.position[1] - target[1] == pytest.approx(
-            r["distance_mm"] * np.sin(np.radians(r["pitch_deg"])))
+            r["distance_mm"] * np.sin(np.radians(r["pitch_deg"]))
+        )
 
 
 def test_config_section_and_bad_ranges():

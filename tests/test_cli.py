@@ -1,4 +1,5 @@
 """The finray command line."""
+
 import subprocess
 import sys
 
@@ -12,7 +13,9 @@ pytestmark = pytest.mark.slow  # not in `pytest -m "not slow"`
 
 
 def run(*args):
-    return subprocess.run([sys.executable, "-m", "finray.cli", *args], capture_output=True, text=True)
+    return subprocess.run(
+        [sys.executable, "-m", "finray.cli", *args], capture_output=True, text=True
+    )
 
 
 def test_help_lists_every_option_with_units():
@@ -31,8 +34,20 @@ def test_help_lists_every_option_with_units():
 
 
 def test_geometry_one_object(tmp_path):
-    r = run("geometry", "--object", "circle", "--size-mm", "20", "--height-mm", "30",
-            "--out", str(tmp_path), "--plot", "--mesh-size-mm", "1.0")
+    r = run(
+        "geometry",
+        "--object",
+        "circle",
+        "--size-mm",
+        "20",
+        "--height-mm",
+        "30",
+        "--out",
+        str(tmp_path),
+        "--plot",
+        "--mesh-size-mm",
+        "1.0",
+    )
     assert r.returncode == 0, r.stderr
     obj = TriMesh.load(tmp_path / "objects" / "circle_20mm_h30.npz")
     assert obj.meta["reference_point_mm"][1] == 30.0
@@ -46,8 +61,18 @@ def test_geometry_one_object(tmp_path):
 def test_geometry_object_file(tmp_path):
     f = tmp_path / "part.json"
     f.write_text("[[-4, -4], [5, -3], [1, 6]]")
-    r = run("geometry", "--object-file", str(f), "--height-mm", "20", "--out", str(tmp_path / "o"),
-            "--deformable", "--mesh-size-mm", "1.0")
+    r = run(
+        "geometry",
+        "--object-file",
+        str(f),
+        "--height-mm",
+        "20",
+        "--out",
+        str(tmp_path / "o"),
+        "--deformable",
+        "--mesh-size-mm",
+        "1.0",
+    )
     assert r.returncode == 0, r.stderr
     obj = TriMesh.load(tmp_path / "o" / "objects" / "part_h20.npz")
     assert len(obj.triangles) > 0 and np.isfinite(obj.points).all()
@@ -55,14 +80,36 @@ def test_geometry_object_file(tmp_path):
 
 def test_geometry_fractional_size_and_odd_file_name(tmp_path):
     """A size in tenths of a mm and a file name with a space and dots make valid names."""
-    r = run("geometry", "--object", "square", "--size-mm", "16.5", "--angle-deg", "-7.5",
-            "--height-mm", "30", "--out", str(tmp_path / "s"), "--mesh-size-mm", "1.0")
+    r = run(
+        "geometry",
+        "--object",
+        "square",
+        "--size-mm",
+        "16.5",
+        "--angle-deg",
+        "-7.5",
+        "--height-mm",
+        "30",
+        "--out",
+        str(tmp_path / "s"),
+        "--mesh-size-mm",
+        "1.0",
+    )
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "s" / "objects" / "square_16p5mm_a-7p5_h30.npz").is_file()
     f = tmp_path / "my part.v2.json"
     f.write_text("[[-4, -4], [5, -3], [1, 6]]")
-    r = run("geometry", "--object-file", str(f), "--height-mm", "20", "--out", str(tmp_path / "o"),
-            "--mesh-size-mm", "1.0")
+    r = run(
+        "geometry",
+        "--object-file",
+        str(f),
+        "--height-mm",
+        "20",
+        "--out",
+        str(tmp_path / "o"),
+        "--mesh-size-mm",
+        "1.0",
+    )
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "o" / "objects" / "my_part_v2_h20.npz").is_file()
 
@@ -93,15 +140,31 @@ def test_simulate_without_an_object_is_an_error(tmp_path):
 def test_missing_config_file_is_an_error(tmp_path, command):
     """A --config that does not exist stops the command (it once ran on the defaults)."""
     missing = tmp_path / "missing.yaml"
-    r = run(command, "--config", str(missing), "--object", "circle", "--size-mm", "20",
-            "--height-mm", "30", "--out", str(tmp_path / "out"))
+    r = run(
+        command,
+        "--config",
+        str(missing),
+        "--object",
+        "circle",
+        "--size-mm",
+        "20",
+        "--height-mm",
+        "30",
+        "--out",
+        str(tmp_path / "out"),
+    )
     msg = one_line_error(r, f"finray {command}: config error: ")
     assert f"config file '{missing}' does not exist" in msg
     assert not (tmp_path / "out").exists()
 
 
-@pytest.mark.parametrize("text, why", [("finger: [1, 2\n  mesh: {", "is not valid YAML"),
-                                       ("- a list\n- of things\n", "is not a mapping")])
+@pytest.mark.parametrize(
+    "text, why",
+    [
+        ("finger: [1, 2\n  mesh: {", "is not valid YAML"),
+        ("- a list\n- of things\n", "is not a mapping"),
+    ],
+)
 def test_config_that_is_not_a_mapping_is_an_error(tmp_path, text, why):
     bad = tmp_path / "bad.yaml"
     bad.write_text(text)
@@ -109,20 +172,49 @@ def test_config_that_is_not_a_mapping_is_an_error(tmp_path, text, why):
     assert why in one_line_error(r, "finray geometry: config error: ")
 
 
-@pytest.mark.parametrize("option, value", [("--size-mm", "0"), ("--minor-mm", "0"), ("--mesh-size-mm", "0"),
-                                           ("--size-mm", "-5"), ("--wall-mm", "nan")])
+@pytest.mark.parametrize(
+    "option, value",
+    [
+        ("--size-mm", "0"),
+        ("--minor-mm", "0"),
+        ("--mesh-size-mm", "0"),
+        ("--size-mm", "-5"),
+        ("--wall-mm", "nan"),
+    ],
+)
 def test_sizes_of_zero_or_below_are_refused(tmp_path, option, value):
     """A size of 0 once silently took the default (a truthiness test)."""
-    args = {"--size-mm": "16", "--minor-mm": "9", "--mesh-size-mm": "1.0", "--wall-mm": "2"} | {option: value}
-    r = run("simulate", "--object", "ellipse", *sum(([k, v] for k, v in args.items()), []),
-            "--height-mm", "30", "--out", str(tmp_path / "out"))
+    args = {"--size-mm": "16", "--minor-mm": "9", "--mesh-size-mm": "1.0", "--wall-mm": "2"} | {
+        option: value
+    }
+    r = run(
+        "simulate",
+        "--object",
+        "ellipse",
+        *sum(([k, v] for k, v in args.items()), []),
+        "--height-mm",
+        "30",
+        "--out",
+        str(tmp_path / "out"),
+    )
     assert f"{option} must be > 0, got " in one_line_error(r, "finray simulate: ")
     assert not (tmp_path / "out").exists()
 
 
 def test_simulate_refuses_two_heights(tmp_path):
-    r = run("simulate", "--object", "circle", "--size-mm", "20", "--height-mm", "20", "--height-mm", "30",
-            "--out", str(tmp_path / "out"))
+    r = run(
+        "simulate",
+        "--object",
+        "circle",
+        "--size-mm",
+        "20",
+        "--height-mm",
+        "20",
+        "--height-mm",
+        "30",
+        "--out",
+        str(tmp_path / "out"),
+    )
     msg = one_line_error(r, "finray simulate: ")
     assert "--height-mm takes one height, got 2 (20, 30)" in msg
     assert not (tmp_path / "out").exists()
@@ -131,25 +223,60 @@ def test_simulate_refuses_two_heights(tmp_path):
 @pytest.mark.parametrize("command", ["geometry", "simulate"])
 def test_an_out_that_is_a_file_or_cannot_be_created_is_refused(tmp_path, command):
     (tmp_path / "taken").write_text("a file")
-    base = [command, "--object", "circle", "--size-mm", "20", "--height-mm", "30", "--mesh-size-mm", "3"]
+    base = [
+        command,
+        "--object",
+        "circle",
+        "--size-mm",
+        "20",
+        "--height-mm",
+        "30",
+        "--mesh-size-mm",
+        "3",
+    ]
     r = run(*base, "--out", str(tmp_path / "taken"))
-    assert f"--out {tmp_path / 'taken'} is a file, not a folder" in one_line_error(r, f"finray {command}: ")
+    assert f"--out {tmp_path / 'taken'} is a file, not a folder" in one_line_error(
+        r, f"finray {command}: "
+    )
     assert (tmp_path / "taken").read_text() == "a file"
     r = run(*base, "--out", str(tmp_path / "taken" / "sub"))
-    assert f"--out {tmp_path / 'taken' / 'sub'} cannot be created (" in one_line_error(r, f"finray {command}: ")
+    assert f"--out {tmp_path / 'taken' / 'sub'} cannot be created (" in one_line_error(
+        r, f"finray {command}: "
+    )
 
 
 def test_predict_refuses_zero_threads_and_an_out_that_is_a_file(tmp_path):
     (tmp_path / "taken").write_text("a file")
-    r = run("predict", "--model", str(tmp_path / "m.ts"), str(tmp_path), "--threads", "0", "--out", str(tmp_path / "o"))
+    r = run(
+        "predict",
+        "--model",
+        str(tmp_path / "m.ts"),
+        str(tmp_path),
+        "--threads",
+        "0",
+        "--out",
+        str(tmp_path / "o"),
+    )
     assert "--threads must be > 0, got 0" in one_line_error(r, "finray predict: ")
-    r = run("predict", "--model", str(tmp_path / "m.ts"), str(tmp_path), "--out", str(tmp_path / "taken"))
+    r = run(
+        "predict",
+        "--model",
+        str(tmp_path / "m.ts"),
+        str(tmp_path),
+        "--out",
+        str(tmp_path / "taken"),
+    )
     assert "is a file, not a folder" in one_line_error(r, "finray predict: ")
 
 
-@pytest.mark.parametrize("kind, why", [("folder", "is a folder, not a config file"),
-                                       ("latin1", "is not UTF-8 text (byte "),
-                                       ("empty", "is empty: give the config's keys")])
+@pytest.mark.parametrize(
+    "kind, why",
+    [
+        ("folder", "is a folder, not a config file"),
+        ("latin1", "is not UTF-8 text (byte "),
+        ("empty", "is empty: give the config's keys"),
+    ],
+)
 def test_config_that_is_a_folder_not_utf8_or_empty_is_an_error(tmp_path, kind, why):
     bad = tmp_path / "bad.yaml"
     if kind == "folder":
@@ -166,11 +293,28 @@ def test_ctrl_c_during_simulate_is_one_line(tmp_path):
     import signal
     import time
 
-    p = subprocess.Popen([sys.executable, "-m", "finray.cli", "simulate", "--object", "circle", "--size-mm", "20",
-                          "--height-mm", "30", "--no-vtu", "--out", str(tmp_path / "out")],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                         # a worker of pytest-xdist ignores SIGINT, and a child inherits that
-                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    p = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "finray.cli",
+            "simulate",
+            "--object",
+            "circle",
+            "--size-mm",
+            "20",
+            "--height-mm",
+            "30",
+            "--no-vtu",
+            "--out",
+            str(tmp_path / "out"),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        # a worker of pytest-xdist ignores SIGINT, and a child inherits that
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
     err = ""
     while "frame" not in err:  # the solver's first progress line: it is simulating
         line = p.stderr.readline()
@@ -190,8 +334,11 @@ def test_predict_help_examples_parse():
 
     from finray.cli import PREDICT_HELP
 
-    examples = [line.strip() for line in PREDICT_HELP.split("examples:")[1].splitlines()
-                if line.strip().startswith("finray predict")]
+    examples = [
+        line.strip()
+        for line in PREDICT_HELP.split("examples:")[1].splitlines()
+        if line.strip().startswith("finray predict")
+    ]
     assert len(examples) >= 3
     for line in examples:
         args = build_parser().parse_args(shlex.split(line)[1:])

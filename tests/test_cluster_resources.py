@@ -1,4 +1,5 @@
 """Every rule asks a cluster for memory and time; the run comparison catches differences."""
+
 import importlib.util
 import json
 from pathlib import Path
@@ -21,8 +22,11 @@ def test_every_rule_declares_mem_mb_and_runtime():
     res = load("resources")
     blocks = res.rule_blocks()
     assert len(blocks) > 30 and "fea_scene" in blocks and "manuscript" in blocks
-    missing = [n for n, t in blocks.items()
-               if set(res.declared(t)) != {"mem_mb", "runtime"} or min(res.declared(t).values()) < 1]
+    missing = [
+        n
+        for n, t in blocks.items()
+        if set(res.declared(t)) != {"mem_mb", "runtime"} or min(res.declared(t).values()) < 1
+    ]
     assert missing == []
 
 
@@ -79,8 +83,10 @@ def _pair(tmp_path, name, a, b):
 
 
 MD = "| case | fx (N) | job time (s) | FEA s/scene |\n|---|--:|--:|--:|\n| a | {fx} | {t} | {t} |\n"
-HTML = ("<table>\n<thead>\n<tr>\n<th>case</th>\n<th>fx (N)</th>\n<th>wall (s)</th>\n</tr>\n</thead>\n"
-        "<tbody>\n<tr>\n<td>a</td>\n<td>{fx}</td>\n<td>{t}</td>\n</tr>\n</tbody>\n</table>\n")
+HTML = (
+    "<table>\n<thead>\n<tr>\n<th>case</th>\n<th>fx (N)</th>\n<th>wall (s)</th>\n</tr>\n</thead>\n"
+    "<tbody>\n<tr>\n<td>a</td>\n<td>{fx}</td>\n<td>{t}</td>\n</tr>\n</tbody>\n</table>\n"
+)
 
 
 @pytest.mark.parametrize("template", [MD, HTML])
@@ -88,17 +94,37 @@ def test_compare_runs_masks_timing_columns_only(tmp_path, capsys, template):
     """A table's timing columns may differ (padding too); its force column may not."""
     cmp = load("compare_runs")
     name = "t.md" if template is MD else "t.html"
-    args = _pair(tmp_path, name, template.format(fx=8.241, t=10.84), template.format(fx=8.241, t=7.4))
+    args = _pair(
+        tmp_path, name, template.format(fx=8.241, t=10.84), template.format(fx=8.241, t=7.4)
+    )
     assert cmp.main(args) == 0
-    args = _pair(tmp_path / "2", name, template.format(fx=8.241, t=10.84), template.format(fx=8.242, t=10.84))
+    args = _pair(
+        tmp_path / "2", name, template.format(fx=8.241, t=10.84), template.format(fx=8.242, t=10.84)
+    )
     assert cmp.main(args) == 1 and f"MISMATCH results/{name}" in capsys.readouterr().out
 
 
 def test_compare_runs_masks_numbers_with_a_time_unit(tmp_path, capsys):
     cmp = load("compare_runs")
-    assert cmp.main(_pair(tmp_path, "m.md", "the FEA takes 10.9 s, 8.24 N\n", "the FEA takes 9.7 s, 8.24 N\n")) == 0
-    assert cmp.main(_pair(tmp_path / "2", "m.md", "the FEA takes 10.9 s, 8.24 N\n",
-                          "the FEA takes 10.9 s, 8.25 N\n")) == 1
+    assert (
+        cmp.main(
+            _pair(
+                tmp_path, "m.md", "the FEA takes 10.9 s, 8.24 N\n", "the FEA takes 9.7 s, 8.24 N\n"
+            )
+        )
+        == 0
+    )
+    assert (
+        cmp.main(
+            _pair(
+                tmp_path / "2",
+                "m.md",
+                "the FEA takes 10.9 s, 8.24 N\n",
+                "the FEA takes 10.9 s, 8.25 N\n",
+            )
+        )
+        == 1
+    )
 
 
 def test_compare_runs_checkpoints(tmp_path, capsys):
@@ -109,10 +135,17 @@ def test_compare_runs_checkpoints(tmp_path, capsys):
     w = {"w": torch.arange(4.0)}
     for side, (ww, t) in {"a": (w, 1.0), "b": (w, 2.0)}.items():
         (tmp_path / side / "results").mkdir(parents=True)
-        torch.save({"state_dict": ww, "history": {"wall_time_s": [t], "loss": [0.5]}},
-                   tmp_path / side / "results" / "model.pt")
+        torch.save(
+            {"state_dict": ww, "history": {"wall_time_s": [t], "loss": [0.5]}},
+            tmp_path / side / "results" / "model.pt",
+        )
     assert cmp.main([str(tmp_path / "a"), str(tmp_path / "b")]) == 0
-    torch.save({"state_dict": {"w": torch.arange(4.0) + 1e-7}, "history": {"wall_time_s": [1.0], "loss": [0.5]}},
-               tmp_path / "b" / "results" / "model.pt")
+    torch.save(
+        {
+            "state_dict": {"w": torch.arange(4.0) + 1e-7},
+            "history": {"wall_time_s": [1.0], "loss": [0.5]},
+        },
+        tmp_path / "b" / "results" / "model.pt",
+    )
     assert cmp.main([str(tmp_path / "a"), str(tmp_path / "b")]) == 1
     assert "MISMATCH results/model.pt: .state_dict.w: tensor differs" in capsys.readouterr().out

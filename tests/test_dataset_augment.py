@@ -1,11 +1,17 @@
 """Dataset corruptions: occlusion disc sizes, salt-and-pepper density, exact replay."""
+
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from finray.dataset import (OCCLUSION_LEVELS, AugmentParams, apply_augment, augment_seed,
-                            sample_augment)
+from finray.dataset import (
+    OCCLUSION_LEVELS,
+    AugmentParams,
+    apply_augment,
+    augment_seed,
+    sample_augment,
+)
 
 
 def measured_disc_fraction(params: AugmentParams) -> float:
@@ -112,11 +118,22 @@ def test_training_augmentation_replays_from_its_draw():
     from finray.train.augment import TrainAugment
     from finray.train.config import AugmentConfig
 
-    aug = TrainAugment(AugmentConfig(affine_p=0.5, perspective_p=0.5, salt_pepper_p=0.5,
-                                     occlusion_p=0.5, pitch_p=0.5, camera_p=0.5))
+    aug = TrainAugment(
+        AugmentConfig(
+            affine_p=0.5,
+            perspective_p=0.5,
+            salt_pepper_p=0.5,
+            occlusion_p=0.5,
+            pitch_p=0.5,
+            camera_p=0.5,
+        )
+    )
     g = torch.Generator().manual_seed(0)
-    x, s, xc = torch.rand(12, 1, 64, 32, generator=g), torch.rand(12, 1, 64, 32, generator=g), \
-        torch.rand(12, 1, 64, 32, generator=g)
+    x, s, xc = (
+        torch.rand(12, 1, 64, 32, generator=g),
+        torch.rand(12, 1, 64, 32, generator=g),
+        torch.rand(12, 1, 64, 32, generator=g),
+    )
     d = aug.draw(tuple(x.shape), 1, torch.Generator().manual_seed(3), camera=True)
     assert d.camera.any() and d.occlusion and (d.pitch_deg > 0).any() and len(d.geometric) == 2
     a, b = aug.apply(x, s, d, xc), aug.apply(x, s, d, xc)

@@ -1,13 +1,25 @@
 """Dataset stage: crop + area resampling, segmentation, shards, manifest, splits, figure."""
+
 from __future__ import annotations
 
 import numpy as np
 import pandas as pd
 import pytest
 
-from finray.dataset import (MANIFEST_COLUMNS, DatasetParams, FramePreparer, area_resample,
-                            build_shard, example_figure, load_shard, pitch_object, render_shard,
-                            scene_splits, segment, write_manifest)
+from finray.dataset import (
+    MANIFEST_COLUMNS,
+    DatasetParams,
+    FramePreparer,
+    area_resample,
+    build_shard,
+    example_figure,
+    load_shard,
+    pitch_object,
+    render_shard,
+    scene_splits,
+    segment,
+    write_manifest,
+)
 from finray.dataset.params import SHARD_KEYS
 from finray.render import RenderParams, load_render_index, read_render_frame, render_scene
 
@@ -44,8 +56,10 @@ def test_area_resample_is_an_exact_area_average():
     np.testing.assert_allclose(edge[:, 0], 0.8)
     # colour images resample channel by channel
     rgb = rng.random((40, 20, 3))
-    np.testing.assert_allclose(area_resample(rgb, (0, 0, 20, 40), (8, 4))[..., 1],
-                               area_resample(rgb[..., 1], (0, 0, 20, 40), (8, 4)))
+    np.testing.assert_allclose(
+        area_resample(rgb, (0, 0, 20, 40), (8, 4))[..., 1],
+        area_resample(rgb[..., 1], (0, 0, 20, 40), (8, 4)),
+    )
 
 
 def test_segmentation_works_on_a_noisy_camera_like_image():
@@ -104,8 +118,9 @@ def test_build_shard_and_manifest(renders, tmp_path):
     inp_mm2 = d["input_128x64"][0].sum() / 255 * px_mm**2
     assert inp_mm2 == pytest.approx(cov_mm2, rel=0.02)
 
-    df = write_manifest([tmp_path / "s0.npz", tmp_path / "s20.npz"], tmp_path / "manifest.csv",
-                        relative_to=tmp_path)
+    df = write_manifest(
+        [tmp_path / "s0.npz", tmp_path / "s20.npz"], tmp_path / "manifest.csv", relative_to=tmp_path
+    )
     back = pd.read_csv(tmp_path / "manifest.csv")
     assert list(back.columns) == MANIFEST_COLUMNS
     assert len(back) == len(df) == 3 * 2 + 3
@@ -125,8 +140,14 @@ def test_pitched_shard_keeps_the_front_stress_map(renders, tmp_path):
 
 
 def test_splits_and_pitch_object():
-    cfg = {"objects": {"circle_d5": {"split": "train"}, "ring_d15": {"split": "material"},
-                       "ellipse_16x9": {"split": "shape"}, "tri": {"split": "shape"}}}
+    cfg = {
+        "objects": {
+            "circle_d5": {"split": "train"},
+            "ring_d15": {"split": "material"},
+            "ellipse_16x9": {"split": "shape"},
+            "tri": {"split": "shape"},
+        }
+    }
     assert pitch_object(cfg) == "ellipse_16x9"
     assert pitch_object(dict(cfg, dataset={"pitch_object": "tri"})) == "tri"
     with pytest.raises(ValueError, match="pitch_object"):
@@ -138,9 +159,16 @@ def test_splits_and_pitch_object():
 
 
 def test_params_from_config():
-    p = DatasetParams.from_config({"sizes": [[64, 32]], "noise_levels": {"none": 0, "low": 0.2},
-                                   "occlusion_levels": {"none": [0, 0], "high": [0.8, 1.0]},
-                                   "crop_x_mm": [0, 40], "crop_y_mm": [0, 80], "unrelated": 1})
+    p = DatasetParams.from_config(
+        {
+            "sizes": [[64, 32]],
+            "noise_levels": {"none": 0, "low": 0.2},
+            "occlusion_levels": {"none": [0, 0], "high": [0.8, 1.0]},
+            "crop_x_mm": [0, 40],
+            "crop_y_mm": [0, 80],
+            "unrelated": 1,
+        }
+    )
     assert p.sizes == ((64, 32),) and p.noise == {"none": 0.0, "low": 0.2}
     assert p.occlusion["high"] == (0.8, 1.0)
     with pytest.raises(ValueError, match="height = 2 x width"):
@@ -176,8 +204,11 @@ def test_frame_preparer_is_the_exact_area_average(renders):
     # a half-covered pixel is a mask pixel whatever the rounding of the sums
     half = np.zeros((8, 4, 3), np.uint8)
     half[:, :2] = 255
-    one = FramePreparer((8, 4), (0, 0, 4, 8), DatasetParams(sizes=((2, 1),), threshold=0.5,
-                                                             min_object_frac=0, max_hole_frac=0))
+    one = FramePreparer(
+        (8, 4),
+        (0, 0, 4, 8),
+        DatasetParams(sizes=((2, 1),), threshold=0.5, min_object_frac=0, max_hole_frac=0),
+    )
     assert one.prepare(half)["mask_2x1"].tolist() == [[1], [1]]
 
 
@@ -187,8 +218,14 @@ def test_render_shard_equals_build_shard_of_all_files(renders, tmp_path):
     scene = {"object": "ellipse_16x9", "material": "steel", "height_mm": 30.0, "split": "shape"}
     for pitch in (0.0, 20.0):
         rp = RenderParams(frames_per_scene=3, files_per_scene=2)
-        meta = render_shard(renders[0.0].parent / "result.npz", tmp_path / f"r{pitch:g}", tmp_path / f"s{pitch:g}.npz",
-                            pitch, render_params=rp, scene=dict(scene, splits=["pitch"]))
+        meta = render_shard(
+            renders[0.0].parent / "result.npz",
+            tmp_path / f"r{pitch:g}",
+            tmp_path / f"s{pitch:g}.npz",
+            pitch,
+            render_params=rp,
+            scene=dict(scene, splits=["pitch"]),
+        )
         assert meta["scene"]["scene_id"] == f"ellipse_16x9_steel_h30_p{pitch:g}"
         assert meta["scene"]["splits"] == ["pitch"]
         # the settings its arrays depend on, the ones the workflow re-renders for
@@ -207,7 +244,12 @@ def test_render_shard_equals_build_shard_of_all_files(renders, tmp_path):
         assert index["n_frames"] == 3 and index["n_files"] == 2
         assert [f["image"] is not None for f in index["frames"]] == [True, False, True]
         assert sorted(p.name for p in (tmp_path / f"r{pitch:g}").iterdir()) == [
-            "image_0000.png", "image_0002.png", "index.json", "stress_0000.exr", "stress_0002.exr"]
+            "image_0000.png",
+            "image_0002.png",
+            "index.json",
+            "stress_0000.exr",
+            "stress_0002.exr",
+        ]
         rgb, _ = read_render_frame(tmp_path / f"r{pitch:g}", 2, index)
         np.testing.assert_array_equal(rgb, read_render_frame(renders[pitch], 2)[0])
         with pytest.raises(FileNotFoundError, match="files_per_scene"):
@@ -235,11 +277,18 @@ def test_a_shard_carries_the_contact_height_of_its_result(tmp_path):
     np.savez(tmp_path / "result.npz", **d)
     rp = RenderParams(frames_per_scene=3, files_per_scene=0)
     scene = {"object": "ellipse_16x9", "material": "steel", "height_mm": 30.0, "split": "shape"}
-    render_shard(tmp_path / "result.npz", tmp_path / "r", tmp_path / "s.npz", 0.0,
-                 render_params=rp, scene=scene)
+    render_shard(
+        tmp_path / "result.npz",
+        tmp_path / "r",
+        tmp_path / "s.npz",
+        0.0,
+        render_params=rp,
+        scene=scene,
+    )
     want = [np.nan, 31.0, 33.0]  # displacements 0, 2.5, 5 mm: solver frames 0, 2, 4
     np.testing.assert_array_equal(load_shard(tmp_path / "s.npz")["contact_y_mm"], want)
-    np.testing.assert_array_equal([f["contact_y_mm"] for f in load_render_index(tmp_path / "r")["frames"]],
-                                  want)
+    np.testing.assert_array_equal(
+        [f["contact_y_mm"] for f in load_render_index(tmp_path / "r")["frames"]], want
+    )
     render_shard(src, tmp_path / "r0", tmp_path / "s0.npz", 0.0, render_params=rp, scene=scene)
     assert np.isnan(load_shard(tmp_path / "s0.npz")["contact_y_mm"]).all()

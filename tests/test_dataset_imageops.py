@@ -1,10 +1,17 @@
 """Fast segmentation and resampling: the same results as the reference (skimage)
 pipeline and the plain weight-matrix products."""
+
 import numpy as np
 import pytest
 from skimage import filters, measure, morphology
 
-from finray.dataset.imageops import _axis_weights, area_resample, segment, threshold_isodata, to_gray
+from finray.dataset.imageops import (
+    _axis_weights,
+    area_resample,
+    segment,
+    threshold_isodata,
+    to_gray,
+)
 
 
 def reference_segment(image, min_object_frac=1e-3, max_hole_frac=2e-4, keep_largest=True):
@@ -28,10 +35,10 @@ def blobby_image(rng, h=120, w=60, noise=30.0):
     yy, xx = np.mgrid[:h, :w]
     shape = np.zeros((h, w), bool)
     x0 = int(rng.integers(3, w // 3))
-    shape[int(rng.integers(2, 10)):h - 3, x0:x0 + 4] = True
-    shape[5:h - 3, w - 12:w - 8] = True
+    shape[int(rng.integers(2, 10)) : h - 3, x0 : x0 + 4] = True
+    shape[5 : h - 3, w - 12 : w - 8] = True
     for y in rng.integers(10, h - 10, size=5):
-        shape[y:y + 2, x0:w - 8] = True  # ribs (cavities between them)
+        shape[y : y + 2, x0 : w - 8] = True  # ribs (cavities between them)
     for _ in range(int(rng.integers(0, 6))):  # fragments, some touching diagonally
         cy, cx = rng.integers(0, h), rng.integers(0, w)
         shape |= (yy - cy) ** 2 + (xx - cx) ** 2 <= rng.uniform(0.5, 4) ** 2
@@ -58,9 +65,13 @@ def test_segment_on_fixture_renders(tmp_path):
     from test_render_fixture import write_synthetic_fea_result
 
     res = write_synthetic_fea_result(tmp_path / "result.npz", n_frames=5)
-    render_scene(res, tmp_path / "p0", 0.0, params=RenderParams(frames_per_scene=5),
-                 scene={"object": "ellipse_16x9", "material": "steel", "height_mm": 30.0,
-                        "split": "shape"})
+    render_scene(
+        res,
+        tmp_path / "p0",
+        0.0,
+        params=RenderParams(frames_per_scene=5),
+        scene={"object": "ellipse_16x9", "material": "steel", "height_mm": 30.0, "split": "shape"},
+    )
     n_frames = len(load_render_index(tmp_path / "p0")["frames"])
     for k in range(n_frames):
         rgb = read_render_frame(tmp_path / "p0", k)[0]
@@ -83,7 +94,7 @@ def test_segment_edge_cases():
 def framed(img, shape=(720, 1280), at=(300, 500), bg=15):
     """``img`` placed in a larger camera frame of background ``bg``."""
     out = np.full(shape + img.shape[2:], bg, img.dtype)
-    out[at[0]:at[0] + img.shape[0], at[1]:at[1] + img.shape[1]] = img
+    out[at[0] : at[0] + img.shape[0], at[1] : at[1] + img.shape[1]] = img
     return out
 
 
@@ -100,8 +111,10 @@ def test_segment_roi_stride_matches_the_whole_frame(seed):
     fast, whole = segment(img, roi_stride=stride), segment(img)
     assert (fast != whole).sum() <= 0.02 * whole.sum()
     dark = 255 - img  # a dark finger on a bright background
-    np.testing.assert_array_equal(segment(dark, foreground="dark", threshold=0.7, roi_stride=stride),
-                                  segment(dark, foreground="dark", threshold=0.7))
+    np.testing.assert_array_equal(
+        segment(dark, foreground="dark", threshold=0.7, roi_stride=stride),
+        segment(dark, foreground="dark", threshold=0.7),
+    )
 
 
 def test_segment_roi_stride_edge_cases():
@@ -116,8 +129,12 @@ def test_segment_roi_stride_edge_cases():
 def test_threshold_isodata_matches_skimage():
     rng = np.random.default_rng(0)
     for _ in range(50):
-        g = np.concatenate([rng.normal(rng.uniform(0, 0.4), 0.05, 500),
-                            rng.normal(rng.uniform(0.5, 1), 0.1, int(rng.integers(50, 900)))])
+        g = np.concatenate(
+            [
+                rng.normal(rng.uniform(0, 0.4), 0.05, 500),
+                rng.normal(rng.uniform(0.5, 1), 0.1, int(rng.integers(50, 900))),
+            ]
+        )
         assert threshold_isodata(g) == pytest.approx(filters.threshold_isodata(g), abs=1e-12)
 
 
@@ -148,8 +165,16 @@ def test_axis_weights_sparse_build():
     np.testing.assert_allclose(_axis_weights(4, 0, 4, 2), [[0.5, 0.5, 0, 0], [0, 0, 0.5, 0.5]])
 
 
-@pytest.mark.parametrize("box", [(-20.3, 7.7, 140.2, 330.1), (0, 0, 160, 336), (3.5, -10, 30.25, 50.5),
-                                 (-50, -50, 400, 500), (170, 10, 200, 40)])
+@pytest.mark.parametrize(
+    "box",
+    [
+        (-20.3, 7.7, 140.2, 330.1),
+        (0, 0, 160, 336),
+        (3.5, -10, 30.25, 50.5),
+        (-50, -50, 400, 500),
+        (170, 10, 200, 40),
+    ],
+)
 def test_fast_resample_equals_the_products(box):
     rng = np.random.default_rng(3)
     mask = rng.random((336, 160)) > 0.5

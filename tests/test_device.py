@@ -1,6 +1,7 @@
 """Devices: train.device / Predictor(device=...) resolution, the one-line refusal of
 cuda without a GPU, GPU bfloat16 choice, exports free of device constants, and the
 device benchmark (on the CPU: tests never need a GPU)."""
+
 import json
 import re
 from pathlib import Path
@@ -13,21 +14,33 @@ from finray.config import ConfigError, validate_config
 from finray.model import FinRayNet, NetConfig
 from finray.precision import DeviceError, GpuPrecision, resolve_bf16, resolve_device
 from finray.predict import DeviceInputError, InputError, Predictor
-from finray.train import TrainConfig, _autocast, export_onnx, export_torchscript, train, train_from_shards
+from finray.train import (
+    TrainConfig,
+    _autocast,
+    export_onnx,
+    export_torchscript,
+    train,
+    train_from_shards,
+)
 
 from test_train import CFG, toy
 
 ROOT = Path(__file__).resolve().parents[1]
 HAS_GPU = torch.cuda.is_available()
 no_gpu = pytest.mark.skipif(HAS_GPU, reason="checks the refusal of cuda on a machine without a GPU")
-NO_CUDA = re.escape(f"is cuda, but torch {torch.__version__} sees no CUDA GPU (") + r"[^\n]+\); use auto or cpu"
+NO_CUDA = (
+    re.escape(f"is cuda, but torch {torch.__version__} sees no CUDA GPU (")
+    + r"[^\n]+\); use auto or cpu"
+)
 NET = NetConfig(height=32, width=16, base_channels=4)
 
 
 def test_names_resolve_to_torch_devices():
     assert resolve_device("cpu") == torch.device("cpu")
     assert resolve_device("auto").type == ("cuda" if HAS_GPU else "cpu")
-    with pytest.raises(DeviceError, match=r"^train.device must be one of auto, cpu, cuda, not 'gpu'$"):
+    with pytest.raises(
+        DeviceError, match=r"^train.device must be one of auto, cpu, cuda, not 'gpu'$"
+    ):
         resolve_device("gpu", "train.device")
 
 
@@ -48,23 +61,36 @@ def test_training_refuses_cuda_before_any_work(tmp_path):
     assert lines == []  # nothing logged: it stopped before seeding, precision, data
     # from shards: refused before the shards are read (these do not exist)
     with pytest.raises(DeviceError, match="^train.device " + NO_CUDA + "$"):
-        train_from_shards([tmp_path / "missing.npz"], tmp_path / "out", NET,
-                          TrainConfig(**CFG, device="cuda"), None)
+        train_from_shards(
+            [tmp_path / "missing.npz"],
+            tmp_path / "out",
+            NET,
+            TrainConfig(**CFG, device="cuda"),
+            None,
+        )
     assert not (tmp_path / "out").exists()
 
 
 def test_training_refuses_a_frame_stride_below_one_before_any_work(tmp_path):
     with pytest.raises(ValueError, match="^train.frame_every must be >= 1, got 0$"):
-        train_from_shards([tmp_path / "missing.npz"], tmp_path / "out", NET,
-                          TrainConfig(**CFG, device="cpu"), None, frame_every=0)
+        train_from_shards(
+            [tmp_path / "missing.npz"],
+            tmp_path / "out",
+            NET,
+            TrainConfig(**CFG, device="cpu"),
+            None,
+            frame_every=0,
+        )
     assert not (tmp_path / "out").exists()
 
 
 @pytest.mark.skipif(HAS_GPU, reason="auto is the GPU there")
 def test_cpu_and_auto_train_alike_on_a_cpu_machine():
     x, s, f = toy(64)
-    runs = [train(x, s, f, None, NET, TrainConfig(**CFG, device=d), log=lambda m: None)
-            for d in ("cpu", "auto")]
+    runs = [
+        train(x, s, f, None, NET, TrainConfig(**CFG, device=d), log=lambda m: None)
+        for d in ("cpu", "auto")
+    ]
     assert runs[0][1].train_loss == runs[1][1].train_loss
     assert runs[0][1].device.startswith("cpu (")
     assert next(runs[0][0].parameters()).device.type == "cpu"
@@ -101,7 +127,12 @@ def test_config_key_defaults_to_auto_and_refuses_others():
     # the config's settings on every device (the paper's batch and epochs; the cosine's
     # peak at 4x the paper's constant rate, docs/studies/seeds.md "Seeds, numeric types and what to expect")
     full = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())["train"]
-    assert (full["device"], full["batch_size"], full["lr"], full["epochs"]) == ("auto", 16, 4e-4, 10)
+    assert (full["device"], full["batch_size"], full["lr"], full["epochs"]) == (
+        "auto",
+        16,
+        4e-4,
+        10,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -147,8 +178,21 @@ def test_finray_predict_device_cuda_is_one_line(exported, tmp_path, capsys):
 
     img = tmp_path / "frame.png"
     img.write_bytes(b"")  # never read: the device is refused first
-    assert main(["predict", "--model", str(exported), str(img), "--out", str(tmp_path / "o"),
-                 "--device", "cuda"]) == 2
+    assert (
+        main(
+            [
+                "predict",
+                "--model",
+                str(exported),
+                str(img),
+                "--out",
+                str(tmp_path / "o"),
+                "--device",
+                "cuda",
+            ]
+        )
+        == 2
+    )
     err = capsys.readouterr().err
     assert re.fullmatch("finray predict: device " + NO_CUDA + "\n", err)
     assert not (tmp_path / "o").exists()
@@ -158,8 +202,23 @@ def test_device_benchmark_runs_on_the_cpu(tmp_path):
     from finray.benchmarks.device import main
 
     out = tmp_path / "device.json"
-    assert main(["--out", str(out), "--device", "cpu", "--frames", "32", "--calls", "3",
-                 "--repeats", "1"]) == 0
+    assert (
+        main(
+            [
+                "--out",
+                str(out),
+                "--device",
+                "cpu",
+                "--frames",
+                "32",
+                "--calls",
+                "3",
+                "--repeats",
+                "1",
+            ]
+        )
+        == 0
+    )
     r = json.loads(out.read_text())
     assert r["device"] == "cpu" and r["device_name"].startswith("cpu (")
     assert r["model"] is None and r["net"]["height"] == 64 and r["net"]["width"] == 32
@@ -178,18 +237,43 @@ def test_device_benchmark_takes_a_checkpoint_and_refuses_bad_input(tmp_path, cap
 
     x, s, f = toy(32)
     x = x[:, :1]
-    model, hist = train(x, s, f, None, NetConfig(in_channels=1, height=32, width=16, base_channels=4),
-                        TrainConfig(**CFG), log=lambda m: None)
+    model, hist = train(
+        x,
+        s,
+        f,
+        None,
+        NetConfig(in_channels=1, height=32, width=16, base_channels=4),
+        TrainConfig(**CFG),
+        log=lambda m: None,
+    )
     save_checkpoint(model, hist, tmp_path / "model.pt")
     out = tmp_path / "device.json"
-    assert main(["--out", str(out), "--model", str(tmp_path / "model.pt"), "--device", "cpu",
-                 "--frames", "32", "--calls", "2", "--repeats", "1"]) == 0
+    assert (
+        main(
+            [
+                "--out",
+                str(out),
+                "--model",
+                str(tmp_path / "model.pt"),
+                "--device",
+                "cpu",
+                "--frames",
+                "32",
+                "--calls",
+                "2",
+                "--repeats",
+                "1",
+            ]
+        )
+        == 0
+    )
     r = json.loads(out.read_text())
     assert (r["net"]["base_channels"], r["net"]["height"], r["net"]["n_forces"]) == (4, 32, 1)
     assert main(["--out", str(out), "--model", str(tmp_path / "none.pt")]) == 2
     assert capsys.readouterr().err.endswith(f"no model checkpoint at {tmp_path / 'none.pt'}\n")
     if not HAS_GPU:
         assert main(["--out", str(tmp_path / "x.json"), "--device", "cuda"]) == 2
-        assert re.fullmatch("finray.benchmarks.device: --device " + NO_CUDA + "\n",
-                            capsys.readouterr().err)
+        assert re.fullmatch(
+            "finray.benchmarks.device: --device " + NO_CUDA + "\n", capsys.readouterr().err
+        )
         assert not (tmp_path / "x.json").exists()

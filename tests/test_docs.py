@@ -15,6 +15,7 @@ docs/tutorials/*.md, each block preceded by a marker comment:
   inputs, a trained model or a recorded take, do not exist here);
 - ``<!-- test: none ... -->``: not run (the README's two commands; CI runs them).
 """
+
 from __future__ import annotations
 
 import importlib.util
@@ -32,8 +33,10 @@ ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 BIN = Path(sys.executable).parent
 README = ROOT / "README.md"
-FULL_RUN = ("test -d .venv || python3.11 -m venv .venv; .venv/bin/pip install -q -e . && "
-            ".venv/bin/snakemake --cores 2")
+FULL_RUN = (
+    "test -d .venv || python3.11 -m venv .venv; .venv/bin/pip install -q -e . && "
+    ".venv/bin/snakemake --cores 2"
+)
 TUTORIAL_PAGES = [DOCS / "getting-started.md", *sorted((DOCS / "tutorials").glob("*.md"))]
 TMP_MARK = "/tmp/finray-tutorial"
 
@@ -52,6 +55,7 @@ def _ci_test_command() -> str:
 
 
 # ------------------------------------------------------------------ README
+
 
 def test_readme_is_short_and_holds_the_two_commands():
     text = README.read_text()
@@ -72,13 +76,21 @@ def test_readme_links_exist():
 
 def test_readme_answers_link_to_the_tutorials():
     text = README.read_text()
-    for page in ["tutorials/reproduce-paper.md", "tutorials/one-figure.md",
-                 "tutorials/predict-camera.md", "tutorials/own-finger-object.md",
-                 "tutorials/own-rig.md", "studies/run-cost.md", "CITATION.cff", "LICENSE"]:
+    for page in [
+        "tutorials/reproduce-paper.md",
+        "tutorials/one-figure.md",
+        "tutorials/predict-camera.md",
+        "tutorials/own-finger-object.md",
+        "tutorials/own-rig.md",
+        "studies/run-cost.md",
+        "CITATION.cff",
+        "LICENSE",
+    ]:
         assert page in text, page
 
 
 # ------------------------------------------------------------------ references
+
 
 def _schema_leaf_keys(props: dict, defs: dict, prefix: str = "") -> list[str]:
     keys = []
@@ -128,14 +140,19 @@ def test_mkdocs_build_strict(tmp_path):
     pytest.importorskip("mkdocs")
     pytest.importorskip("material")
     pytest.importorskip("mkdocstrings")
-    r = subprocess.run([str(BIN / "mkdocs"), "build", "--strict", "--site-dir",
-                        str(tmp_path / "site")], cwd=ROOT, capture_output=True, text=True,
-                       env={**_env(), "NO_MKDOCS_2_WARNING": "1"})
+    r = subprocess.run(
+        [str(BIN / "mkdocs"), "build", "--strict", "--site-dir", str(tmp_path / "site")],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        env={**_env(), "NO_MKDOCS_2_WARNING": "1"},
+    )
     assert r.returncode == 0, r.stderr[-3000:]
     assert (tmp_path / "site" / "reference" / "configuration" / "index.html").exists()
 
 
 # ------------------------------------------------------------------ citation, licence
+
 
 def test_citation_licence_changelog_agree_with_the_package():
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
@@ -155,6 +172,7 @@ def test_citation_licence_changelog_agree_with_the_package():
 
 
 # ------------------------------------------------------------------ tutorials
+
 
 def _blocks(page: Path) -> list[tuple[str, list[str]]]:
     """(marker, command lines) of each ```bash block of ``page``; marker '' if none."""
@@ -207,8 +225,15 @@ def _parse_finray(cmd: str) -> None:
 @pytest.mark.parametrize("cmds", list(_cases("run")))
 def test_tutorial_commands_run(cmds, tmp_path):
     for cmd in cmds:
-        r = subprocess.run(_resolve(cmd, tmp_path), shell=True, cwd=ROOT, capture_output=True,
-                           text=True, env=_env(), timeout=600)
+        r = subprocess.run(
+            _resolve(cmd, tmp_path),
+            shell=True,
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            env=_env(),
+            timeout=600,
+        )
         assert r.returncode == 0, f"{cmd}\n{r.stdout[-2000:]}\n{r.stderr[-2000:]}"
 
 
@@ -224,8 +249,14 @@ def test_tutorial_commands_dry_run(cmds, tmp_path):
         assert Path(argv[0]).name == "snakemake", cmd
         if "-n" not in argv:
             argv.insert(1, "-n")
-        r = subprocess.run(argv + ["--quiet", "rules"], cwd=ROOT, capture_output=True,
-                           text=True, env=_env(), timeout=600)
+        r = subprocess.run(
+            argv + ["--quiet", "rules"],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            env=_env(),
+            timeout=600,
+        )
         assert r.returncode == 0, f"{cmd}\n{r.stdout[-2000:]}\n{r.stderr[-2000:]}"
 
 
@@ -237,17 +268,32 @@ def test_tutorial_commands_parse(cmds):
 
 # ------------------------------------------------------------------ --configfile trap
 
+
 def test_configfile_trap_is_refused_in_one_line():
     """A target after --configfile (Snakemake reads it as a config file) stops with one
     line that names it, before any job or traceback; targets first, or
     --configfile=<file>, work (the tutorials' dry runs)."""
-    r = subprocess.run([str(BIN / "snakemake"), "-n", "--cores", "1", "--configfile",
-                        "config/smoke.yaml", "paper/figures/occlusion.pdf"],
-                       cwd=ROOT, capture_output=True, text=True, env=_env(), timeout=300)
+    r = subprocess.run(
+        [
+            str(BIN / "snakemake"),
+            "-n",
+            "--cores",
+            "1",
+            "--configfile",
+            "config/smoke.yaml",
+            "paper/figures/occlusion.pdf",
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        env=_env(),
+        timeout=300,
+    )
     assert r.returncode == 1
     assert r.stderr.strip().splitlines() == [
         "finray: 'paper/figures/occlusion.pdf' was read as a config file: put targets "
-        "before --configfile, or use --configfile=<file>"]
+        "before --configfile, or use --configfile=<file>"
+    ]
 
 
 def test_configfile_trap_detection():
@@ -266,9 +312,23 @@ def test_configfile_trap_detection():
 def test_configfile_guard_logger_works_when_chosen():
     """The module must be a valid Snakemake logger plugin (or every snakemake call
     would fail on it); chosen by name it logs a dry run as the default does."""
-    r = subprocess.run([str(BIN / "snakemake"), "--logger", "finray-args", "-n", "--cores", "1",
-                        "results/geometry/finger.json", "--configfile=config/smoke.yaml"],
-                       cwd=ROOT, capture_output=True, text=True, env=_env(), timeout=300)
+    r = subprocess.run(
+        [
+            str(BIN / "snakemake"),
+            "--logger",
+            "finray-args",
+            "-n",
+            "--cores",
+            "1",
+            "results/geometry/finger.json",
+            "--configfile=config/smoke.yaml",
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        env=_env(),
+        timeout=300,
+    )
     assert r.returncode == 0, r.stderr[-2000:]
 
 
@@ -294,6 +354,12 @@ def test_readme_commands_parse_or_dry_run(tmp_path):
             _parse_finray(cmd)
         elif name == "snakemake":
             argv.insert(1, "-n")
-            r = subprocess.run(argv + ["--quiet", "rules"], cwd=ROOT, capture_output=True,
-                               text=True, env=_env(), timeout=600)
+            r = subprocess.run(
+                argv + ["--quiet", "rules"],
+                cwd=ROOT,
+                capture_output=True,
+                text=True,
+                env=_env(),
+                timeout=600,
+            )
             assert r.returncode == 0, f"{cmd}\n{r.stderr[-2000:]}"

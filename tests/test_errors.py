@@ -1,5 +1,6 @@
 """One home for the package's exceptions (finray.errors), one base (FinrayError), and
 the CLI's exit codes: 2 for bad input, 1 for work that failed part way."""
+
 import ast
 import inspect
 from pathlib import Path
@@ -15,8 +16,11 @@ ROOT = SRC.parents[1]
 
 
 def test_every_exception_is_a_finray_error_and_keeps_its_builtin_kind():
-    classes = [c for _, c in inspect.getmembers(errors, inspect.isclass)
-               if issubclass(c, BaseException) and c.__module__ == errors.__name__]
+    classes = [
+        c
+        for _, c in inspect.getmembers(errors, inspect.isclass)
+        if issubclass(c, BaseException) and c.__module__ == errors.__name__
+    ]
     assert len(classes) > 10 and all(issubclass(c, errors.FinrayError) for c in classes)
     # code that catches the builtin kinds keeps working
     assert issubclass(errors.ConfigError, ValueError)
@@ -33,8 +37,9 @@ def test_no_other_module_defines_an_exception():
             continue
         for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
             if isinstance(node, ast.ClassDef) and any(
-                    ast.unparse(b).split(".")[-1].endswith(("Error", "Exception", "Failure"))
-                    for b in node.bases):
+                ast.unparse(b).split(".")[-1].endswith(("Error", "Exception", "Failure"))
+                for b in node.bases
+            ):
                 defined.append(f"{path.relative_to(SRC)}: {node.name}")
     assert not defined, "exceptions belong in finray/errors.py: " + ", ".join(defined)
 
@@ -46,8 +51,21 @@ def test_a_failed_scene_exits_with_1_and_one_line(tmp_path, monkeypatch, capsys)
         raise errors.SimulationError("load step 3 failed: line search failed", step=3)
 
     monkeypatch.setattr(finray.fea.scene, "run_scene", fail)
-    code = main(["simulate", "--config", str(ROOT / "config" / "smoke.yaml"), "--object", "circle",
-                 "--size-mm", "10", "--height-mm", "30", "--out", str(tmp_path / "c10")])
+    code = main(
+        [
+            "simulate",
+            "--config",
+            str(ROOT / "config" / "smoke.yaml"),
+            "--object",
+            "circle",
+            "--size-mm",
+            "10",
+            "--height-mm",
+            "30",
+            "--out",
+            str(tmp_path / "c10"),
+        ]
+    )
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 1
     assert err[-1] == "finray simulate: load step 3 failed: line search failed"

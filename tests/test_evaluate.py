@@ -1,4 +1,5 @@
 """Evaluation: the baseline's features and fit, occlusion replay, usable pitch range."""
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -56,8 +57,14 @@ def test_occlusion_is_replayable_and_within_its_level():
 
 
 def test_usable_range_stops_at_the_first_pitch_above_the_threshold():
-    m = pd.DataFrame({"condition": ["0", "5", "10", "15"], "group": "all", "predictor": "plain",
-                      "nrmse_pct": [1.0, 4.0, 7.0, 3.0]})
+    m = pd.DataFrame(
+        {
+            "condition": ["0", "5", "10", "15"],
+            "group": "all",
+            "predictor": "plain",
+            "nrmse_pct": [1.0, 4.0, 7.0, 3.0],
+        }
+    )
     assert usable_range(m, "plain", 5.0) == 5.0
     assert usable_range(m, "plain", 0.5) is None
     assert usable_range(m, "plain", 10.0) == 15.0
@@ -71,21 +78,41 @@ def test_fea_checks_gather_the_scene_checks(tmp_path):
     from finray.fea.figures import scene_table
 
     paths = []
-    for i, (res, eq, ls, fb, gap) in enumerate([(2e-4, 1e-8, 0, 1, 0.003),
-                                                (7e-4, 3e-7, 2, 0, 0.002)]):
+    for i, (res, eq, ls, fb, gap) in enumerate(
+        [(2e-4, 1e-8, 0, 1, 0.003), (7e-4, 3e-7, 2, 0, 0.002)]
+    ):
         p = tmp_path / f"s{i}.json"
-        p.write_text(json.dumps({
-            "scene": f"s{i}", "converged": True, "min_gap_mm": gap, "residual_tol": 1e-3,
-            "residual_final_rel": res / 2, "residual_max_rel": res, "equilibrium_tol": 1e-3,
-            "equilibrium_max_rel_error": eq, "line_search_failures": ls,
-            "gradient_fallbacks": fb}))
+        p.write_text(
+            json.dumps(
+                {
+                    "scene": f"s{i}",
+                    "converged": True,
+                    "min_gap_mm": gap,
+                    "residual_tol": 1e-3,
+                    "residual_final_rel": res / 2,
+                    "residual_max_rel": res,
+                    "equilibrium_tol": 1e-3,
+                    "equilibrium_max_rel_error": eq,
+                    "line_search_failures": ls,
+                    "gradient_fallbacks": fb,
+                }
+            )
+        )
         paths.append(p)
     scene_table(paths, tmp_path / "fea_scenes.csv")
     c = fea_checks(tmp_path / "fea_scenes.csv")
-    assert c == {"n_scenes": 2, "residual_tol": 1e-3, "residual_max_rel": 7e-4,
-                 "residual_max_scene": "s1", "equilibrium_tol": 1e-3,
-                 "equilibrium_max_rel_error": 3e-7, "equilibrium_max_scene": "s1",
-                 "line_search_failures": 2, "gradient_fallbacks": 1, "min_gap_mm": 0.002}
+    assert c == {
+        "n_scenes": 2,
+        "residual_tol": 1e-3,
+        "residual_max_rel": 7e-4,
+        "residual_max_scene": "s1",
+        "equilibrium_tol": 1e-3,
+        "equilibrium_max_rel_error": 3e-7,
+        "equilibrium_max_scene": "s1",
+        "line_search_failures": 2,
+        "gradient_fallbacks": 1,
+        "min_gap_mm": 0.002,
+    }
 
 
 def test_height_rows_give_each_height_its_own_scale_and_band():
@@ -95,9 +122,13 @@ def test_height_rows_give_each_height_its_own_scale_and_band():
 
     from finray.evaluate.experiments import _height_rows
 
-    fr = pd.DataFrame({"height_mm": [15.0] * 3 + [20.0] * 3,
-                       "fx_N": [0.0, 5.0, 10.0, 0.0, 1.0, 2.0],
-                       "pred_camera": [0.0, 5.0, 11.0, 0.0, 1.0, 2.2]})
+    fr = pd.DataFrame(
+        {
+            "height_mm": [15.0] * 3 + [20.0] * 3,
+            "fx_N": [0.0, 5.0, 10.0, 0.0, 1.0, 2.0],
+            "pred_camera": [0.0, 5.0, 11.0, 0.0, 1.0, 2.2],
+        }
+    )
     rows = {r["height_mm"]: r for r in _height_rows(fr, "all", ["camera"], train_heights_mm=[20])}
     assert rows[15.0]["band_mm"] == 10.0 and rows[20.0]["band_mm"] == 20.0
     assert rows[15.0]["unseen"] and not rows[20.0]["unseen"]
@@ -114,9 +145,18 @@ def test_face_summary_splits_unseen_from_trained_heights(tmp_path):
     from finray.evaluate.experiments import _height_rows
     from finray.evaluate.summary import face_summary
 
-    fr = pd.DataFrame({"condition": "all", "path": "shard", "height_mm": [15.0, 15.0, 20.0, 20.0],
-                       "fx_N": [1.0, 4.0, 0.5, 2.0], "pred_camera": [1.0, 3.0, 0.5, 2.0]})
-    pd.DataFrame(_height_rows(fr, "all", ["camera"], [20.0])).to_csv(tmp_path / "heights.csv", index=False)
+    fr = pd.DataFrame(
+        {
+            "condition": "all",
+            "path": "shard",
+            "height_mm": [15.0, 15.0, 20.0, 20.0],
+            "fx_N": [1.0, 4.0, 0.5, 2.0],
+            "pred_camera": [1.0, 3.0, 0.5, 2.0],
+        }
+    )
+    pd.DataFrame(_height_rows(fr, "all", ["camera"], [20.0])).to_csv(
+        tmp_path / "heights.csv", index=False
+    )
     fr.to_csv(tmp_path / "frames.csv", index=False)
     s = face_summary(tmp_path)
     assert s["unseen_heights_mm"] == [15.0] and s["heights_mm"] == [15.0, 20.0]
@@ -125,7 +165,9 @@ def test_face_summary_splits_unseen_from_trained_heights(tmp_path):
     assert s["seen"]["camera"]["rmse_N"] == 0.0
     assert [r["height_mm"] for r in s["by_height"]["camera"]] == [15.0, 20.0]
     # no unseen height: no face node
-    pd.DataFrame(_height_rows(fr, "all", ["camera"], [15.0, 20.0])).to_csv(tmp_path / "heights.csv", index=False)
+    pd.DataFrame(_height_rows(fr, "all", ["camera"], [15.0, 20.0])).to_csv(
+        tmp_path / "heights.csv", index=False
+    )
     assert face_summary(tmp_path) is None
 
 
@@ -134,10 +176,15 @@ def test_height_rows_score_the_contact_height_on_loaded_frames_only():
     frames pushed harder than CONTACT_MIN_FORCE_N (at rest the height means nothing)."""
     from finray.evaluate.experiments import CONTACT_MIN_FORCE_N, _height_rows
 
-    fr = pd.DataFrame({"height_mm": 30.0, "fx_N": [0.0, 0.2, 2.0, 4.0],
-                       "pred_camera": [0.0, 0.2, 2.0, 4.0],
-                       "contact_y_mm": [np.nan, 31.0, 30.0, 29.0],
-                       "contact_pred_camera": [50.0, 40.0, 31.0, 28.0]})
+    fr = pd.DataFrame(
+        {
+            "height_mm": 30.0,
+            "fx_N": [0.0, 0.2, 2.0, 4.0],
+            "pred_camera": [0.0, 0.2, 2.0, 4.0],
+            "contact_y_mm": [np.nan, 31.0, 30.0, 29.0],
+            "contact_pred_camera": [50.0, 40.0, 31.0, 28.0],
+        }
+    )
     assert CONTACT_MIN_FORCE_N == 0.5
     (row,) = _height_rows(fr, "all", ["camera"], [30.0])
     assert row["contact_n"] == 2 and row["contact_rmse_mm"] == pytest.approx(1.0)

@@ -1,4 +1,5 @@
 """Element assembly: patch test, derivatives, cantilever against beam theory."""
+
 import numpy as np
 import pytest
 from shapely.geometry import Polygon
@@ -15,8 +16,9 @@ F0 = np.array([[1.12, 0.21], [-0.07, 0.93]])  # finite homogeneous deformation
 
 
 def irregular_mesh(order):
-    poly = Polygon([(0, 0), (7, -1), (9, 4), (4, 8), (-1, 5)],
-                   holes=[[(3, 2), (3, 4), (5, 3.5), (5, 2.2)]])
+    poly = Polygon(
+        [(0, 0), (7, -1), (9, 4), (4, 8), (-1, 5)], holes=[[(3, 2), (3, 4), (5, 3.5), (5, 2.2)]]
+    )
     mesh, _ = triangulate_polygon(poly, 1.0, 25.0, order=order)
     return mesh
 
@@ -90,8 +92,9 @@ def test_elastic_gradient_and_hessian_vs_finite_differences(order):
         assert (Ep - Em) / (2 * h) == pytest.approx(g @ v.ravel(), rel=1e-6)
         gp = asm.evaluate(U + h * v, 1)[1]
         gm = asm.evaluate(U - h * v, 1)[1]
-        np.testing.assert_allclose((gp - gm) / (2 * h), H @ v.ravel(), rtol=1e-6,
-                                   atol=1e-6 * np.abs(H @ v.ravel()).max())
+        np.testing.assert_allclose(
+            (gp - gm) / (2 * h), H @ v.ravel(), rtol=1e-6, atol=1e-6 * np.abs(H @ v.ravel()).max()
+        )
 
 
 def test_cantilever_tip_deflection_matches_beam_theory():
@@ -103,8 +106,12 @@ def test_cantilever_tip_deflection_matches_beam_theory():
     be = mesh.boundary_edges
     mid = 0.5 * (X[be[:, 0]] + X[be[:, 1]])
     tip_edges = be[np.abs(mid[:, 0] - L) < 1e-12]
-    model = Model(X, [ElementBlock(mesh.triangles, MAT)], fixed_nodes=clamp,
-                  external_force=edge_load(mesh, tip_edges, [0.0, -P / h]))
+    model = Model(
+        X,
+        [ElementBlock(mesh.triangles, MAT)],
+        fixed_nodes=clamp,
+        external_force=edge_load(mesh, tip_edges, [0.0, -P / h]),
+    )
     model.load = 1.0
     res = newton(model, np.zeros(model.n))
     assert res.converged

@@ -1,10 +1,16 @@
 """Contact: derivatives of the total energy, 2D Hertz, Coulomb sliding."""
+
 import numpy as np
 import pytest
 
 from finray.fea.assembly import ElementBlock
-from finray.geometry.primitives import (arc_polyline, circle_polyline, graded_coords, rectangle_mesh,
-                                   segment_polyline)
+from finray.geometry.primitives import (
+    arc_polyline,
+    circle_polyline,
+    graded_coords,
+    rectangle_mesh,
+    segment_polyline,
+)
 from finray.fea.contact import ContactModel, ContactParams, split_p2_edges
 from finray.fea.material import NeoHookean
 from finray.fea.newton import NewtonOptions
@@ -22,8 +28,9 @@ def top_edges(mesh, y, xmin=-np.inf, xmax=np.inf):
     return be[keep]
 
 
-def block_and_rigid(mesh, rigid_pts, rigid_edges, contact_edges, params, fixed, driver_k=1e5,
-                    rigid_driven=True):
+def block_and_rigid(
+    mesh, rigid_pts, rigid_edges, contact_edges, params, fixed, driver_k=1e5, rigid_driven=True
+):
     """Elastic block (nodes 0..N-1) + rigid polyline (driven, or static)."""
     N = len(mesh.points)
     pts = np.vstack([mesh.points, rigid_pts])
@@ -31,9 +38,14 @@ def block_and_rigid(mesh, rigid_pts, rigid_edges, contact_edges, params, fixed, 
     body = np.r_[np.zeros(N, int), np.ones(len(rigid_pts), int)]
     cm = ContactModel(pts, segs, body, rigid_bodies=[1], params=params)
     rigid = np.arange(N, len(pts))
-    model = Model(pts, [ElementBlock(mesh.triangles, MAT)], fixed_nodes=fixed,
-                  driven_nodes=rigid if rigid_driven else (), contact=cm,
-                  driver_stiffness=driver_k)
+    model = Model(
+        pts,
+        [ElementBlock(mesh.triangles, MAT)],
+        fixed_nodes=fixed,
+        driven_nodes=rigid if rigid_driven else (),
+        contact=cm,
+        driver_stiffness=driver_k,
+    )
     return model, cm
 
 
@@ -43,9 +55,15 @@ def test_total_energy_gradient_and_hessian_vs_finite_differences():
     R, dhat = 2.0, 0.02
     cp, ce = circle_polyline([0.0, R + 0.012], R, 160)
     fixed = np.where(np.abs(mesh.points[:, 1] + 1.5) < 1e-9)[0]
-    model, cm = block_and_rigid(mesh, cp, ce, top_edges(mesh, 0.0),
-                                ContactParams(dhat=dhat, kappa=0.5, mu=0.3, eps_v=1e-3),
-                                fixed, driver_k=1.0)
+    model, cm = block_and_rigid(
+        mesh,
+        cp,
+        ce,
+        top_edges(mesh, 0.0),
+        ContactParams(dhat=dhat, kappa=0.5, mu=0.3, eps_v=1e-3),
+        fixed,
+        driver_k=1.0,
+    )
     rng = np.random.default_rng(0)
     q_lag = np.zeros(model.n)
     q_lag[model.t_index] = [0.0, -0.005]  # the circle 7 um from the block: active pairs
@@ -80,10 +98,22 @@ def test_hertz_contact_half_width():
     mesh = rectangle_mesh(x, y, order=2)
     cp, ce = arc_polyline([0.0, R + gap], R, -np.pi / 2 - 0.5, -np.pi / 2 + 0.5, 400)
     fixed = np.where(np.abs(mesh.points[:, 1] + H) < 1e-9)[0]
-    model, cm = block_and_rigid(mesh, cp, ce, top_edges(mesh, 0.0, -5, 5),
-                                ContactParams(dhat=0.01, kappa=1.0, mu=0.0), fixed)
-    q = march(model, np.zeros(model.n), lambda s: [0.0, -(gap + delta) * s], [1.0],
-              StepOptions(initial_step=0.5, max_step=0.5), friction=False)
+    model, cm = block_and_rigid(
+        mesh,
+        cp,
+        ce,
+        top_edges(mesh, 0.0, -5, 5),
+        ContactParams(dhat=0.01, kappa=1.0, mu=0.0),
+        fixed,
+    )
+    q = march(
+        model,
+        np.zeros(model.n),
+        lambda s: [0.0, -(gap + delta) * s],
+        [1.0],
+        StepOptions(initial_step=0.5, max_step=0.5),
+        friction=False,
+    )
     N = len(mesh.points)
     U = model.U(q)
     _, gc, _ = cm.evaluate(U, None, 1)
@@ -113,8 +143,13 @@ def test_block_dragged_under_normal_load_slips_at_mu_N():
     pts = np.vstack([X, fp])
     segs = np.vstack([split_p2_edges(top_edges(mesh, 0.01)), fe + N])
     body = np.r_[np.zeros(N, int), np.ones(len(fp), int)]
-    cm = ContactModel(pts, segs, body, rigid_bodies=[1],
-                      params=ContactParams(dhat=0.01, kappa=1.0, mu=mu, eps_v=1e-4))
+    cm = ContactModel(
+        pts,
+        segs,
+        body,
+        rigid_bodies=[1],
+        params=ContactParams(dhat=0.01, kappa=1.0, mu=mu, eps_v=1e-4),
+    )
     model = Model(pts, [ElementBlock(mesh.triangles, MAT)], driven_nodes=top, contact=cm)
     press, slide = 0.06, 1.0
 
@@ -130,9 +165,15 @@ def test_block_dragged_under_normal_load_slips_at_mu_N():
     def on_frame(k, s, q, info):
         out.append(model.contact_force(q, floor))
 
-    march(model, np.zeros(model.n), path, frames,
-          StepOptions(initial_step=0.1, max_step=0.1, friction_lag_iterations=4),
-          NewtonOptions(tol_dx=1e-7), on_frame=on_frame)
+    march(
+        model,
+        np.zeros(model.n),
+        path,
+        frames,
+        StepOptions(initial_step=0.1, max_step=0.1, friction_lag_iterations=4),
+        NewtonOptions(tol_dx=1e-7),
+        on_frame=on_frame,
+    )
     T, Nn = out[-1]
     assert Nn < -0.5  # the block pushes the floor down (force on the floor)
     assert abs(T) / abs(Nn) == pytest.approx(mu, rel=0.02)
@@ -150,11 +191,17 @@ def test_linear_solver_backends_agree():
     fixed = np.where(np.abs(mesh.points[:, 1] + 2) < 1e-9)[0]
     forces = []
     for b in backends:
-        model, cm = block_and_rigid(mesh, cp, ce, top_edges(mesh, 0.0),
-                                    ContactParams(dhat=0.01, kappa=1.0, mu=0.15), fixed)
+        model, cm = block_and_rigid(
+            mesh, cp, ce, top_edges(mesh, 0.0), ContactParams(dhat=0.01, kappa=1.0, mu=0.15), fixed
+        )
         model.linsolve = S.LinearSolver(b)
-        q = march(model, np.zeros(model.n), lambda s: [0.2 * s, -0.25 * s], [1.0],
-                  StepOptions(initial_step=0.5, max_step=0.5))
+        q = march(
+            model,
+            np.zeros(model.n),
+            lambda s: [0.2 * s, -0.25 * s],
+            [1.0],
+            StepOptions(initial_step=0.5, max_step=0.5),
+        )
         forces.append(model.contact_force(q, np.arange(len(mesh.points), len(model.points))))
     assert np.abs(forces[0][1]) > 0.1
     for f in forces[1:]:
@@ -167,8 +214,9 @@ def test_contact_evaluation_is_bit_reproducible():
     mesh = rectangle_mesh(np.linspace(-4, 4, 161), np.linspace(-1, 0, 3), order=2)
     cp, ce = segment_polyline([-4.5, 0.008], [4.5, 0.008], 900)
     fixed = np.where(np.abs(mesh.points[:, 1] + 1.0) < 1e-9)[0]
-    model, cm = block_and_rigid(mesh, cp, ce, top_edges(mesh, 0.0),
-                                ContactParams(dhat=0.02, kappa=0.5, mu=0.3), fixed)
+    model, cm = block_and_rigid(
+        mesh, cp, ce, top_edges(mesh, 0.0), ContactParams(dhat=0.02, kappa=0.5, mu=0.3), fixed
+    )
     U0 = np.zeros_like(model.points)
     U = U0.copy()
     U[: len(mesh.points)] = 1e-3 * np.random.default_rng(1).standard_normal((len(mesh.points), 2))
@@ -229,6 +277,7 @@ def test_small_steps_skip_the_ccd_and_agree_with_it():
         return ccd(cm.mesh, cm.vertices(U0), cm.vertices(U1), 0.0, cm.broad_phase, cm.ccd)
 
     import finray.fea.contact as C
+
     try:
         C.ipctk.compute_collision_free_stepsize = lambda *a: calls.append(1) or ccd(*a)
         cm.energy(U0)
@@ -255,8 +304,9 @@ def test_near_pairs_hold_the_contact_hessian_pattern():
     R, dhat = 2.0, 0.02
     cp, ce = circle_polyline([0.0, R + 0.012], R, 160)
     fixed = np.where(np.abs(mesh.points[:, 1] + 1.5) < 1e-9)[0]
-    model, cm = block_and_rigid(mesh, cp, ce, top_edges(mesh, 0.0),
-                                ContactParams(dhat=dhat, kappa=0.5, mu=0.0), fixed)
+    model, cm = block_and_rigid(
+        mesh, cp, ce, top_edges(mesh, 0.0), ContactParams(dhat=dhat, kappa=0.5, mu=0.0), fixed
+    )
     n = model.n
 
     def keys(q):

@@ -1,4 +1,5 @@
 """The Fin Ray scene: equilibrium, no interpenetration, failures reported by step."""
+
 import os
 from dataclasses import replace
 import subprocess
@@ -12,8 +13,13 @@ from shapely.geometry import Point
 import finray
 from finray.config import default_config_path, load_config
 from finray.fea.scene import material_law
-from finray.fea.simulate import (DeformableObject, SimulationError, SimulationOptions,
-                                 front_contact_circle, simulate)
+from finray.fea.simulate import (
+    DeformableObject,
+    SimulationError,
+    SimulationOptions,
+    front_contact_circle,
+    simulate,
+)
 from finray.fea.newton import NewtonOptions
 from finray.geometry.finger import FingerParams, mesh_finger
 from finray.geometry.mesh import triangulate_polygon
@@ -43,8 +49,9 @@ def check_frames(r, rtol=5e-3):
 
 def test_rigid_circle_push_equilibrium_every_frame(finger):
     obj = front_contact_circle(FingerParams(), 30.0, 20.0, gap_mm=0.1)
-    r = simulate(finger, obj, FINGER, SimulationOptions(frame_step_mm=1.0,
-                                                        friction_lag_iterations=1))
+    r = simulate(
+        finger, obj, FINGER, SimulationOptions(frame_step_mm=1.0, friction_lag_iterations=1)
+    )
     assert len(r.displacement_mm) == 11
     np.testing.assert_allclose(r.displacement_mm, r.target_mm, atol=1e-3)
     check_frames(r)
@@ -78,8 +85,11 @@ def test_push_stops_at_the_force_cap_and_keeps_its_frames(finger):
     cap = 0.5 * (mag[2] + mag[3])  # between the frames at 2 and 3 mm
     r = simulate(finger, obj, FINGER, replace(opts, force_cap_N=cap))
     assert r.meta["stop"]["reason"] == "force_cap"
-    assert free.meta["stop"] == {"reason": "complete", "push_reached_mm": free.displacement_mm[-1],
-                                 "force_cap_N": None}
+    assert free.meta["stop"] == {
+        "reason": "complete",
+        "push_reached_mm": free.displacement_mm[-1],
+        "force_cap_N": None,
+    }
     assert len(r.displacement_mm) == 4 and 2.0 < r.displacement_mm[-1] < 3.0
     assert r.meta["stop"]["push_reached_mm"] == r.displacement_mm[-1]
     assert cap <= np.hypot(*r.force_N[-1]) <= 1.05 * cap
@@ -100,8 +110,12 @@ def test_frame_short_of_equilibrium_tolerance_is_solved_again(finger):
     r0 = simulate(finger, obj, FINGER, opts)
     assert r0.meta["equilibrium_polishes"] == 0
     tol = 0.5 * r0.equilibrium_rel_error[1:].max()  # the worst frame now fails the first test
-    r = simulate(finger, obj, FINGER, SimulationOptions(frame_step_mm=1.0, friction_lag_iterations=1,
-                                                        equilibrium_tol=tol))
+    r = simulate(
+        finger,
+        obj,
+        FINGER,
+        SimulationOptions(frame_step_mm=1.0, friction_lag_iterations=1, equilibrium_tol=tol),
+    )
     assert r.meta["equilibrium_polishes"] >= 1
     assert r.equilibrium_rel_error[1:].max() <= tol
     fx0 = np.abs(r0.force_N[:, 0]).max()
@@ -163,8 +177,14 @@ def scene_inputs():
     cfg = with_overrides(cfg, {"fea.push_mm": 1.0, "fea.write_vtu": False})
     fp, m = FingerParams.from_config(cfg["finger"]), cfg["mesh"]
     finger = mesh_finger(fp, m["size_mm"], m["min_angle_deg"], m["order"], m["arc_chord_mm"])
-    obj = object_geometry("circle_d20", {"type": "circle", "diameter_mm": 20.0}, fp, 30.0,
-                          size_mm=m["size_mm"], gap_mm=cfg["placement"]["gap_mm"])
+    obj = object_geometry(
+        "circle_d20",
+        {"type": "circle", "diameter_mm": 20.0},
+        fp,
+        30.0,
+        size_mm=m["size_mm"],
+        gap_mm=cfg["placement"]["gap_mm"],
+    )
     return cfg, finger, obj
 
 
@@ -177,8 +197,16 @@ def test_scene_summary_carries_the_convergence_checks(scene_inputs, tmp_path):
     report = tmp_path / "failed" / "c20.json"
     report.parent.mkdir()
     report.write_text("{}")  # a stale report of an earlier failure
-    out = run_scene(cfg, finger, obj, "steel", tmp_path / "scene", {"scene": "c20"},
-                    vtu=False, failure_report=report)
+    out = run_scene(
+        cfg,
+        finger,
+        obj,
+        "steel",
+        tmp_path / "scene",
+        {"scene": "c20"},
+        vtu=False,
+        failure_report=report,
+    )
     s = json.loads((tmp_path / "scene" / "summary.json").read_text())
     assert s == json.loads(json.dumps(out))
     assert s["residual_tol"] == cfg["fea"]["residual_tol"]
@@ -201,8 +229,16 @@ def test_equilibrium_check_fails_the_scene_and_leaves_a_report(scene_inputs, tmp
     cfg = with_overrides(cfg, {"fea.equilibrium_tol": 1e-300})  # no frame can pass
     report = tmp_path / "failed" / "c20.json"
     with pytest.raises(SimulationError) as e:
-        run_scene(cfg, finger, obj, "steel", tmp_path / "scene", {"scene": "c20"}, vtu=False,
-                  failure_report=report)
+        run_scene(
+            cfg,
+            finger,
+            obj,
+            "steel",
+            tmp_path / "scene",
+            {"scene": "c20"},
+            vtu=False,
+            failure_report=report,
+        )
     msg = str(e.value)
     assert "\n" not in msg and msg.startswith("scene c20: frame ")
     assert "equilibrium error" in msg and "> tolerance 1e-300" in msg
@@ -224,19 +260,38 @@ def test_scene_job_ends_a_failed_scene_with_one_line_and_logs_both_outcomes(scen
     args = (tmp_path / "finger.npz", tmp_path / "object.npz", "steel")
     report = tmp_path / "failed" / "c20.json"
     bad = with_overrides(cfg, {"fea.equilibrium_tol": 1e-300})
-    failed = scene_job(bad, *args, tmp_path / "bad", {"scene": "c20"}, tmp_path / "bad.log",
-                       vtu=False, failure_report=report)
+    failed = scene_job(
+        bad,
+        *args,
+        tmp_path / "bad",
+        {"scene": "c20"},
+        tmp_path / "bad.log",
+        vtu=False,
+        failure_report=report,
+    )
     assert failed is not None and "\n" not in failed
     assert failed.startswith("scene c20: frame ") and failed.endswith(f"(report: {report})")
     assert json.loads(report.read_text())["converged"] is False
     assert failed in (tmp_path / "bad.log").read_text()
-    assert scene_job(cfg, *args, tmp_path / "ok", {"scene": "c20"}, tmp_path / "ok.log",
-                     vtu=False, failure_report=report) is None
+    assert (
+        scene_job(
+            cfg,
+            *args,
+            tmp_path / "ok",
+            {"scene": "c20"},
+            tmp_path / "ok.log",
+            vtu=False,
+            failure_report=report,
+        )
+        is None
+    )
     assert not report.exists()
     assert "'converged': True" in (tmp_path / "ok.log").read_text()
     rigid = rigid_object_cfg(cfg["fea"], cfg["finger"], cfg["materials"][cfg["finger"]["material"]])
     assert rigid["materials"]["rigid"] == {"rigid": True}
-    assert rigid["materials"][cfg["finger"]["material"]] == cfg["materials"][cfg["finger"]["material"]]
+    assert (
+        rigid["materials"][cfg["finger"]["material"]] == cfg["materials"][cfg["finger"]["material"]]
+    )
 
 
 SCENE = """
@@ -257,8 +312,12 @@ np.savez(sys.argv[1], F=r.force_N_per_mm, B=r.base_reaction_N_per_mm,
 
 def test_scene_is_bit_reproducible_across_processes(tmp_path):
     """Two processes solving the same scene write bit-identical arrays."""
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
-        [str(Path(finray.__file__).parents[1]), os.environ.get("PYTHONPATH", "")])}
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join(
+            [str(Path(finray.__file__).parents[1]), os.environ.get("PYTHONPATH", "")]
+        ),
+    }
     out = [tmp_path / f"run{i}.npz" for i in range(2)]
     for f in out:
         subprocess.run([sys.executable, "-c", SCENE, str(f)], check=True, env=env)
@@ -275,14 +334,20 @@ def test_chord_steps_keep_the_forces_with_fewer_factorisations(finger):
     obj = front_contact_circle(FingerParams(), 30.0, 10.0)
     runs = {}
     for chord in (0.0, 1e-2):
-        runs[chord] = simulate(finger, obj, FINGER, SimulationOptions(
-            push_mm=3.0, newton=NewtonOptions(chord_dx=chord)))
+        runs[chord] = simulate(
+            finger,
+            obj,
+            FINGER,
+            SimulationOptions(push_mm=3.0, newton=NewtonOptions(chord_dx=chord)),
+        )
     full, chord = runs[0.0], runs[1e-2]
     assert full.meta["n_chord_solves"] == 0 < chord.meta["n_chord_solves"]
     assert chord.meta["n_factorizations"] < full.meta["n_factorizations"]
     assert abs(full.force_N[-1, 0]) > 0.1
     # both to the Newton tolerance (residual 1e-3 of the force scale)
-    np.testing.assert_allclose(chord.force_N, full.force_N, rtol=0, atol=1e-3 * np.abs(full.force_N).max())
+    np.testing.assert_allclose(
+        chord.force_N, full.force_N, rtol=0, atol=1e-3 * np.abs(full.force_N).max()
+    )
     check_frames(chord)
 
 
@@ -295,7 +360,9 @@ def test_a_failed_scene_keeps_the_frames_that_converged(scene_inputs, tmp_path, 
 
     from finray.fea.scene import run_scene
 
-    sim = importlib.import_module("finray.fea.simulate")  # (finray.fea.simulate is also the function)
+    sim = importlib.import_module(
+        "finray.fea.simulate"
+    )  # (finray.fea.simulate is also the function)
 
     real = sim.march
 
@@ -304,6 +371,7 @@ def test_a_failed_scene_keeps_the_frames_that_converged(scene_inputs, tmp_path, 
             if i == 2:
                 raise SimulationError("made to fail", step=7, load=float(s), cause="test")
             on_frame(i, s, q_, info)
+
         return real(model, q, targets, frames, *a, on_frame=stop_at_third, **k)
 
     monkeypatch.setattr(sim, "march", march_then_fail)
@@ -313,15 +381,27 @@ def test_a_failed_scene_keeps_the_frames_that_converged(scene_inputs, tmp_path, 
     cfg = with_overrides(cfg, {"fea.push_mm": 1.5})  # three frames: two converge
     report = tmp_path / "failed" / "c20.json"
     with pytest.raises(SimulationError) as e:
-        run_scene(cfg, finger, obj, "steel", tmp_path / "scene", {"scene": "c20"}, vtu=False,
-                  failure_report=report)
+        run_scene(
+            cfg,
+            finger,
+            obj,
+            "steel",
+            tmp_path / "scene",
+            {"scene": "c20"},
+            vtu=False,
+            failure_report=report,
+        )
     partial = tmp_path / "failed" / "c20.partial_forces.csv"
     msg = str(e.value)
     assert "\n" not in msg and msg.startswith("scene c20: made to fail at object displacement ")
     assert msg.endswith(f"; the 2 frames that converged are in {partial}")
     r = json.loads(report.read_text())
     assert r == json.loads((tmp_path / "scene" / "summary.json").read_text())
-    assert r["converged"] is False and r["frames_converged"] == 2 and r["partial_forces"] == str(partial)
+    assert (
+        r["converged"] is False
+        and r["frames_converged"] == 2
+        and r["partial_forces"] == str(partial)
+    )
     for f in (partial, tmp_path / "scene" / "partial_forces.csv"):
         t = np.loadtxt(f, delimiter=",", skiprows=1)
         assert t.shape == (3, 3) and t[0].tolist() == [0.0, 0.0, 0.0]  # the rest frame, then two

@@ -1,9 +1,15 @@
 """Constitutive law: consistency of energy, stress and tangent; small-strain limit."""
+
 import numpy as np
 import pytest
 
-from finray.fea.material import (NeoHookean, gent_modulus_from_shore_a, lame, project_tangent_psd,
-                                 von_mises)
+from finray.fea.material import (
+    NeoHookean,
+    gent_modulus_from_shore_a,
+    lame,
+    project_tangent_psd,
+    von_mises,
+)
 
 
 @pytest.fixture
@@ -41,8 +47,9 @@ def test_small_strain_limit_is_plane_strain_linear_elasticity(mat):
         C[i, j, k, l] = lam * d[i, j] * d[k, l] + mu * (d[i, k] * d[j, l] + d[i, l] * d[j, k])
     # on symmetric (strain) arguments the tangent acts as the elasticity tensor
     eps = np.array([[1e-3, 2e-4], [2e-4, -5e-4]])
-    np.testing.assert_allclose(np.einsum("ijkl,kl->ij", A[0], eps),
-                               np.einsum("ijkl,kl->ij", C, eps), rtol=1e-12)
+    np.testing.assert_allclose(
+        np.einsum("ijkl,kl->ij", A[0], eps), np.einsum("ijkl,kl->ij", C, eps), rtol=1e-12
+    )
     # plane strain: uniaxial stress in x needs sigma_zz = nu (sxx + syy)
     sig, szz = mat.cauchy(np.eye(2)[None] + np.array([[[1e-6, 0], [0, 0]]]))
     assert szz[0] == pytest.approx(mat.nu * (sig[0, 0, 0] + sig[0, 1, 1]), rel=1e-5)
@@ -96,5 +103,6 @@ def test_config_materials_have_sources_and_give_the_laws():
         material_law(cfg, "steel")
     # neoprene's modulus is Gent's relation at Shore A 60, as its source says
     assert "Shore A 60" in mats["neoprene"]["source"]
-    assert gent_modulus_from_shore_a(60) == pytest.approx(mats["neoprene"]["youngs_modulus_MPa"],
-                                                          rel=0.01)
+    assert gent_modulus_from_shore_a(60) == pytest.approx(
+        mats["neoprene"]["youngs_modulus_MPa"], rel=0.01
+    )

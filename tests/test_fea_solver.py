@@ -1,5 +1,6 @@
 """Newton's stopping rule: converged only with a small step *and* balanced forces;
 stalled line searches and gradient fallbacks are counted and explained."""
+
 import numpy as np
 import pytest
 
@@ -19,9 +20,12 @@ def strip(load=1.0):
     be = mesh.boundary_edges
     mid = 0.5 * (X[be[:, 0]] + X[be[:, 1]])
     tip = be[np.abs(mid[:, 0] - 10) < 1e-12]
-    model = Model(X, [ElementBlock(mesh.triangles, MAT)],
-                  fixed_nodes=np.flatnonzero(np.abs(X[:, 0]) < 1e-12),
-                  external_force=edge_load(mesh, tip, [0.0, -0.05]))
+    model = Model(
+        X,
+        [ElementBlock(mesh.triangles, MAT)],
+        fixed_nodes=np.flatnonzero(np.abs(X[:, 0]) < 1e-12),
+        external_force=edge_load(mesh, tip, [0.0, -0.05]),
+    )
     model.load = load
     return model
 
@@ -47,7 +51,8 @@ def no_decrease(model, q0):
     evaluate = model.evaluate
     model.energy = lambda q: np.inf
     model.evaluate = lambda q, order=2, psd=None: (
-        evaluate(q, order, psd) if np.array_equal(q, q0) else (np.inf, None, None))
+        evaluate(q, order, psd) if np.array_equal(q, q0) else (np.inf, None, None)
+    )
 
 
 def test_stalled_line_search_is_not_converged(solution):
@@ -83,9 +88,10 @@ def test_small_step_alone_is_not_convergence():
     # reported: the last assembled state; the returned one (after the final tiny
     # step) is at least as balanced
     assert model.residual_norm(model.evaluate(res.q, 1)[1]) <= opts.tol_residual
-    assert {k: model.counters[k] for k in ("line_search_failures", "gradient_fallbacks",
-                                           "residual_max_rel")} == {
-        "line_search_failures": 0, "gradient_fallbacks": 0, "residual_max_rel": res.residual}
+    assert {
+        k: model.counters[k]
+        for k in ("line_search_failures", "gradient_fallbacks", "residual_max_rel")
+    } == {"line_search_failures": 0, "gradient_fallbacks": 0, "residual_max_rel": res.residual}
 
 
 def test_chord_steps_assemble_no_hessian_in_vain(solution):
@@ -99,14 +105,19 @@ def test_chord_steps_assemble_no_hessian_in_vain(solution):
         model = strip()
         orders = []
         evaluate = model.evaluate
-        model.evaluate = lambda q, order=2, psd=None: orders.append(order) or evaluate(q, order, psd)
+        model.evaluate = lambda q, order=2, psd=None: (
+            orders.append(order) or evaluate(q, order, psd)
+        )
         opts = NewtonOptions(tol_dx=1e-9, tol_residual=1e-9, chord_dx=chord_dx)
         res = newton(model, perturbed(model, solution, 0.05), opts)
         assert res.converged
         found[chord_dx] = res.q
         cut_back = sum(row[5] < row[4] for row in res.history)  # alpha < CCD's alpha
-        assert (model.linsolve.n_factorizations <= orders.count(2)
-                <= model.linsolve.n_factorizations + cut_back)
+        assert (
+            model.linsolve.n_factorizations
+            <= orders.count(2)
+            <= model.linsolve.n_factorizations + cut_back
+        )
         if chord_dx:
             assert model.linsolve.n_resolves > 0 and orders.count(1) > 0
         else:
@@ -136,6 +147,7 @@ def test_gradient_fallback_is_counted():
 # -- the cvxopt backend (CHOLMOD from wheels) ----------------------------------------
 def _spd(n=60, seed=0):
     import scipy.sparse as sp
+
     L = sp.random(n, n, density=0.05, random_state=seed)
     return (L @ L.T + 2.0 * sp.eye(n)).tocsr()
 
@@ -262,8 +274,9 @@ def test_tangent_predictor_is_newtons_first_step_without_a_factorisation(solutio
     q_pred = _predict_tangent(model, solution, 0.02)
     assert model.linsolve.n_factorizations == n_fact and model.counters["predictor_solves"] == 1
     g_new = model.evaluate(solution, 1)[1]
-    np.testing.assert_allclose(q_pred, solution + np.linalg.solve(H.tocsr().toarray(), -g_new),
-                               rtol=0, atol=1e-10)
+    np.testing.assert_allclose(
+        q_pred, solution + np.linalg.solve(H.tocsr().toarray(), -g_new), rtol=0, atol=1e-10
+    )
     assert model.energy(q_pred) < model.energy(solution)  # a start nearer the minimum
 
 
@@ -272,5 +285,10 @@ def test_unknown_predictor_is_one_line():
 
     model = strip()
     with pytest.raises(ValueError, match="unknown predictor True"):
-        march(model, np.zeros(model.n), lambda s: np.zeros(2), np.array([1.0]),
-              StepOptions(predictor=True))
+        march(
+            model,
+            np.zeros(model.n),
+            lambda s: np.zeros(2),
+            np.array([1.0]),
+            StepOptions(predictor=True),
+        )

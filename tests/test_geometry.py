@@ -1,4 +1,5 @@
 """Geometry invariants measured on the built polygons and meshes (mm, deg)."""
+
 import json
 
 import numpy as np
@@ -7,8 +8,13 @@ import shapely
 from matplotlib.tri import Triangulation
 from shapely.geometry import LineString, MultiLineString, Polygon
 
-from finray.geometry.finger import (FingerParams, GeometryError, finger_polygon,
-                                    front_face_x, mesh_finger)
+from finray.geometry.finger import (
+    FingerParams,
+    GeometryError,
+    finger_polygon,
+    front_face_x,
+    mesh_finger,
+)
 from finray.geometry.mesh import BOUNDARY_TAGS, TriMesh, quality, signed_areas
 from finray.geometry.objects import object_geometry, object_shape, place_object
 from finray.geometry.surface import check_watertight, extrude
@@ -61,14 +67,17 @@ def test_rib_angles_step_by_three_degrees_and_thickness(poly):
 
 def test_wall_thickness(poly):
     y = 10.0  # the cut also crosses a slanted rib: keep the outermost intervals
-    segs = sorted(material_intervals(poly, (-1, y), (P.base_width_mm + 1, y)),
-                  key=lambda s: s[:, 0].min())
+    segs = sorted(
+        material_intervals(poly, (-1, y), (P.base_width_mm + 1, y)), key=lambda s: s[:, 0].min()
+    )
     front, back = segs[0], segs[-1]
     assert back[:, 0].max() == pytest.approx(P.base_width_mm)
     assert abs(back[1, 0] - back[0, 0]) == pytest.approx(P.wall_thickness_mm, abs=1e-9)
     # the front wall is inclined: horizontal width = t / cos(front angle)
     width = abs(front[1, 0] - front[0, 0])
-    assert width * np.cos(np.radians(P.front_angle_deg)) == pytest.approx(P.wall_thickness_mm, abs=1e-9)
+    assert width * np.cos(np.radians(P.front_angle_deg)) == pytest.approx(
+        P.wall_thickness_mm, abs=1e-9
+    )
     assert front[:, 0].min() == pytest.approx(float(front_face_x(P, y)), abs=1e-9)
 
 
@@ -112,12 +121,14 @@ def test_mesh_quality_and_resolution(mesh, poly):
     p = mesh.points
     for k, (a, b) in enumerate([(0, 1), (1, 2), (2, 0)]):
         tri = mesh.triangles
-        np.testing.assert_allclose(p[tri[:, 3 + k]], 0.5 * (p[tri[:, a]] + p[tri[:, b]]), atol=1e-12)
+        np.testing.assert_allclose(
+            p[tri[:, 3 + k]], 0.5 * (p[tri[:, a]] + p[tri[:, b]]), atol=1e-12
+        )
     # at least two elements across every rib and across the walls
     tr = Triangulation(p[:, 0], p[:, 1], mesh.corner_triangles)
     finder = tr.get_trifinder()
     cuts = []
-    for (yb, a) in zip(P.rib_back_heights_mm(), np.radians(P.rib_angles_deg())):
+    for yb, a in zip(P.rib_back_heights_mm(), np.radians(P.rib_angles_deg())):
         x = P.base_width_mm - P.wall_thickness_mm - 4.0
         yc = yb - 4.0 * np.tan(a)
         n = np.array([np.sin(a), -np.cos(a)])  # normal to the rib
@@ -164,7 +175,9 @@ def test_surface_watertight(mesh):
     surf = extrude(mesh, P.extrusion_mm)
     topo = check_watertight(surf)
     assert topo["watertight"] and topo["connected_components"] == 1
-    assert topo["signed_volume_mm3"] == pytest.approx(quality(mesh)["area_mm2"] * P.extrusion_mm, rel=1e-9)
+    assert topo["signed_volume_mm3"] == pytest.approx(
+        quality(mesh)["area_mm2"] * P.extrusion_mm, rel=1e-9
+    )
 
 
 def test_mesh_round_trip(tmp_path, mesh):
@@ -182,8 +195,10 @@ def test_mesh_round_trip(tmp_path, mesh):
 
 SPECS = {
     "circle": ({"type": "circle", "diameter_mm": 10}, np.pi * 25),
-    "square": ({"type": "square", "side_mm": 10, "angle_deg": 30, "fillet_mm": 0.5},
-               100 - (4 - np.pi) * 0.25),
+    "square": (
+        {"type": "square", "side_mm": 10, "angle_deg": 30, "fillet_mm": 0.5},
+        100 - (4 - np.pi) * 0.25,
+    ),
     "ring": ({"type": "ring", "diameter_mm": 15, "wall_mm": 2}, np.pi * (7.5**2 - 5.5**2)),
     "ellipse": ({"type": "ellipse", "width_mm": 16, "height_mm": 9}, np.pi * 8 * 4.5),
 }
@@ -197,8 +212,11 @@ def test_objects_placed_with_gap(name, height, poly):
     ref = np.array(obj.meta["reference_point_mm"])
     assert ref[1] == height
     e = obj.boundary_edges
-    segs = obj.points[e[:, :2]] if obj.order == 1 else np.concatenate(
-        [obj.points[e[:, [0, 2]]], obj.points[e[:, [2, 1]]]])
+    segs = (
+        obj.points[e[:, :2]]
+        if obj.order == 1
+        else np.concatenate([obj.points[e[:, [0, 2]]], obj.points[e[:, [2, 1]]]])
+    )
     gap = shapely.distance(poly, MultiLineString(list(segs)))
     assert gap == pytest.approx(0.1, abs=1e-6)
     assert obj.meta["area_mm2"] == pytest.approx(area, rel=5e-3)  # polygonised arcs
@@ -208,7 +226,10 @@ def test_objects_placed_with_gap(name, height, poly):
     if name == "ring":
         q = quality(obj)
         assert q["min_angle_deg"] >= 20 and q["n_inverted"] == 0
-        assert set(np.unique(obj.boundary_tags)) == {BOUNDARY_TAGS["object"], BOUNDARY_TAGS["object_inner"]}
+        assert set(np.unique(obj.boundary_tags)) == {
+            BOUNDARY_TAGS["object"],
+            BOUNDARY_TAGS["object_inner"],
+        }
     else:
         assert len(obj.triangles) == 0  # rigid: boundary only
         assert (obj.boundary_tags == BOUNDARY_TAGS["object"]).all()

@@ -1,4 +1,5 @@
 """Drawn emulated rigs (finray.lab.rigs) and the summary over rigs (finray.evaluate.rigs)."""
+
 import colorsys
 
 import numpy as np
@@ -23,7 +24,9 @@ def test_rigs_are_drawn_within_their_ranges_and_replay(lab):
     assert draw_rig(lab, 1) == rigs[0]  # seeded: the same rig each time
     # the selection rigs come after the reported ones, which stay as they are without them
     sel = selection_rig_names(spec)
-    assert sel == [f"rig{i}" for i in range(spec["count"] + 1, spec["count"] + spec["selection"] + 1)]
+    assert sel == [
+        f"rig{i}" for i in range(spec["count"] + 1, spec["count"] + spec["selection"] + 1)
+    ]
     alone = {**lab, "rigs": {**spec, "selection": 0}}
     assert [draw_rig(alone, rig_index(n)) for n in names] == rigs
     rigs = rigs + [draw_rig(lab, rig_index(n)) for n in sel]
@@ -32,7 +35,9 @@ def test_rigs_are_drawn_within_their_ranges_and_replay(lab):
         assert "rigs" not in rig and set(rig) == set(lab) - {"rigs"}
         for path, (lo, hi) in spec["uniform"].items():
             section, key = path.split(".")
-            assert np.all((lo <= np.asarray(rig[section][key])) & (np.asarray(rig[section][key]) <= hi)), path
+            assert np.all(
+                (lo <= np.asarray(rig[section][key])) & (np.asarray(rig[section][key]) <= hi)
+            ), path
         assert rig["camera"]["size_px"] in spec["choice"]["camera.size_px"]
         assert "emulated" in rig["camera"]["model"]
         # the object's hue is at least 120 deg from the finger's
@@ -63,14 +68,25 @@ def test_rig_errors(lab):
 
 def test_summary_over_rigs():
     def summ(errs, covs, n=100):
-        return {"by_context": {str(k): {"nrmse_pct": e, "mse_N2": e / 10, "coverage_pct": c, "n_frames": n}
-                               for k, (e, c) in enumerate(zip(errs, covs))}}
-    table = rigs_table({"default": summ([12, 3, 2], [90, 80, 100]),
-                        "rig1": summ([14, 6, 7], [70, 90, 90], n=300)})
+        return {
+            "by_context": {
+                str(k): {"nrmse_pct": e, "mse_N2": e / 10, "coverage_pct": c, "n_frames": n}
+                for k, (e, c) in enumerate(zip(errs, covs))
+            }
+        }
+
+    table = rigs_table(
+        {"default": summ([12, 3, 2], [90, 80, 100]), "rig1": summ([14, 6, 7], [70, 90, 90], n=300)}
+    )
     s = rigs_summary(table, 0.9)
-    assert s["per_rig"]["default"] == {"error_falls": True, "nrmse_pct_most_context": 2, "within_target": True,
-                                       "nrmse_pct": [12, 3, 2], "coverage_pct": [90, 80, 100],
-                                       "n_frames": [100, 100, 100]}
+    assert s["per_rig"]["default"] == {
+        "error_falls": True,
+        "nrmse_pct_most_context": 2,
+        "within_target": True,
+        "nrmse_pct": [12, 3, 2],
+        "coverage_pct": [90, 80, 100],
+        "n_frames": [100, 100, 100],
+    }
     assert not s["per_rig"]["rig1"]["error_falls"] and not s["per_rig"]["rig1"]["within_target"]
     assert not s["all_fall"] and not s["all_within_target"]
     assert s["by_context"]["0"]["coverage_pct_pooled"] == pytest.approx((90 * 100 + 70 * 300) / 400)
@@ -86,8 +102,10 @@ def test_height_span_draws_one_height_per_part_of_the_face():
     from finray.geometry.objects import object_shape
     from finray.lab.rigs import BASE_CLEARANCE_MM, span_heights
 
-    objects = {"cylinder": {"type": "circle", "diameter_mm": 20.0},
-               "square": {"type": "square", "side_mm": 10.0, "angle_deg": 0.0}}
+    objects = {
+        "cylinder": {"type": "circle", "diameter_mm": 20.0},
+        "square": {"type": "square", "side_mm": 10.0, "angle_deg": 0.0},
+    }
     for seed in range(20):
         hs = span_heights(np.random.default_rng(seed), objects, [4.0, 70.0], 3)
         assert hs == sorted(hs) and len(set(hs)) == 3 and all(h == int(h) for h in hs)
@@ -105,10 +123,20 @@ def test_sim2real_metrics_per_contact_height_and_over_rigs():
     from finray.evaluate.rigs import rigs_heights
     from finray.evaluate.sim2real import metrics_table
 
-    fr = pd.DataFrame({"context_objects": 1, "context": "a", "group": "b", "take": "t",
-                       "height_mm": [10.0, 10.0, 60.0, 60.0], "sensor_N": [10.0, 20.0, 1.0, 2.0],
-                       "pred_N": [10.0, 21.0, 1.0, 2.1], "net_mean_N": [10.0, 21.0, 1.0, 2.1],
-                       "lo_N": 0.0, "hi_N": 100.0})
+    fr = pd.DataFrame(
+        {
+            "context_objects": 1,
+            "context": "a",
+            "group": "b",
+            "take": "t",
+            "height_mm": [10.0, 10.0, 60.0, 60.0],
+            "sensor_N": [10.0, 20.0, 1.0, 2.0],
+            "pred_N": [10.0, 21.0, 1.0, 2.1],
+            "net_mean_N": [10.0, 21.0, 1.0, 2.1],
+            "lo_N": 0.0,
+            "hi_N": 100.0,
+        }
+    )
     m = metrics_table(fr, 0.9)
     h = m[m["context"] == "by_height"].set_index("test")
     assert list(h.index) == ["10", "60"]
@@ -116,8 +144,33 @@ def test_sim2real_metrics_per_contact_height_and_over_rigs():
     assert h.loc["60", "nrmse_pct"] == pytest.approx(100 * np.sqrt(0.005) / 2)
     # the per-object and overall rows are as before
     assert set(m.loc[m["context"] == "all", "test"]) == {"b", "all"}
-    s = {"rigX": {"by_context": {"1": {"per_height": {
-        "60": {"nrmse_pct": 3.5, "coverage_pct": 90.0, "rmse_N": 0.07, "max_sensor_N": 2.0},
-        "10": {"nrmse_pct": 2.5, "coverage_pct": 80.0, "rmse_N": 0.5, "max_sensor_N": 20.0}}}}}}
-    assert rigs_heights(s) == {"rigX": {"1": {"10": {"nrmse_pct": 2.5, "coverage_pct": 80.0},
-                                              "60": {"nrmse_pct": 3.5, "coverage_pct": 90.0}}}}
+    s = {
+        "rigX": {
+            "by_context": {
+                "1": {
+                    "per_height": {
+                        "60": {
+                            "nrmse_pct": 3.5,
+                            "coverage_pct": 90.0,
+                            "rmse_N": 0.07,
+                            "max_sensor_N": 2.0,
+                        },
+                        "10": {
+                            "nrmse_pct": 2.5,
+                            "coverage_pct": 80.0,
+                            "rmse_N": 0.5,
+                            "max_sensor_N": 20.0,
+                        },
+                    }
+                }
+            }
+        }
+    }
+    assert rigs_heights(s) == {
+        "rigX": {
+            "1": {
+                "10": {"nrmse_pct": 2.5, "coverage_pct": 80.0},
+                "60": {"nrmse_pct": 3.5, "coverage_pct": 90.0},
+            }
+        }
+    }

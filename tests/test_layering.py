@@ -29,6 +29,7 @@ or lower. The top-level modules that are not stages get the rank of what they im
 - ``benchmarks``: the studies, a consumer of every stage like evaluate; no stage and
   not evaluate imports it. ``cli``: the entry point, on top.
 """
+
 import ast
 from pathlib import Path
 
@@ -37,17 +38,35 @@ import pytest
 SRC = Path(__file__).resolve().parents[1] / "src" / "finray"
 
 RANK = {
-    "__init__": 0, "errors": 0, "logs": 0, "precision": 0, "paper_reference": 0, "media": 0,
-    "annotate": 0, "lazy": 0, "schema": 0, "numba_cache": 0,
+    "__init__": 0,
+    "errors": 0,
+    "logs": 0,
+    "precision": 0,
+    "paper_reference": 0,
+    "media": 0,
+    "annotate": 0,
+    "lazy": 0,
+    "schema": 0,
+    "numba_cache": 0,
     "geometry": 10,
     "fea": 20,
     "render": 30,
     "lab": 35,
-    "dataset": 40, "recording": 40,
+    "dataset": 40,
+    "recording": 40,
     "config": 45,
-    "model": 50, "train": 50, "predictor": 50, "predict": 50, "adapt": 50, "calibration": 50,
-    "sim2real": 50, "sim2real.adapt": 50, "sim2real.calibration": 50, "sim2real.rig_prior": 50,
-    "sim2real.experiment": 60, "sim2real.rigs": 60,
+    "model": 50,
+    "train": 50,
+    "predictor": 50,
+    "predict": 50,
+    "adapt": 50,
+    "calibration": 50,
+    "sim2real": 50,
+    "sim2real.adapt": 50,
+    "sim2real.calibration": 50,
+    "sim2real.rig_prior": 50,
+    "sim2real.experiment": 60,
+    "sim2real.rigs": 60,
     "validity": 50,
     "evaluate": 60,
     "benchmarks": 70,
@@ -74,7 +93,7 @@ def finray_imports(source: str, module: str) -> list[tuple[int, str]]:
     for node in ast.walk(ast.parse(source)):
         if isinstance(node, ast.ImportFrom):
             if node.level:
-                base = package[:len(package) - node.level + 1]
+                base = package[: len(package) - node.level + 1]
                 names = [node.module] if node.module else [a.name for a in node.names]
                 out += [(node.lineno, ".".join(base + [n])) for n in names]
             elif node.module and node.module.split(".")[0] == "finray":
@@ -95,8 +114,10 @@ def upward_imports(source: str, module: str) -> list[str]:
         if unit not in RANK:
             bad.append(f"{module}:{line}: imports {target}, whose unit '{unit}' has no rank")
         elif RANK[unit] > RANK[own]:
-            bad.append(f"{module}:{line}: {own} (rank {RANK[own]}) imports {target} "
-                       f"({unit}, rank {RANK[unit]})")
+            bad.append(
+                f"{module}:{line}: {own} (rank {RANK[own]}) imports {target} "
+                f"({unit}, rank {RANK[unit]})"
+            )
     return bad
 
 
@@ -119,22 +140,32 @@ def test_no_stage_imports_a_later_one():
 def test_ingest_never_sees_the_emulator():
     """A real rig's takes go through the same code: recording imports nothing of lab
     (whose takes carry the truth beside them), nor does predict(or) or train."""
-    bad = [f"{m}:{line}: {target}" for f, m in _modules()
-           if _unit(m.split(".")[1:]) in ("recording", "predictor", "predict", "train", "model")
-           for line, target in finray_imports(f.read_text(), m)
-           if _unit(target.split(".")[1:]) == "lab"]
+    bad = [
+        f"{m}:{line}: {target}"
+        for f, m in _modules()
+        if _unit(m.split(".")[1:]) in ("recording", "predictor", "predict", "train", "model")
+        for line, target in finray_imports(f.read_text(), m)
+        if _unit(target.split(".")[1:]) == "lab"
+    ]
     assert bad == []
 
 
-@pytest.mark.parametrize("module, source, n_bad", [
-    ("finray.render.bench", "from ..dataset.shards import FramePreparer\n", 1),
-    ("finray.fea.studies", "from ..config import validate_config\nfrom .simulate import x\n", 1),
-    ("finray.geometry.mesh", "import finray.train\nfrom finray.geometry import finger\n", 1),
-    ("finray.dataset.__init__", "from .shards import load_shard\n", 0),
-    ("finray.train", "from .dataset import load_frames\nfrom .evaluate import metrics\n", 1),
-    ("finray.cli", "from . import __version__\nfrom .benchmarks import speed\n", 0),
-    ("finray.evaluate.speed", "from ..benchmarks.pareto import pareto_front\n", 1),
-])
+@pytest.mark.parametrize(
+    "module, source, n_bad",
+    [
+        ("finray.render.bench", "from ..dataset.shards import FramePreparer\n", 1),
+        (
+            "finray.fea.studies",
+            "from ..config import validate_config\nfrom .simulate import x\n",
+            1,
+        ),
+        ("finray.geometry.mesh", "import finray.train\nfrom finray.geometry import finger\n", 1),
+        ("finray.dataset.__init__", "from .shards import load_shard\n", 0),
+        ("finray.train", "from .dataset import load_frames\nfrom .evaluate import metrics\n", 1),
+        ("finray.cli", "from . import __version__\nfrom .benchmarks import speed\n", 0),
+        ("finray.evaluate.speed", "from ..benchmarks.pareto import pareto_front\n", 1),
+    ],
+)
 def test_the_check_finds_upward_imports(module, source, n_bad):
     assert len(upward_imports(source, module)) == n_bad
 
@@ -147,9 +178,13 @@ def test_planning_the_dag_imports_no_torch():
     import sys
 
     rules = sorted((SRC.parents[1] / "workflow" / "rules").glob("*.smk"))
-    modules = sorted({m for r in rules for m in re.findall(r"^from (finray[\w.]*) import", r.read_text(), re.M)})
+    modules = sorted(
+        {m for r in rules for m in re.findall(r"^from (finray[\w.]*) import", r.read_text(), re.M)}
+    )
     assert "finray.train.config" in modules
-    code = "import sys\n" + "".join(f"import {m}\n" for m in modules) + "print('torch' in sys.modules)"
+    code = (
+        "import sys\n" + "".join(f"import {m}\n" for m in modules) + "print('torch' in sys.modules)"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False", modules
 
@@ -161,11 +196,13 @@ def test_reading_shards_and_training_load_no_renderer_or_mesher():
     import subprocess
     import sys
 
-    code = ("import sys\nimport finray.train.stage, finray.train.augment, finray.dataset.pitch\n"
-            "from finray.dataset import load_frames\n"
-            "print(sorted(m for m in ('triangle', 'vtk', 'pyvista', 'finray.render.raster',\n"
-            "                         'finray.render.perspective', 'finray.geometry.mesh')\n"
-            "             if m in sys.modules))")
+    code = (
+        "import sys\nimport finray.train.stage, finray.train.augment, finray.dataset.pitch\n"
+        "from finray.dataset import load_frames\n"
+        "print(sorted(m for m in ('triangle', 'vtk', 'pyvista', 'finray.render.raster',\n"
+        "                         'finray.render.perspective', 'finray.geometry.mesh')\n"
+        "             if m in sys.modules))"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
 

@@ -7,6 +7,7 @@ run of 2026-11-22 in the main checkout), rebuilt with this checkout's summary co
 checks that its key structure still matches what build_summary writes, so that it cannot
 go stale silently: refresh it when the summary gains or loses a key.
 """
+
 import copy
 import json
 from pathlib import Path
@@ -51,7 +52,10 @@ def test_range_relation_and_counts():
 
 def test_reach_says_only_when_short_of_the_paper():
     pitches = [0, 5, 10, 15]
-    assert reach(0.0, pitches, 10.0) == "up to 0° only, short of the paper's network (usable below 10°)"
+    assert (
+        reach(0.0, pitches, 10.0)
+        == "up to 0° only, short of the paper's network (usable below 10°)"
+    )
     assert reach(5.0, pitches, 10.0) == "up to 5°, as the paper's network (usable below 10°)"
     assert reach(15.0, pitches, 10.0) == "up to 15°, beyond the paper's network (usable below 10°)"
     assert reach(None, pitches, 10.0).startswith("at no pitch")
@@ -62,8 +66,11 @@ def test_paper_reference_is_the_one_home():
     for name, v in ref.items():
         assert {"value", "unit", "where", "quote"} <= set(v), name
     assert paper_value("shape_mse_N2") == [0.02, 0.09]
-    assert paper_value("sim_to_real_mse_N2") == {"sim_only": 0.092, "one_real_sample": 0.07,
-                                                 "two_real_samples": 0.037}
+    assert paper_value("sim_to_real_mse_N2") == {
+        "sim_only": 0.092,
+        "one_real_sample": 0.07,
+        "two_real_samples": 0.037,
+    }
     with pytest.raises(KeyError, match="no paper reference value 'nope'"):
         paper_value("nope")
     # the template types none of the paper's numbers: it reads them from s.paper
@@ -83,8 +90,11 @@ def test_manuscript_renders_from_the_full_summary():
     assert f"The network's error is {base / net:.1f} times smaller than\nthe baseline's" in text
     # the words derive from the numbers (the whole-face test set's MSEs fall inside the range)
     from finray.evaluate.wording import range_relation
+
     mses = [g["mse_N2"] for g in shp["plain"]["groups"].values()]
-    assert f"{range_relation(mses, FULL['paper']['shape_mse_N2']['value'])} the paper's range" in text
+    assert (
+        f"{range_relation(mses, FULL['paper']['shape_mse_N2']['value'])} the paper's range" in text
+    )
     assert "up to 0° only" in text
     t = FULL["training"]["plain"]
     assert f"epoch {t['best_epoch']} of {t['epochs']}" in text
@@ -101,8 +111,10 @@ def test_manuscript_renders_from_the_full_summary():
         u = v["usable_deg"][key]
         assert f"- {name}: " + ("at no pitch" if u is None else f"up to {u:g}°") in text
     c = FULL["camera_model"]["shape"]
-    assert (f"{'loses' if c['loss_pp'] > 0 else 'gains'} {abs(c['loss_pp']):.2f} percentage points "
-            "on the shape test") in text
+    assert (
+        f"{'loses' if c['loss_pp'] > 0 else 'gains'} {abs(c['loss_pp']):.2f} percentage points "
+        "on the shape test"
+    ) in text
 
 
 def test_the_words_turn_with_the_numbers():
@@ -134,9 +146,11 @@ def test_the_occlusion_section_says_how_the_occlusion_model_trained():
     s = copy.deepcopy(FULL)
     s["setup"]["model_start"]["occlusion"] = {"from": "plain", "epochs": 5}
     text = " ".join(render(s).split())
-    assert ("Retrained with random occlusion (the paper retrains; here the plain network's "
-            "weights are trained on for 5 more epochs, against 10 for a network from new "
-            "weights), it is at") in text
+    assert (
+        "Retrained with random occlusion (the paper retrains; here the plain network's "
+        "weights are trained on for 5 more epochs, against 10 for a network from new "
+        "weights), it is at"
+    ) in text
 
 
 def test_summary_training_data_and_forces(tmp_path):
@@ -144,31 +158,74 @@ def test_summary_training_data_and_forces(tmp_path):
     rows = []
     for sc in ("a", "b"):
         for k, f in enumerate([0.0, 0.5, 1.0, 1.5, 2.0]):  # 5 frames over 3 solver frames
-            rows.append({"scene_id": sc, "split": "train", "pitch_deg": 0.0, "frame": k,
-                         "fea_frame": f, "fx_N": 1.0 + k})
-    rows.append({"scene_id": "c", "split": "shape", "pitch_deg": 0.0, "frame": 0, "fea_frame": 0.0,
-                 "fx_N": 0.0})
+            rows.append(
+                {
+                    "scene_id": sc,
+                    "split": "train",
+                    "pitch_deg": 0.0,
+                    "frame": k,
+                    "fea_frame": f,
+                    "fx_N": 1.0 + k,
+                }
+            )
+    rows.append(
+        {
+            "scene_id": "c",
+            "split": "shape",
+            "pitch_deg": 0.0,
+            "frame": 0,
+            "fea_frame": 0.0,
+            "fx_N": 0.0,
+        }
+    )
     pd.DataFrame(rows).to_csv(tmp_path / "manifest.csv", index=False)
     assert training_data(tmp_path / "manifest.csv") == {
-        "split": "train", "pitch_deg": 0.0, "scenes": 2, "frames": 10, "solver_frames": 6,
-        "solver_frames_per_scene": [3, 3], "frames_on_solver_frames": 6}
-    pd.DataFrame({"scene": list("abc"), "split": ["train", "train", "shape"],
-                  "height_mm": [20.0, 20.0, 20.0], "fx_final_N": [4.0, 6.0, 9.0],
-                  "self_contact_max_pairs": [3, 0, 5],
-                  "self_contact_first_mm": [4.5, None, 6.0]}).to_csv(tmp_path / "s.csv", index=False)
+        "split": "train",
+        "pitch_deg": 0.0,
+        "scenes": 2,
+        "frames": 10,
+        "solver_frames": 6,
+        "solver_frames_per_scene": [3, 3],
+        "frames_on_solver_frames": 6,
+    }
+    pd.DataFrame(
+        {
+            "scene": list("abc"),
+            "split": ["train", "train", "shape"],
+            "height_mm": [20.0, 20.0, 20.0],
+            "fx_final_N": [4.0, 6.0, 9.0],
+            "self_contact_max_pairs": [3, 0, 5],
+            "self_contact_first_mm": [4.5, None, 6.0],
+        }
+    ).to_csv(tmp_path / "s.csv", index=False)
     f = fea_forces(tmp_path / "s.csv")
     assert f["force_cv_max_pct"] == pytest.approx(20.0)  # std 1 / mean 5
     assert f["force_spread_max_pct"] == pytest.approx(40.0)
-    assert (f["self_contact_scenes"], f["n_scenes_all"], f["self_contact_first_mm"]) == (2, 3, [4.5, 6.0])
-    h = {"epoch": [1, 2, 3], "train_loss": [3.0, 2.0, 1.0], "val_loss": [2.0, 0.5, 0.7],
-         "val_force_rmse_N": [0.3, 0.2, 0.1], "train_seconds": 1.0, "n_train": 5, "n_val": 5,
-         "validation_scenes": ["b"]}
+    assert (f["self_contact_scenes"], f["n_scenes_all"], f["self_contact_first_mm"]) == (
+        2,
+        3,
+        [4.5, 6.0],
+    )
+    h = {
+        "epoch": [1, 2, 3],
+        "train_loss": [3.0, 2.0, 1.0],
+        "val_loss": [2.0, 0.5, 0.7],
+        "val_force_rmse_N": [0.3, 0.2, 0.1],
+        "train_seconds": 1.0,
+        "n_train": 5,
+        "n_val": 5,
+        "validation_scenes": ["b"],
+    }
     t = training_summary(h, tmp_path / "manifest.csv")
     # kept: the lowest validation loss (epoch 2), not the lowest force RMSE (epoch 3)
     assert (t["best_epoch"], t["best_val_force_rmse_N"]) == (2, 0.2)
     assert t["force_mean_N"] == [3.0] and t["force_std_N"] == [pytest.approx(1.5811, abs=1e-4)]
-    assert training_summary({**h, "best_epoch": 3, "force_mean_N": [1.0], "force_std_N": [2.0]}
-                            )["best_epoch"] == 3
+    assert (
+        training_summary({**h, "best_epoch": 3, "force_mean_N": [1.0], "force_std_N": [2.0]})[
+            "best_epoch"
+        ]
+        == 3
+    )
 
 
 def test_key_structure_ignores_names_only():
@@ -196,17 +253,32 @@ def test_sim2real_section_follows_its_numbers():
     text = render(s)
     assert "The error does not fall with each context object" in text
     assert "10.0 times larger than the paper's 0.037" in text.replace("\n", " ")
-    assert f"{r['lab_coverage_pct_with_context']:.1f} % of the held-out frames" in render(FULL).replace("\n", " ")
+    assert f"{r['lab_coverage_pct_with_context']:.1f} % of the held-out frames" in render(
+        FULL
+    ).replace("\n", " ")
 
 
 def test_the_spread_section_quotes_the_study_or_says_the_figures_are_one_draw():
     text = render(FULL)
     assert "one training's draw" in text and "evaluate.spread.manuscript: true" in text
     s = copy.deepcopy(FULL)
-    s["spread"] = {"variants": ["s0_auto", "s1_fp32"], "default": "s0_auto", "runs": {},
-                   "machines": ["cpu (AMD EPYC), bfloat16", "cpu (AMD EPYC), float32"],
-                   "rows": [{"label": "camera: held-out shapes, force NRMSE %", "default": 1.25,
-                             "mean": 1.5, "min": 1.25, "max": 1.75, "range": 0.5, "n": 2}]}
+    s["spread"] = {
+        "variants": ["s0_auto", "s1_fp32"],
+        "default": "s0_auto",
+        "runs": {},
+        "machines": ["cpu (AMD EPYC), bfloat16", "cpu (AMD EPYC), float32"],
+        "rows": [
+            {
+                "label": "camera: held-out shapes, force NRMSE %",
+                "default": 1.25,
+                "mean": 1.5,
+                "min": 1.25,
+                "max": 1.75,
+                "range": 0.5,
+                "n": 2,
+            }
+        ],
+    }
     text = render(s)
     assert "| camera: held-out shapes, force NRMSE % | 1.25 | 1.50 | 1.25–1.75 |" in text
     assert "2 variants (s0_auto, s1_fp32" in text and "one training's draw" not in text

@@ -1,4 +1,5 @@
 """Architecture of the network: shapes, skip connections, force units, export parity."""
+
 import pytest
 import torch
 
@@ -97,7 +98,7 @@ def test_he_init_keeps_the_scale_and_bfloat16_gradients_follow_float32():
     def cosine(a, b):
         return float(a @ b / (a.norm() * b.norm()))
 
-    step = 2.0 ** -8  # bfloat16's resolution at 0.5, where the sigmoid starts
+    step = 2.0**-8  # bfloat16's resolution at 0.5, where the sigmoid starts
     for init, lo, hi in (("he", step, 1.0), ("torch", 0.0, step)):
         m, _ = grads(init, False)
         with torch.no_grad():  # the first batch-norm's input: its spread over the batch
@@ -155,8 +156,10 @@ def test_a_model_without_the_contact_head_loads_and_predicts_force(tmp_path):
     old = FinRayNet(NetConfig(in_channels=1, base_channels=4)).eval()
     cfg = old.config_dict()
     del cfg["contact"]
-    torch.save({"net_config": cfg, "state_dict": old.state_dict(), "history": {}, "extra": {}},
-               tmp_path / "old.pt")
+    torch.save(
+        {"net_config": cfg, "state_dict": old.state_dict(), "history": {}, "extra": {}},
+        tmp_path / "old.pt",
+    )
     model, _ = load_checkpoint(tmp_path / "old.pt")
     assert not model.cfg.contact and not hasattr(model, "contact_head")
     x = torch.rand(2, 1, 64, 32)

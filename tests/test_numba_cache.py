@@ -1,5 +1,6 @@
 """Numba's cache of the package's kernels goes to a user cache folder, never into the
 source tree (an editable install, a shared clone, a read-only install)."""
+
 import os
 import subprocess
 import sys
@@ -14,8 +15,14 @@ SRC = Path(finray.__file__).parent
 
 def _run(code: str, env: dict, cwd: Path) -> str:
     env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"} | env
-    out = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], env=env, cwd=cwd,
-                         capture_output=True, text=True, timeout=300)
+    out = subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(code)],
+        env=env,
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert out.returncode == 0, out.stderr
     return out.stdout.strip()
 
@@ -26,9 +33,11 @@ def test_kernels_are_cached_in_the_user_cache_not_beside_the_source(tmp_path):
     kernels are located there too."""
     cache, src = tmp_path / "cache", tmp_path / "src"
     src.mkdir()
-    (src / "kern.py").write_text("import numba\n\n@numba.njit(cache=True)\n"
-                                 "def twice(x):\n    return 2 * x\n")
-    out = _run("""
+    (src / "kern.py").write_text(
+        "import numba\n\n@numba.njit(cache=True)\ndef twice(x):\n    return 2 * x\n"
+    )
+    out = _run(
+        """
         import finray, numba, sys
         from finray.render import result
         sys.path.insert(0, ".")
@@ -37,7 +46,10 @@ def test_kernels_are_cached_in_the_user_cache_not_beside_the_source(tmp_path):
         print(numba.config.CACHE_DIR)
         print(next(v for v in vars(result).values()
                    if hasattr(v, "_cache") and hasattr(v._cache, "_cache_path"))._cache._cache_path)
-        """, {"XDG_CACHE_HOME": str(cache)}, src)
+        """,
+        {"XDG_CACHE_HOME": str(cache)},
+        src,
+    )
     cache_dir, kernel_path = out.splitlines()
     assert Path(cache_dir) == cache / "finray" / "numba"
     assert Path(kernel_path).is_relative_to(cache / "finray" / "numba")

@@ -1,6 +1,7 @@
 """The perspective render path: the pinhole raster's coverage (exact on a box, and
 sample for sample pyvista's perspective render of a deformed finger), the silhouette a
 segmentation finds in pyvista's image, and the VTK camera set from the pinhole."""
+
 import numpy as np
 import pytest
 from scipy.spatial import ConvexHull
@@ -19,21 +20,38 @@ def _box():
     return rectangle_mesh(np.linspace(0.0, BOX_MM[0], 4), np.linspace(0.0, BOX_MM[1], 6), order=1)
 
 
-@pytest.mark.parametrize("pitch, yaw, roll, offset, distance", [
-    (0.0, 0.0, 0.0, (0.0, 0.0), 250.0),
-    (30.0, 0.0, 0.0, (0.0, 0.0), 150.0),
-    (12.0, -8.0, 5.0, (37.5, -21.0), 200.0),
-    (30.0, 6.0, -4.0, (-60.0, 45.0), 400.0),
-])
+@pytest.mark.parametrize(
+    "pitch, yaw, roll, offset, distance",
+    [
+        (0.0, 0.0, 0.0, (0.0, 0.0), 250.0),
+        (30.0, 0.0, 0.0, (0.0, 0.0), 150.0),
+        (12.0, -8.0, 5.0, (37.5, -21.0), 200.0),
+        (30.0, 6.0, -4.0, (-60.0, 45.0), 400.0),
+    ],
+)
 def test_box_coverage_is_its_projected_hull(pitch, yaw, roll, offset, distance):
     mesh = _box()
-    cam = PinholeCamera.looking_at((15.0, 40.0, 0.0), width=360, height=640, hfov_deg=69.4,
-                                   distance_mm=distance, yaw_deg=yaw, pitch_deg=pitch,
-                                   roll_deg=roll, principal_offset_px=offset)
+    cam = PinholeCamera.looking_at(
+        (15.0, 40.0, 0.0),
+        width=360,
+        height=640,
+        hfov_deg=69.4,
+        distance_mm=distance,
+        yaw_deg=yaw,
+        pitch_deg=pitch,
+        roll_deg=roll,
+        principal_offset_px=offset,
+    )
     raster = PerspectiveRaster(mesh, BOX_MM[2], supersample=4)
     cov, (row0, col0) = raster.coverage(mesh.points, cam)
-    corners = np.array([[x, y, z] for x in (0.0, BOX_MM[0]) for y in (0.0, BOX_MM[1])
-                        for z in (-0.5 * BOX_MM[2], 0.5 * BOX_MM[2])])
+    corners = np.array(
+        [
+            [x, y, z]
+            for x in (0.0, BOX_MM[0])
+            for y in (0.0, BOX_MM[1])
+            for z in (-0.5 * BOX_MM[2], 0.5 * BOX_MM[2])
+        ]
+    )
     uv = cam.project(corners)
     hull = ConvexHull(uv)
     # the hull's area (px^2) to within the samples along its outline
@@ -43,7 +61,7 @@ def test_box_coverage_is_its_projected_hull(pitch, yaw, roll, offset, distance):
     assert cov.dtype == np.float32 and cov.min() >= 0 and cov.max() == 1.0
     assert not cov[[0, -1]].any() and not cov[:, [0, -1]].any()
     # its offset: the coverage's centroid is the hull's (a convex polygon's area centroid)
-    r, c = np.mgrid[:cov.shape[0], :cov.shape[1]]
+    r, c = np.mgrid[: cov.shape[0], : cov.shape[1]]
     centroid_uv = np.array([(cov * c).sum(), (cov * r).sum()]) / cov.sum() + (col0, row0)
     tri = uv[hull.vertices]
     a = np.roll(tri, -1, axis=0)
@@ -58,28 +76,44 @@ def test_box_coverage_is_its_projected_hull(pitch, yaw, roll, offset, distance):
     # the frame is the window, clipped
     lo_r, lo_c = max(row0, 0), max(col0, 0)
     hi_r, hi_c = min(row0 + cov.shape[0], cam.height), min(col0 + cov.shape[1], cam.width)
-    assert frame.sum() == pytest.approx(cov[lo_r - row0:hi_r - row0, lo_c - col0:hi_c - col0].sum())
+    assert frame.sum() == pytest.approx(
+        cov[lo_r - row0 : hi_r - row0, lo_c - col0 : hi_c - col0].sum()
+    )
 
 
 def test_coverage_window_may_leave_the_frame_and_checks_its_input():
     mesh = _box()
-    cam = PinholeCamera.looking_at((15.0, 40.0, 0.0), width=64, height=64, hfov_deg=69.4,
-                                   distance_mm=200.0, principal_offset_px=(-40.0, 50.0))
+    cam = PinholeCamera.looking_at(
+        (15.0, 40.0, 0.0),
+        width=64,
+        height=64,
+        hfov_deg=69.4,
+        distance_mm=200.0,
+        principal_offset_px=(-40.0, 50.0),
+    )
     raster = PerspectiveRaster(mesh, BOX_MM[2], supersample=2)
     cov, (row0, col0) = raster.coverage(mesh.points, cam)
     assert col0 < 0 and row0 + cov.shape[0] > cam.height  # not clipped
     assert raster.frame_coverage(mesh.points, cam).shape == (64, 64)
     with pytest.raises(ValueError, match="expected 24 nodes"):
         raster.coverage(mesh.points[:-1], cam)
-    behind = PinholeCamera.looking_at((15.0, 40.0, 0.0), width=64, height=64, hfov_deg=69.4,
-                                      distance_mm=5.0)
+    behind = PinholeCamera.looking_at(
+        (15.0, 40.0, 0.0), width=64, height=64, hfov_deg=69.4, distance_mm=5.0
+    )
     with pytest.raises(ValueError, match="behind the camera"):
         raster.coverage(mesh.points, behind)
 
 
 def test_scaled_camera_keeps_the_rays():
-    cam = PinholeCamera.looking_at((0.0, 0.0, 0.0), width=160, height=90, hfov_deg=69.4,
-                                   distance_mm=200.0, yaw_deg=7.0, principal_offset_px=(3.25, -1.5))
+    cam = PinholeCamera.looking_at(
+        (0.0, 0.0, 0.0),
+        width=160,
+        height=90,
+        hfov_deg=69.4,
+        distance_mm=200.0,
+        yaw_deg=7.0,
+        principal_offset_px=(3.25, -1.5),
+    )
     fine = cam.scaled(3)
     pts = np.random.default_rng(0).uniform(-40, 40, (20, 3))
     # pixel centre (u, v) of the camera is the centre of the middle one of 3 x 3 fine pixels
@@ -88,8 +122,11 @@ def test_scaled_camera_keeps_the_rays():
 
 
 # --------------------------------------------------- against pyvista's perspective render
-CASES = [(d, pitch, yaw, roll) for d in (150.0, 400.0)
-         for pitch, yaw, roll in ((0.0, 3.0, -2.0), (15.0, -4.0, 2.0), (30.0, 5.0, 3.0))]
+CASES = [
+    (d, pitch, yaw, roll)
+    for d in (150.0, 400.0)
+    for pitch, yaw, roll in ((0.0, 3.0, -2.0), (15.0, -4.0, 2.0), (30.0, 5.0, 3.0))
+]
 FRAME = (720, 1280)  # a portrait frame (width, height) px
 SS = 2  # the camera views' and the viewpoint renders' supersampling
 
@@ -98,8 +135,12 @@ SS = 2  # the camera views' and the viewpoint renders' supersampling
 def finger(tmp_path_factory):
     from finray.render.result import load_fea_result
 
-    path = write_synthetic_fea_result(tmp_path_factory.mktemp("fea") / "result.npz", n_frames=4,
-                                      max_displacement_mm=10.0, size_mm=1.0)
+    path = write_synthetic_fea_result(
+        tmp_path_factory.mktemp("fea") / "result.npz",
+        n_frames=4,
+        max_displacement_mm=10.0,
+        size_mm=1.0,
+    )
     res = load_fea_result(path)
     return res.mesh, res.deformed_points(res.n_frames - 1)
 
@@ -114,10 +155,17 @@ def renders(finger):
     out = {}
     with PyVistaPerspective(mesh, RenderParams(), 20.0, supersample=SS) as pv:
         for d, pitch, yaw, roll in CASES:
-            cam = PinholeCamera.looking_at((15.0, 40.0, 0.0), width=FRAME[0], height=FRAME[1],
-                                           hfov_deg=69.4, distance_mm=d, yaw_deg=yaw,
-                                           pitch_deg=pitch, roll_deg=roll,
-                                           principal_offset_px=(4.0, -3.0))
+            cam = PinholeCamera.looking_at(
+                (15.0, 40.0, 0.0),
+                width=FRAME[0],
+                height=FRAME[1],
+                hfov_deg=69.4,
+                distance_mm=d,
+                yaw_deg=yaw,
+                pitch_deg=pitch,
+                roll_deg=roll,
+                principal_offset_px=(4.0, -3.0),
+            )
             fine = pv.render_fine(pts, cam).copy()
             rgb = pv.render(pts, cam)
             out[(d, pitch, yaw, roll)] = (fine, rgb, raster.frame_coverage(pts, cam), cam)
@@ -149,7 +197,7 @@ def _in_frame(window, offset, cam):
     r0, c0 = offset
     rr, cc = max(r0, 0), max(c0, 0)
     r1, c1 = min(r0 + window.shape[0], cam.height), min(c0 + window.shape[1], cam.width)
-    out[rr:r1, cc:c1] = window[rr - r0:r1 - r0, cc - c0:c1 - c0]
+    out[rr:r1, cc:c1] = window[rr - r0 : r1 - r0, cc - c0 : c1 - c0]
     return out
 
 
@@ -171,14 +219,16 @@ def test_segmented_silhouettes_agree(renders, finger, case):
     # the shaded raster is pyvista's image: most pixels equal to within 2 levels
     placed = _in_frame(window, offset, cam)
     placed[_in_frame(np.ones(window.shape[:2], bool), offset, cam) == 0] = to_uint8(
-        RenderParams().background_rgb)
+        RenderParams().background_rgb
+    )
     differ = np.abs(placed.astype(int) - rgb.astype(int)).max(axis=-1) > 2
     finger_px = (rgb != to_uint8(RenderParams().background_rgb)).any(axis=-1).sum()
     print(f"case {case}: {differ.sum()} of {finger_px} finger pixels differ by > 2 levels")
     assert differ.sum() <= 0.02 * finger_px
     scale = cam.width * cam.height / (window.shape[0] * window.shape[1])
-    raster_mask = _in_frame(segment(window, min_object_frac=1e-3 * scale, max_hole_frac=2e-4 * scale),
-                            offset, cam)
+    raster_mask = _in_frame(
+        segment(window, min_object_frac=1e-3 * scale, max_hole_frac=2e-4 * scale), offset, cam
+    )
     pv_mask = segment(rgb)
     small = []
     for m in (pv_mask, raster_mask):

@@ -1,4 +1,5 @@
 """Pitch as an image operation: the orthographic view of an extruded box, analytically."""
+
 import numpy as np
 import pytest
 import torch

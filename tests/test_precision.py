@@ -1,4 +1,5 @@
 """Numeric type of CPU training: bfloat16 only where the CPU runs it natively."""
+
 import math
 import re
 from pathlib import Path
@@ -17,17 +18,30 @@ ROOT = Path(__file__).resolve().parents[1]
 
 ZEN4 = CpuPrecision("AVX512", avx512_bf16=True, amx=False, onednn_bf16=True, onednn_max_isa=None)
 SAPPHIRE = CpuPrecision("AVX512", avx512_bf16=True, amx=True, onednn_bf16=True, onednn_max_isa=None)
-SKYLAKE_X = CpuPrecision("AVX512", avx512_bf16=False, amx=False, onednn_bf16=True, onednn_max_isa=None)
-EPYC_AVX2 = CpuPrecision("AVX2", avx512_bf16=False, amx=False, onednn_bf16=False, onednn_max_isa=None)
+SKYLAKE_X = CpuPrecision(
+    "AVX512", avx512_bf16=False, amx=False, onednn_bf16=True, onednn_max_isa=None
+)
+EPYC_AVX2 = CpuPrecision(
+    "AVX2", avx512_bf16=False, amx=False, onednn_bf16=False, onednn_max_isa=None
+)
 # a bf16 CPU whose kernels are capped to AVX2 (ATEN_CPU_CAPABILITY / ONEDNN_MAX_CPU_ISA)
 CAPPED = CpuPrecision("AVX2", avx512_bf16=True, amx=False, onednn_bf16=False, onednn_max_isa="AVX2")
-CAPPED_ONEDNN = CpuPrecision("AVX512", avx512_bf16=True, amx=False, onednn_bf16=True,
-                             onednn_max_isa="AVX512_CORE")
+CAPPED_ONEDNN = CpuPrecision(
+    "AVX512", avx512_bf16=True, amx=False, onednn_bf16=True, onednn_max_isa="AVX512_CORE"
+)
 
 
-@pytest.mark.parametrize("cpu, native", [(ZEN4, True), (SAPPHIRE, True), (SKYLAKE_X, False),
-                                         (EPYC_AVX2, False), (CAPPED, False),
-                                         (CAPPED_ONEDNN, False)])
+@pytest.mark.parametrize(
+    "cpu, native",
+    [
+        (ZEN4, True),
+        (SAPPHIRE, True),
+        (SKYLAKE_X, False),
+        (EPYC_AVX2, False),
+        (CAPPED, False),
+        (CAPPED_ONEDNN, False),
+    ],
+)
 def test_auto_uses_bf16_only_where_native(cpu, native):
     use, why = resolve_bf16("auto", cpu)
     assert use is native
@@ -68,10 +82,15 @@ def test_config_accepts_auto_true_false_and_refuses_others():
 def test_training_logs_its_precision_step_time_and_epochs():
     x, s, f = toy(64)
     lines = []
-    _, hist = train(x, s, f, (x[:16], s[:16], f[:16]), NetConfig(height=32, width=16, base_channels=4),
-                    TrainConfig(epochs=2, batch_size=16, progress=False, log_every_s=0.0,
-                                contact_weight=0.0),
-                    log=lines.append)
+    _, hist = train(
+        x,
+        s,
+        f,
+        (x[:16], s[:16], f[:16]),
+        NetConfig(height=32, width=16, base_channels=4),
+        TrainConfig(epochs=2, batch_size=16, progress=False, log_every_s=0.0, contact_weight=0.0),
+        log=lines.append,
+    )
     assert lines[0].startswith("precision: ") and hist.precision in ("bfloat16", "float32")
     assert (hist.precision == "bfloat16") is cpu_precision().native_bf16
     assert any(line.startswith("step time ") for line in lines)

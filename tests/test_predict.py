@@ -1,5 +1,6 @@
 """Exports (TorchScript, ONNX) and the predictor: parity, force-only path, `finray
 predict` on a render and on a never-seen image (other size, plain background)."""
+
 import csv
 
 import numpy as np
@@ -13,9 +14,18 @@ from finray.benchmarks.realtime import latency
 from finray.predict import Predictor, read_frames
 from finray.train import export_onnx, export_torchscript, force_onnx_path
 
-PREPROCESS = {"base_width_mm": 30.0, "crop_x_mm": [-5.0, 35.0], "crop_y_mm": [0.0, 80.0],
-              "segment": {"threshold": "isodata", "foreground": "bright", "min_object_frac": 1e-3,
-                          "max_hole_frac": 2e-4, "keep_largest": True}}
+PREPROCESS = {
+    "base_width_mm": 30.0,
+    "crop_x_mm": [-5.0, 35.0],
+    "crop_y_mm": [0.0, 80.0],
+    "segment": {
+        "threshold": "isodata",
+        "foreground": "bright",
+        "min_object_frac": 1e-3,
+        "max_hole_frac": 2e-4,
+        "keep_largest": True,
+    },
+}
 
 
 @pytest.fixture(scope="module")
@@ -46,10 +56,16 @@ def never_seen(png, path):
     rgb = np.asarray(Image.open(png).convert("RGB"))
     mask = segment(rgb)
     h, w = mask.shape
-    big = np.asarray(Image.fromarray(mask.astype(np.uint8) * 255).resize(
-        (int(w * 1.6), int(h * 1.6)), Image.BILINEAR)) > 127
+    big = (
+        np.asarray(
+            Image.fromarray(mask.astype(np.uint8) * 255).resize(
+                (int(w * 1.6), int(h * 1.6)), Image.BILINEAR
+            )
+        )
+        > 127
+    )
     canvas = np.zeros((620, 480), bool)
-    canvas[40:40 + big.shape[0], 90:90 + big.shape[1]] = big
+    canvas[40 : 40 + big.shape[0], 90 : 90 + big.shape[1]] = big
     img = np.where(canvas[..., None], [240, 230, 150], [90, 95, 100]).astype(np.uint8)
     Image.fromarray(img).save(path)
     return path
@@ -68,8 +84,9 @@ def test_torchscript_force_path_and_onnx_parity(exported):
     import onnxruntime as ort
 
     full = ort.InferenceSession(str(d / "model.onnx"), providers=["CPUExecutionProvider"])
-    force = ort.InferenceSession(str(force_onnx_path(d / "model.onnx")),
-                                 providers=["CPUExecutionProvider"])
+    force = ort.InferenceSession(
+        str(force_onnx_path(d / "model.onnx")), providers=["CPUExecutionProvider"]
+    )
     s3, f3 = full.run(None, {"image": x.numpy()})
     (f4,) = force.run(None, {"image": x.numpy()})
     assert np.abs(f3 - f1.numpy()).max() < 1e-4
@@ -105,8 +122,16 @@ def test_latency_report_fields(exported, render_png):
     frame = np.asarray(Image.open(render_png).convert("RGB"))
     out = latency(Predictor(d / "model.ts"), [frame], n_frames=3, repeats=1)
     # the report's fields (the timings themselves are the benchmark's, not asserted here)
-    for key in ("segment_ms", "resample_ms", "network_full_ms", "network_force_ms", "force_ms",
-                "full_ms", "force_cpu_ms", "full_cpu_ms"):
+    for key in (
+        "segment_ms",
+        "resample_ms",
+        "network_full_ms",
+        "network_force_ms",
+        "force_ms",
+        "full_ms",
+        "force_cpu_ms",
+        "full_cpu_ms",
+    ):
         assert isinstance(out[key], float) and np.isfinite(out[key])
     assert out["n_calls"] == 3 and out["n_distinct_frames"] == 1
     assert out["input_size"] == [64, 32]
@@ -120,8 +145,21 @@ def test_cli_predict_on_a_render_and_a_never_seen_image(exported, render_png, tm
     (src / "render.png").write_bytes(render_png.read_bytes())
     never_seen(render_png, src / "other_camera.png")
     out = tmp_path / "out"
-    assert main(["predict", "--model", str(d / "model.ts"), str(src), "--out", str(out),
-                 "--backend", backend]) == 0
+    assert (
+        main(
+            [
+                "predict",
+                "--model",
+                str(d / "model.ts"),
+                str(src),
+                "--out",
+                str(out),
+                "--backend",
+                backend,
+            ]
+        )
+        == 0
+    )
     rows = list(csv.DictReader(open(out / "forces.csv")))
     assert [r["frame"] for r in rows] == ["other_camera.png", "render.png"]
     forces = [float(r["fx_N"]) for r in rows]
@@ -137,8 +175,22 @@ def test_cli_predict_on_a_render_and_a_never_seen_image(exported, render_png, tm
     assert float((xa - xb).abs().mean()) < 0.03
     # force-only run: the same forces, no maps
     out2 = tmp_path / "out_force"
-    assert main(["predict", "--model", str(d / "model.ts"), str(src), "--out", str(out2),
-                 "--backend", backend, "--force-only"]) == 0
+    assert (
+        main(
+            [
+                "predict",
+                "--model",
+                str(d / "model.ts"),
+                str(src),
+                "--out",
+                str(out2),
+                "--backend",
+                backend,
+                "--force-only",
+            ]
+        )
+        == 0
+    )
     rows2 = list(csv.DictReader(open(out2 / "forces.csv")))
     np.testing.assert_allclose([float(r["fx_N"]) for r in rows2], forces, atol=1e-4)
     assert not list(out2.glob("*_stress.png"))
@@ -146,7 +198,9 @@ def test_cli_predict_on_a_render_and_a_never_seen_image(exported, render_png, tm
 
 def err_lines(text: str) -> list[str]:
     """stderr's lines, less the notes (how the finger is found, what an old export lacks)."""
-    return [line for line in text.strip().splitlines() if not line.startswith("finray predict: note: ")]
+    return [
+        line for line in text.strip().splitlines() if not line.startswith("finray predict: note: ")
+    ]
 
 
 def one_line_error(capsys, prefix):
@@ -177,23 +231,41 @@ def test_a_two_force_model_writes_fx_and_fy(render_png, tmp_path, capsys):
     frame = np.asarray(Image.open(render_png).convert("RGB"))
     f = p.forces(frame)
     assert list(f) == ["fx_N", "fy_N"] and f["fx_N"] == pytest.approx(p.force(frame), abs=1e-5)
-    assert main(["predict", str(render_png), "--model", str(tmp_path / "model.ts"), "--out",
-                 str(tmp_path / "out"), "--backend", "torchscript"]) == 0
+    assert (
+        main(
+            [
+                "predict",
+                str(render_png),
+                "--model",
+                str(tmp_path / "model.ts"),
+                "--out",
+                str(tmp_path / "out"),
+                "--backend",
+                "torchscript",
+            ]
+        )
+        == 0
+    )
     rows = list(csv.DictReader(open(tmp_path / "out" / "forces.csv")))
     assert list(rows[0]) == ["frame", "fx_N", "fy_N", "valid"]
     assert float(rows[0]["fy_N"]) == pytest.approx(f["fy_N"], abs=1e-4)
     assert f"fy {f['fy_N']:.4f} N" in capsys.readouterr().out
     with pytest.raises(ValueError, match="2 force names for a model with 1"):
-        export_torchscript(FinRayNet(NetConfig(in_channels=1, base_channels=4)), tmp_path / "x.ts",
-                           PREPROCESS, ["fx_N", "fy_N"])
+        export_torchscript(
+            FinRayNet(NetConfig(in_channels=1, base_channels=4)),
+            tmp_path / "x.ts",
+            PREPROCESS,
+            ["fx_N", "fy_N"],
+        )
 
 
 def test_cli_predict_bad_input_is_one_line(exported, render_png, tmp_path, capsys):
     _, d = exported
     model = str(d / "model.ts")
     out = str(tmp_path / "out")
-    assert main(["predict", "--model", str(tmp_path / "none.ts"), str(render_png),
-                 "--out", out]) == 2
+    assert (
+        main(["predict", "--model", str(tmp_path / "none.ts"), str(render_png), "--out", out]) == 2
+    )
     assert f"no model at {tmp_path / 'none.ts'}" in one_line_error(capsys, "finray predict: ")
     assert main(["predict", "--model", model, str(tmp_path / "nothing.png"), "--out", out]) == 2
     msg = one_line_error(capsys, "finray predict: ")
@@ -212,28 +284,73 @@ def test_cli_predict_bad_input_is_one_line(exported, render_png, tmp_path, capsy
     bad_ts = tmp_path / "bad.ts"
     bad_ts.write_bytes(b"not a model")
     (tmp_path / "bad.ts.json").write_text((d / "model.ts.json").read_text())
-    assert main(["predict", "--model", str(bad_ts), str(render_png), "--out", out,
-                 "--backend", "torchscript"]) == 2
+    assert (
+        main(
+            [
+                "predict",
+                "--model",
+                str(bad_ts),
+                str(render_png),
+                "--out",
+                out,
+                "--backend",
+                "torchscript",
+            ]
+        )
+        == 2
+    )
     assert "bad.ts is not a TorchScript model" in one_line_error(capsys, "finray predict: ")
     assert not (tmp_path / "out").exists()  # every refusal above left nothing behind
 
 
-def test_cli_predict_refuses_an_out_with_another_runs_results(exported, render_png, tmp_path, capsys):
+def test_cli_predict_refuses_an_out_with_another_runs_results(
+    exported, render_png, tmp_path, capsys
+):
     """A second run into a used --out would mix its table with the first run's stress
     maps: refused without --overwrite, which removes them first."""
     _, d = exported
     model, out = str(d / "model.ts"), tmp_path / "out"
-    assert main(["predict", "--model", model, str(render_png), "--out", str(out),
-                 "--backend", "torchscript"]) == 0
+    assert (
+        main(
+            [
+                "predict",
+                "--model",
+                model,
+                str(render_png),
+                "--out",
+                str(out),
+                "--backend",
+                "torchscript",
+            ]
+        )
+        == 0
+    )
     first = sorted(f.name for f in out.iterdir())
     assert "forces.csv" in first and any(n.endswith("_stress.exr") for n in first)
     capsys.readouterr()
-    assert main(["predict", "--model", model, str(render_png), "--out", str(out), "--force-only"]) == 2
+    assert (
+        main(["predict", "--model", model, str(render_png), "--out", str(out), "--force-only"]) == 2
+    )
     msg = one_line_error(capsys, "finray predict: ")
     assert f"{out} holds another run's results (" in msg and "give --overwrite" in msg
     assert sorted(f.name for f in out.iterdir()) == first  # untouched
-    assert main(["predict", "--model", model, str(render_png), "--out", str(out), "--force-only",
-                 "--overwrite", "--backend", "torchscript"]) == 0
+    assert (
+        main(
+            [
+                "predict",
+                "--model",
+                model,
+                str(render_png),
+                "--out",
+                str(out),
+                "--force-only",
+                "--overwrite",
+                "--backend",
+                "torchscript",
+            ]
+        )
+        == 0
+    )
     # the old maps went with it
     assert sorted(f.name for f in out.iterdir()) == ["forces.csv", "segmentation.json"]
 
@@ -260,15 +377,20 @@ def test_an_interrupted_run_keeps_the_frames_done(exported, render_png, tmp_path
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        predict_files(d / "model.ts", src, tmp_path / "out", backend="torchscript",
-                      force_only=True, on_frame=on_frame)
+        predict_files(
+            d / "model.ts",
+            src,
+            tmp_path / "out",
+            backend="torchscript",
+            force_only=True,
+            on_frame=on_frame,
+        )
     rows = list(csv.DictReader(open(tmp_path / "out" / "forces.csv")))
     assert [r["frame"] for r in rows] == ["f0.png", "f1.png"]
     assert not (tmp_path / "out" / "forces.csv.part").exists()
 
 
-def test_cli_predict_skips_bad_frames_and_writes_the_others(exported, render_png, tmp_path,
-                                                            capsys):
+def test_cli_predict_skips_bad_frames_and_writes_the_others(exported, render_png, tmp_path, capsys):
     _, d = exported
     src = tmp_path / "frames"
     src.mkdir()
@@ -277,14 +399,28 @@ def test_cli_predict_skips_bad_frames_and_writes_the_others(exported, render_png
     blank(src / "c_blank.png")
     never_seen(render_png, src / "d_other_camera.png")
     out = tmp_path / "out"
-    assert main(["predict", "--model", str(d / "model.ts"), str(src), "--out", str(out),
-                 "--backend", "torchscript"]) == 1  # done, but not every frame
+    assert (
+        main(
+            [
+                "predict",
+                "--model",
+                str(d / "model.ts"),
+                str(src),
+                "--out",
+                str(out),
+                "--backend",
+                "torchscript",
+            ]
+        )
+        == 1
+    )  # done, but not every frame
     io = capsys.readouterr()
     assert "Traceback" not in io.err
     err = err_lines(io.err)
     assert err[0].startswith("finray predict: skipped b_corrupt.png: not a readable image (")
-    assert err[1] == ("finray predict: skipped c_blank.png: no finger found in the image "
-                      "(empty segmentation)")
+    assert err[1] == (
+        "finray predict: skipped c_blank.png: no finger found in the image (empty segmentation)"
+    )
     assert err[2].startswith("finray predict: 2 of 4 frames skipped")
     assert len(err) == 3
     rows = list(csv.DictReader(open(out / "forces.csv")))
@@ -299,7 +435,9 @@ def test_cli_predict_skips_bad_frames_and_writes_the_others(exported, render_png
     assert not (out / "b_corrupt_stress.exr").exists() and not (out / "c_blank_stress.exr").exists()
 
 
-def test_the_table_is_written_as_frames_complete_and_moved_into_place(exported, render_png, tmp_path):
+def test_the_table_is_written_as_frames_complete_and_moved_into_place(
+    exported, render_png, tmp_path
+):
     from finray.predict import predict_files
 
     _, d = exported
@@ -310,8 +448,14 @@ def test_the_table_is_written_as_frames_complete_and_moved_into_place(exported, 
         on_disk.append((tmp_path / "out" / "forces.csv.part").read_text().splitlines())
         assert not (tmp_path / "out" / "forces.csv").exists()  # in place only when done
 
-    out = predict_files(d / "model.ts", src, tmp_path / "out", backend="torchscript",
-                        force_only=True, on_frame=on_frame)
+    out = predict_files(
+        d / "model.ts",
+        src,
+        tmp_path / "out",
+        backend="torchscript",
+        force_only=True,
+        on_frame=on_frame,
+    )
     assert [len(lines) for lines in on_disk] == [2, 3, 4]  # header + one row per frame
     assert on_disk[0][1].startswith("f0.png,") and out["skipped"] == []
     assert (tmp_path / "out" / "forces.csv").read_text().splitlines() == on_disk[-1]
@@ -344,11 +488,27 @@ def test_cli_predict_on_a_video(exported, render_png, tmp_path, capsys):
     assert len(frames) == 3 and frames[0].shape[0] % 2 == 0 and frames[0].shape[1] % 2 == 0
     video = write_video(tmp_path / "clip.mp4", [frames[0], np.zeros_like(frames[0]), *frames[1:]])
     out = tmp_path / "out"
-    assert main(["predict", "--model", str(d / "model.ts"), str(video), "--out", str(out),
-                 "--backend", "torchscript"]) == 1
+    assert (
+        main(
+            [
+                "predict",
+                "--model",
+                str(d / "model.ts"),
+                str(video),
+                "--out",
+                str(out),
+                "--backend",
+                "torchscript",
+            ]
+        )
+        == 1
+    )
     err = err_lines(capsys.readouterr().err)
-    assert err[0] == "finray predict: skipped clip_00001: no finger found in the image " \
-                     "(empty segmentation)" and len(err) == 2
+    assert (
+        err[0]
+        == "finray predict: skipped clip_00001: no finger found in the image (empty segmentation)"
+        and len(err) == 2
+    )
     rows = list(csv.DictReader(open(out / "forces.csv")))
     assert [r["frame"] for r in rows] == ["clip_00000", "clip_00002", "clip_00003"]
     assert all(np.isfinite(float(r["fx_N"])) for r in rows)
@@ -369,8 +529,10 @@ def test_cli_predict_on_a_file_that_is_not_a_video(exported, tmp_path, capsys):
     _, d = exported
     fake = tmp_path / "clip.mp4"
     fake.write_bytes(b"\x00" * 64)
-    assert main(["predict", "--model", str(d / "model.ts"), str(fake),
-                 "--out", str(tmp_path / "out")]) == 2
+    assert (
+        main(["predict", "--model", str(d / "model.ts"), str(fake), "--out", str(tmp_path / "out")])
+        == 2
+    )
     assert "clip.mp4 is not a readable video (" in one_line_error(capsys, "finray predict: ")
 
 
@@ -380,20 +542,39 @@ def test_cli_predict_on_a_video_with_a_corrupt_frame(exported, render_png, tmp_p
     from PIL import Image
 
     _, d = exported
-    frames = [np.asarray(Image.open(f).convert("RGB"))
-              for f in sorted(render_png.parent.glob("image_*.png"))]
+    frames = [
+        np.asarray(Image.open(f).convert("RGB"))
+        for f in sorted(render_png.parent.glob("image_*.png"))
+    ]
     video = write_video(tmp_path / "clip.mp4", frames + frames)
     with av.open(str(video)) as c:
         s = c.streams.video[0]
-        packets = [(round(p.pts * p.time_base * s.average_rate), p.pos, p.size)
-                   for p in c.demux(s) if p.size and not p.is_keyframe]
+        packets = [
+            (round(p.pts * p.time_base * s.average_rate), p.pos, p.size)
+            for p in c.demux(s)
+            if p.size and not p.is_keyframe
+        ]
     rank, pos, size = max(packets, key=lambda p: p[2])  # the largest frame after the key frame
     data = bytearray(video.read_bytes())
-    data[pos:pos + size] = bytes(size)
+    data[pos : pos + size] = bytes(size)
     video.write_bytes(bytes(data))
     out = tmp_path / "out"
-    assert main(["predict", "--model", str(d / "model.ts"), str(video), "--out", str(out),
-                 "--backend", "torchscript", "--force-only"]) == 1
+    assert (
+        main(
+            [
+                "predict",
+                "--model",
+                str(d / "model.ts"),
+                str(video),
+                "--out",
+                str(out),
+                "--backend",
+                "torchscript",
+                "--force-only",
+            ]
+        )
+        == 1
+    )
     err = err_lines(capsys.readouterr().err)
     assert err[0].startswith(f"finray predict: skipped clip_{rank:05d}: the frame does not decode")
     assert err[1].startswith("finray predict: 1 of 6 frames skipped") and len(err) == 2
@@ -407,12 +588,18 @@ def test_cli_predict_annotates_a_video(exported, render_png, tmp_path):
     import av
 
     _, d = exported
-    frames = [np.asarray(Image.open(f).convert("RGB"))
-              for f in sorted(render_png.parent.glob("image_*.png"))]
+    frames = [
+        np.asarray(Image.open(f).convert("RGB"))
+        for f in sorted(render_png.parent.glob("image_*.png"))
+    ]
     video = write_video(tmp_path / "clip.mp4", frames)
     out = tmp_path / "out"
-    assert main(["predict", "--model", str(d / "model.ts"), str(video), "--out", str(out),
-                 "--annotate"]) == 0
+    assert (
+        main(
+            ["predict", "--model", str(d / "model.ts"), str(video), "--out", str(out), "--annotate"]
+        )
+        == 0
+    )
     with av.open(str(out / "annotated.mp4")) as c:
         decoded = [f.to_ndarray(format="rgb24") for f in c.decode(video=0)]
     from finray.annotate import BAR_PX
@@ -421,13 +608,27 @@ def test_cli_predict_annotates_a_video(exported, render_png, tmp_path):
     assert len(decoded) == len(frames) and decoded[0].shape == (h, (w + BAR_PX) // 2 * 2, 3)
     assert (out / "forces.png").stat().st_size > 1000
     assert not list(out.glob("*_annotated.png"))  # a video's frames go into the video
-    assert main(["predict", "--model", str(d / "model.ts"), str(video), "--out",
-                 str(tmp_path / "o2"), "--annotate", "--force-only"]) == 2
+    assert (
+        main(
+            [
+                "predict",
+                "--model",
+                str(d / "model.ts"),
+                str(video),
+                "--out",
+                str(tmp_path / "o2"),
+                "--annotate",
+                "--force-only",
+            ]
+        )
+        == 2
+    )
     assert not (tmp_path / "o2").exists()
 
 
-def test_show_without_a_display_says_so_and_writes_the_files(exported, render_png, tmp_path,
-                                                              capsys, monkeypatch):
+def test_show_without_a_display_says_so_and_writes_the_files(
+    exported, render_png, tmp_path, capsys, monkeypatch
+):
     """--show on a machine without a display: one line says so, the run writes what
     --annotate writes; --no-maps leaves out the per-frame stress maps; each annotated
     frame also goes to ``on_annotated`` (the window's hook)."""
@@ -435,17 +636,34 @@ def test_show_without_a_display_says_so_and_writes_the_files(exported, render_pn
     from finray.predict import predict_files
 
     _, d = exported
-    frames = [np.asarray(Image.open(f).convert("RGB"))
-              for f in sorted(render_png.parent.glob("image_*.png"))]
+    frames = [
+        np.asarray(Image.open(f).convert("RGB"))
+        for f in sorted(render_png.parent.glob("image_*.png"))
+    ]
     video = write_video(tmp_path / "clip.mp4", frames)
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     out = tmp_path / "out"
-    assert main(["predict", "--model", str(d / "model.ts"), str(video), "--out", str(out),
-                 "--show", "--no-maps"]) == 0
+    assert (
+        main(
+            [
+                "predict",
+                "--model",
+                str(d / "model.ts"),
+                str(video),
+                "--out",
+                str(out),
+                "--show",
+                "--no-maps",
+            ]
+        )
+        == 0
+    )
     err = err_lines(capsys.readouterr().err)
-    assert err == ["finray predict: --show: no display (DISPLAY and WAYLAND_DISPLAY unset); "
-                   "writing the annotated files only"]
+    assert err == [
+        "finray predict: --show: no display (DISPLAY and WAYLAND_DISPLAY unset); "
+        "writing the annotated files only"
+    ]
     assert (out / "annotated.mp4").is_file() and (out / "forces.png").is_file()
     assert not list(out.glob("*_stress.*"))
     shown = []
@@ -483,8 +701,15 @@ def test_overlay_colours_the_mask_inside_the_window_only():
     want = 0.35 * rgb[rows, cols] + 0.65 * cell[rows * 2 // 40, cols * 2 // 20]
     assert np.abs(out[rows, cols] - want).max() <= 1.0
     assert (out[~mask] == rgb[~mask]).all() and (out[:, 20:] == rgb[:, 20:]).all()
-    img = annotate_frame(frame, mask, box, stress, {"fx_N": 2.0, "fy_N": 0.5},
-                         {"force_N": 2.1, "lo_N": 1.9, "hi_N": 2.3, "level": 0.9}, "f0")
+    img = annotate_frame(
+        frame,
+        mask,
+        box,
+        stress,
+        {"fx_N": 2.0, "fy_N": 0.5},
+        {"force_N": 2.1, "lo_N": 1.9, "hi_N": 2.3, "level": 0.9},
+        "f0",
+    )
     assert img.shape[:2] == (40, 30 + 96) and img.dtype == np.uint8
 
 
@@ -499,8 +724,14 @@ def test_text_from_cached_glyphs_matches_pillows():
     ours = np.full((90, 520, 3), 128, np.uint8)
     draw_text(ours, (8, 6), text, size)
     img = Image.new("RGB", (520, 90), (128, 128, 128))
-    ImageDraw.Draw(img).multiline_text((8, 6), text, fill=(255, 255, 255), font=_font(size),
-                                       stroke_width=TEXT_STROKE_PX, stroke_fill=(0, 0, 0))
+    ImageDraw.Draw(img).multiline_text(
+        (8, 6),
+        text,
+        fill=(255, 255, 255),
+        font=_font(size),
+        stroke_width=TEXT_STROKE_PX,
+        stroke_fill=(0, 0, 0),
+    )
     theirs = np.asarray(img)
     for level in (lambda a: a[..., 0] > 200, lambda a: a[..., 0] < 50):  # fill, outline
         a, b = level(ours), level(theirs)
@@ -573,8 +804,18 @@ def test_cli_predict_on_a_live_network_stream(exported, render_png, tmp_path, ca
     out, rc = tmp_path / "out", 2
     try:
         for _ in range(100):  # until the server listens
-            rc = main(["predict", "--model", str(d / "model.ts"), f"tcp://127.0.0.1:{port}",
-                       "--out", str(out), "--backend", "torchscript"])
+            rc = main(
+                [
+                    "predict",
+                    "--model",
+                    str(d / "model.ts"),
+                    f"tcp://127.0.0.1:{port}",
+                    "--out",
+                    str(out),
+                    "--backend",
+                    "torchscript",
+                ]
+            )
             if rc != 2:
                 break
             time.sleep(0.1)
@@ -588,8 +829,19 @@ def test_cli_predict_on_a_live_network_stream(exported, render_png, tmp_path, ca
     assert 1 <= len(rows) and len(rows) + dropped == n <= 3 * len(pngs), err
     assert "the stream ended" in err
     assert all(r["frame"].startswith("live_") and r["t_s"] != "" for r in rows)
-    assert main(["predict", "--model", str(d / "model.ts"), f"tcp://127.0.0.1:{port}",
-                 "--out", str(tmp_path / "none")]) == 2
+    assert (
+        main(
+            [
+                "predict",
+                "--model",
+                str(d / "model.ts"),
+                f"tcp://127.0.0.1:{port}",
+                "--out",
+                str(tmp_path / "none"),
+            ]
+        )
+        == 2
+    )
     assert not (tmp_path / "none").exists()
 
 
@@ -659,8 +911,9 @@ def _serve(video, port):
 
     from finray.benchmarks.realtime import SERVE
 
-    return subprocess.Popen([sys.executable, "-c", SERVE, str(video), str(port)],
-                            stdout=subprocess.PIPE, text=True)
+    return subprocess.Popen(
+        [sys.executable, "-c", SERVE, str(video), str(port)], stdout=subprocess.PIPE, text=True
+    )
 
 
 def test_a_stream_gives_the_files_forces_frame_for_frame(exported, render_png, tmp_path):
@@ -673,7 +926,10 @@ def test_a_stream_gives_the_files_forces_frame_for_frame(exported, render_png, t
     from finray.predict import predict_files
 
     _, d = exported
-    frames = [np.asarray(Image.open(f).convert("RGB")) for f in sorted(render_png.parent.glob("image_*.png"))]
+    frames = [
+        np.asarray(Image.open(f).convert("RGB"))
+        for f in sorted(render_png.parent.glob("image_*.png"))
+    ]
     video = write_stream_video(frames, tmp_path / "clip.ts", (160, 96), 30, 10.0)  # 3 s
     from_file = predict_files(d / "model.ts", video, tmp_path / "file", force_only=True)["rows"]
     from finray.predict import InputError
@@ -683,8 +939,9 @@ def test_a_stream_gives_the_files_forces_frame_for_frame(exported, render_png, t
     try:
         for _ in range(100):  # until the server listens
             try:
-                live = predict_files(d / "model.ts", f"tcp://127.0.0.1:{port}", tmp_path / "live",
-                                     force_only=True)
+                live = predict_files(
+                    d / "model.ts", f"tcp://127.0.0.1:{port}", tmp_path / "live", force_only=True
+                )
                 break
             except InputError as exc:
                 assert "cannot be opened" in str(exc)
@@ -695,7 +952,10 @@ def test_a_stream_gives_the_files_forces_frame_for_frame(exported, render_png, t
     assert len(from_file) == 30 and live["received"] == 30 and len(live["rows"]) >= 10
     for r in live["rows"]:
         f = by_time[round(r["t_s"], 4)]
-        assert [r[k] for k in r if k.endswith("_N")] == [f[k] for k in f if k.endswith("_N")], (r, f)
+        assert [r[k] for k in r if k.endswith("_N")] == [f[k] for k in f if k.endswith("_N")], (
+            r,
+            f,
+        )
 
 
 @pytest.mark.slow
@@ -710,17 +970,34 @@ def test_sigint_ends_a_live_run_with_a_complete_table(exported, render_png, tmp_
     from finray.benchmarks.realtime import _free_port, write_stream_video
 
     _, d = exported
-    frames = [np.asarray(Image.open(f).convert("RGB")) for f in sorted(render_png.parent.glob("image_*.png"))]
+    frames = [
+        np.asarray(Image.open(f).convert("RGB"))
+        for f in sorted(render_png.parent.glob("image_*.png"))
+    ]
     video = write_stream_video(frames, tmp_path / "long.ts", (160, 96), 600, 30.0)  # 20 s
     port = _free_port()
     server = _serve(video, port)
     out = tmp_path / "out"
     # SIGINT's default disposition in the child (a test runner's workers may ignore it,
     # and a Python started with SIGINT ignored installs no KeyboardInterrupt)
-    proc = subprocess.Popen([sys.executable, "-m", "finray.cli", "predict", "--model", str(d / "model.ts"),
-                             f"tcp://127.0.0.1:{port}", "--out", str(out), "--force-only"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "finray.cli",
+            "predict",
+            "--model",
+            str(d / "model.ts"),
+            f"tcp://127.0.0.1:{port}",
+            "--out",
+            str(out),
+            "--force-only",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
     try:
         lines = [proc.stdout.readline() for _ in range(5)]  # five rows predicted
         proc.send_signal(signal.SIGINT)
@@ -770,8 +1047,9 @@ def test_a_contact_model_gives_the_height_beside_the_force(exported_contact, ren
     np.testing.assert_allclose(force, p.run_force_contact(x)[0], atol=1e-4)
 
 
-def test_cli_predict_writes_the_contact_height(exported_contact, exported, render_png, tmp_path,
-                                                capsys):
+def test_cli_predict_writes_the_contact_height(
+    exported_contact, exported, render_png, tmp_path, capsys
+):
     """forces.csv gets a contact_mm column (also --force-only), the CLI prints it,
     --annotate draws; a model without the head keeps its columns and gives NaN."""
     _, d = exported_contact
@@ -779,8 +1057,20 @@ def test_cli_predict_writes_the_contact_height(exported_contact, exported, rende
     want = p.contact(np.asarray(Image.open(render_png).convert("RGB")))
     for extra in ([], ["--force-only"], ["--annotate"]):
         out = tmp_path / ("out" + "".join(extra))
-        assert main(["predict", str(render_png), "--model", str(d / "model.ts"), "--out",
-                     str(out), *extra]) == 0
+        assert (
+            main(
+                [
+                    "predict",
+                    str(render_png),
+                    "--model",
+                    str(d / "model.ts"),
+                    "--out",
+                    str(out),
+                    *extra,
+                ]
+            )
+            == 0
+        )
         rows = list(csv.DictReader(open(out / "forces.csv")))
         assert list(rows[0]) == ["frame", "fx_N", "contact_mm", "valid"]
         assert float(rows[0]["contact_mm"]) == pytest.approx(want, abs=1e-3)
@@ -789,9 +1079,24 @@ def test_cli_predict_writes_the_contact_height(exported_contact, exported, rende
     _, old = exported
     p_old = Predictor(old / "model.ts")
     assert not p_old.has_contact and np.isnan(p_old.contact(np.asarray(Image.open(render_png))))
-    assert main(["predict", str(render_png), "--model", str(old / "model.ts"), "--out",
-                 str(tmp_path / "old")]) == 0
-    assert list(csv.DictReader(open(tmp_path / "old" / "forces.csv")))[0].keys() == {"frame", "fx_N", "valid"}
+    assert (
+        main(
+            [
+                "predict",
+                str(render_png),
+                "--model",
+                str(old / "model.ts"),
+                "--out",
+                str(tmp_path / "old"),
+            ]
+        )
+        == 0
+    )
+    assert list(csv.DictReader(open(tmp_path / "old" / "forces.csv")))[0].keys() == {
+        "frame",
+        "fx_N",
+        "valid",
+    }
 
 
 def test_annotate_marks_the_contact_height_on_the_front_edge():
@@ -841,16 +1146,21 @@ def test_predict_images_gives_the_contact_heights_on_request(exported_contact, e
     with torch.no_grad():
         want = net.contact(torch.from_numpy(images[:, None].astype(np.float32) / 255)).numpy()
     assert c.shape == (5,) and np.abs(c - want).max() < 1e-3
-    assert np.isnan(predict_images(Predictor(exported[1] / "model.ts"), images, contact=True)[2]).all()
+    assert np.isnan(
+        predict_images(Predictor(exported[1] / "model.ts"), images, contact=True)[2]
+    ).all()
 
 
 def test_force_time_figure_adds_the_contact_height(tmp_path):
     from finray.annotate import force_time_figure
 
-    rows = [{"frame": f"f{k}", "t_s": 0.1 * k, "fx_N": 0.5 * k, "contact_mm": 30.0 + k}
-            for k in range(5)]
+    rows = [
+        {"frame": f"f{k}", "t_s": 0.1 * k, "fx_N": 0.5 * k, "contact_mm": 30.0 + k}
+        for k in range(5)
+    ]
     force_time_figure(rows, tmp_path / "c.png")
-    force_time_figure([{k: v for k, v in r.items() if k != "contact_mm"} for r in rows],
-                      tmp_path / "f.png")
+    force_time_figure(
+        [{k: v for k, v in r.items() if k != "contact_mm"} for r in rows], tmp_path / "f.png"
+    )
     h = [Image.open(tmp_path / n).size[1] for n in ("c.png", "f.png")]
     assert h[0] > 1.5 * h[1]  # a second panel

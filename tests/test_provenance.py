@@ -29,6 +29,7 @@ re-plans anything (params not in canonical form).
 One DAG per key (~0.2-0.5 s each), built in this process with Snakemake's internal
 ``Workflow._prepare_dag``/``_build_dag`` and ``persistence`` (Snakemake 9).
 """
+
 from __future__ import annotations
 
 import copy
@@ -41,11 +42,22 @@ import pytest
 import yaml
 
 snakemake_api = pytest.importorskip("snakemake.api")
-from snakemake.settings.types import (ConfigSettings, DAGSettings, ExecutionSettings,  # noqa: E402
-                                      OutputSettings, Quietness, ResourceSettings)
+from snakemake.settings.types import (  # noqa: E402
+    ConfigSettings,
+    DAGSettings,
+    ExecutionSettings,
+    OutputSettings,
+    Quietness,
+    ResourceSettings,
+)
 
-from finray.config import (load_schema, merge_config, object_heights, read_config_file,  # noqa: E402
-                           validate_config)
+from finray.config import (  # noqa: E402
+    load_schema,
+    merge_config,
+    object_heights,
+    read_config_file,
+    validate_config,
+)
 
 pytestmark = [pytest.mark.slow, pytest.mark.workflow]  # not in `pytest -m "not slow"`
 
@@ -70,43 +82,111 @@ _RENDERS = _RENDER | {"viewpoint_render"}
 #: what lists every scene or every training shard (a new or moved scene changes its input)
 #: what a training object's scenes at extra_train_heights_mm change (the smoke config has one)
 _EXTRA_HEIGHT = {"dataset_manifest", "fea_figures", "inference_latency", "sim2real_no_context"}
-_LISTS = {"fea_figures", "dataset_manifest", "evaluate_baseline", "train_model", "train_pareto",
-          "inference_latency", "sim2real_no_context"}
+_LISTS = {
+    "fea_figures",
+    "dataset_manifest",
+    "evaluate_baseline",
+    "train_model",
+    "train_pareto",
+    "inference_latency",
+    "sim2real_no_context",
+}
 READERS: list[tuple[str, set[str]]] = [
     ("finger.material", _GEOMETRY | {"fea_scene", "summary", "lab_fea", "rig_prior_fea"}),
-    ("finger.extrusion_mm", _GEOMETRY | _RENDERS | {"fea_scene", "train_model",
-                                                   "evaluate_experiment", "summary",
-                                                   "lab_fea", "lab_take", "rig_prior_fea"}),
+    (
+        "finger.extrusion_mm",
+        _GEOMETRY
+        | _RENDERS
+        | {
+            "fea_scene",
+            "train_model",
+            "evaluate_experiment",
+            "summary",
+            "lab_fea",
+            "lab_take",
+            "rig_prior_fea",
+        },
+    ),
     ("finger.base_width_mm", _GEOMETRY | {"train_model", "lab_ingest", "render_scene"}),
     ("finger.ribs.count", _GEOMETRY | {"summary"}),
     ("finger.ribs.angle_step_deg", _GEOMETRY | {"summary"}),
     ("finger.*", _GEOMETRY),
     ("mesh.size_mm", _GEOMETRY | {"summary"}),
     ("mesh.min_angle_deg", _GEOMETRY),
-    ("mesh.*", {"geometry_finger", "lab_finger", "rig_prior_finger"} | _STUDIES),  # order, arc chords: the finger only
+    (
+        "mesh.*",
+        {"geometry_finger", "lab_finger", "rig_prior_finger"} | _STUDIES,
+    ),  # order, arc chords: the finger only
     ("placement.gap_mm", {"geometry_object", "rig_prior_object"} | _STUDIES),
-    ("heights_mm", {"geometry_object", "fea_scene", "render_scene", "geometry_gallery", "viewpoint_render",
-                    "dataset_examples", "evaluate_experiment", "figure_material_generalisation",
-                    "render_benchmark", "summary"} | _LISTS),
+    (
+        "heights_mm",
+        {
+            "geometry_object",
+            "fea_scene",
+            "render_scene",
+            "geometry_gallery",
+            "viewpoint_render",
+            "dataset_examples",
+            "evaluate_experiment",
+            "figure_material_generalisation",
+            "render_benchmark",
+            "summary",
+        }
+        | _LISTS,
+    ),
     # new training scenes, and the model that trains on them (sim-to-real's no-context fit
     # reads the camera model's training shards)
     # (and the experiments, which tell the training's heights from the unseen ones)
-    ("extra_train_heights_mm", {"geometry_object", "fea_scene", "render_scene", "dataset_manifest",
-                                "fea_figures", "train_model", "sim2real_no_context", "inference_latency",
-                                "evaluate_experiment"}),
+    (
+        "extra_train_heights_mm",
+        {
+            "geometry_object",
+            "fea_scene",
+            "render_scene",
+            "dataset_manifest",
+            "fea_figures",
+            "train_model",
+            "sim2real_no_context",
+            "inference_latency",
+            "evaluate_experiment",
+        },
+    ),
     # the face heights: new scenes of that split (new jobs, and every list of scenes or
     # shards); the experiments tell their heights from the training's (train)
-    ("face_heights_mm.train", {"geometry_object", "fea_scene", "render_scene", "evaluate_experiment"}
-     | _LISTS),
-    ("face_heights_mm.shape", {"geometry_object", "fea_scene", "render_scene", "evaluate_experiment",
-                               "dataset_manifest", "fea_figures", "sim2real_no_context",
-                               "inference_latency"}),
+    (
+        "face_heights_mm.train",
+        {"geometry_object", "fea_scene", "render_scene", "evaluate_experiment"} | _LISTS,
+    ),
+    (
+        "face_heights_mm.shape",
+        {
+            "geometry_object",
+            "fea_scene",
+            "render_scene",
+            "evaluate_experiment",
+            "dataset_manifest",
+            "fea_figures",
+            "sim2real_no_context",
+            "inference_latency",
+        },
+    ),
     # (the rig prior: its wall variants' friction, and the nominal its gains are against)
     ("fea.friction", {"fea_scene", "summary", "rig_prior_fea", "rig_prior"} | _STUDIES),
     ("fea.push_mm", {"fea_scene", "summary", "rig_prior_fea"} | _STUDIES),
-    ("fea.*", {"fea_scene", "lab_fea", "rig_prior_fea"} | _STUDIES),  # (friction and push: the lab's own)
-    ("render.pitches_deg", {"render_scene", "dataset_manifest", "dataset_examples",
-                            "evaluate_experiment", "viewpoint_render"}),  # the new pitch's views
+    (
+        "fea.*",
+        {"fea_scene", "lab_fea", "rig_prior_fea"} | _STUDIES,
+    ),  # (friction and push: the lab's own)
+    (
+        "render.pitches_deg",
+        {
+            "render_scene",
+            "dataset_manifest",
+            "dataset_examples",
+            "evaluate_experiment",
+            "viewpoint_render",
+        },
+    ),  # the new pitch's views
     ("render.window_y_mm", _RENDERS | {"train_model", "evaluate_experiment"}),  # pitch axis
     # the training scenes' camera views (and the manuscript quotes them)
     ("render.camera_views.*", {"render_scene", "summary"}),
@@ -114,28 +194,54 @@ READERS: list[tuple[str, set[str]]] = [
     ("dataset.sizes", _RENDER | {"lab_ingest"}),
     ("dataset.crop_y_mm", _SEGMENT | {"evaluate_experiment", "lab_ingest"}),
     ("dataset.crop_x_mm", _SEGMENT | {"lab_ingest"}),
-    ("dataset.occlusion_levels", {"dataset_examples", "train_model", "evaluate_experiment",
-                                  "summary"}),  # the manuscript quotes them
+    (
+        "dataset.occlusion_levels",
+        {"dataset_examples", "train_model", "evaluate_experiment", "summary"},
+    ),  # the manuscript quotes them
     ("dataset.noise_levels", {"dataset_examples"}),
     ("dataset.occluder_value", {"dataset_examples"}),
-    ("dataset.pitch_object", {"render_scene", "render_benchmark", "dataset_manifest",
-                              "dataset_examples", "evaluate_experiment"}),
+    (
+        "dataset.pitch_object",
+        {
+            "render_scene",
+            "render_benchmark",
+            "dataset_manifest",
+            "dataset_examples",
+            "evaluate_experiment",
+        },
+    ),
     ("dataset.base_band", _RENDER | {"train_model"}),  # camera views' crop, the predictor's
     ("dataset.*", _SEGMENT),
-    ("train.input_size", {"train_model", "train_pareto", "evaluate_baseline",
-                          "evaluate_experiment", "summary", "lab_qa", "sim2real",
-                          "sim2real_no_context"}),
+    (
+        "train.input_size",
+        {
+            "train_model",
+            "train_pareto",
+            "evaluate_baseline",
+            "evaluate_experiment",
+            "summary",
+            "lab_qa",
+            "sim2real",
+            "sim2real_no_context",
+        },
+    ),
     ("train.base_channels", {"train_model", "train_pareto", "summary"}),
     # how a model trains (another's weights, its own epochs): the manuscript says it
     ("train.models.*.start_from", {"train_model", "summary"}),
     ("train.models.*.epochs", {"train_model", "summary"}),
     ("train.models.*", {"train_model"}),
     ("train.epochs", {"train_model", "summary"}),
-    ("train.frame_every", {"train_model"}),  # (the network study reads its own benchmarks.train_every)
+    (
+        "train.frame_every",
+        {"train_model"},
+    ),  # (the network study reads its own benchmarks.train_every)
     ("train.lr", {"train_model"}),
     ("train.alpha_*", {"train_model", "summary"}),  # the manuscript states the loss
     ("train.contact_*", {"train_model"}),  # the contact head (the studies train without it)
-    ("train.force_*", {"train_model"}),  # the force term's weights (the network study's are its own)
+    (
+        "train.force_*",
+        {"train_model"},
+    ),  # the force term's weights (the network study's are its own)
     ("train.batch_size", {"train_model", "train_pareto", "summary"}),
     ("train.forces", {"train_model"}),
     ("train.device", {"train_model"}),  # not the CPU study (train_pareto)
@@ -146,12 +252,16 @@ READERS: list[tuple[str, set[str]]] = [
     ("evaluate.usable_nrmse_pct", {"figure_viewpoint", "summary"}),
     ("evaluate.viewpoint.*", {"viewpoint_render", "summary"}),
     # the rig prior's FEA: its variants (new jobs), the prior's draws
-    ("evaluate.sim2real.rig_prior.gain.thickness_delta_mm", {"rig_prior", "rig_prior_finger", "rig_prior_object",
-                                                            "rig_prior_fea"}),
+    (
+        "evaluate.sim2real.rig_prior.gain.thickness_delta_mm",
+        {"rig_prior", "rig_prior_finger", "rig_prior_object", "rig_prior_fea"},
+    ),
     ("evaluate.sim2real.rig_prior.gain.friction", {"rig_prior", "rig_prior_fea"}),
     # (a scene the training lacks: its nominal FEA too)
-    ("evaluate.sim2real.rig_prior.gain.scenes", {"rig_prior", "rig_prior_object", "rig_prior_fea",
-                                                 "geometry_object", "fea_scene"}),
+    (
+        "evaluate.sim2real.rig_prior.gain.scenes",
+        {"rig_prior", "rig_prior_object", "rig_prior_fea", "geometry_object", "fea_scene"},
+    ),
     ("evaluate.sim2real.rig_prior.gain.*", {"rig_prior"}),
     # the no-context fit (the simulation's, every rig's) and the context fits
     ("evaluate.sim2real.sim_every", {"sim2real_no_context"}),
@@ -164,8 +274,18 @@ READERS: list[tuple[str, set[str]]] = [
     ("evaluate.sim2real.*", {"sim2real"}),
     # the manuscript quotes the spread study: the summary waits for it, so its jobs join the DAG
     # (and the face figure draws a line per variant)
-    ("evaluate.spread.manuscript", {"summary", "spread_train", "spread_experiment", "spread_sim2real",
-                                    "spread_sim2real_no_context", "spread_summary", "figure_face"}),
+    (
+        "evaluate.spread.manuscript",
+        {
+            "summary",
+            "spread_train",
+            "spread_experiment",
+            "spread_sim2real",
+            "spread_sim2real_no_context",
+            "spread_summary",
+            "figure_face",
+        },
+    ),
     ("benchmarks.fea_*", _STUDIES),
     ("benchmarks.latency_model", {"inference_latency"}),
     # the live-stream benchmark's model also draws the annotated figure, at its pitch
@@ -176,7 +296,10 @@ READERS: list[tuple[str, set[str]]] = [
     ("benchmarks.latency_repeats", {"inference_latency"}),
     ("benchmarks.train_*", {"train_pareto"}),
     # the finger's material: every scene (and the studies, which use it too)
-    ("materials.ninjaflex.youngs_modulus_MPa", {"fea_scene", "summary", "lab_fea", "rig_prior_fea"} | _STUDIES),
+    (
+        "materials.ninjaflex.youngs_modulus_MPa",
+        {"fea_scene", "summary", "lab_fea", "rig_prior_fea"} | _STUDIES,
+    ),
     ("materials.ninjaflex.*", {"fea_scene", "lab_fea", "rig_prior_fea"} | _STUDIES),
     ("materials.neoprene.rigid", {"geometry_object", "fea_scene", "fea_stability"}),
     ("materials.neoprene.*", {"fea_scene", "fea_stability"}),
@@ -185,58 +308,166 @@ READERS: list[tuple[str, set[str]]] = [
     # out of training, its scenes at the smoke config's extra training height come or go
     # (what lists every scene, and the camera model's shards)
     # (a split's face heights: its objects at other heights, new geometry too)
-    ("objects.circle_d10.split", _EXTRA_HEIGHT | {"geometry_object", "fea_scene", "render_scene", "geometry_gallery",
-                                  "dataset_examples", "dataset_manifest", "evaluate_baseline",
-                                  "evaluate_experiment", "render_benchmark", "train_model",
-                                  "train_pareto", "viewpoint_render",
-                                  # the first held-out shape: the live-stream benchmark's
-                                  # and the annotated figure's renders
-                                  "realtime_benchmark", "figure_annotated"}),  # it becomes the pitch object
-    ("objects.square_s10_a30.split", _EXTRA_HEIGHT | {"fea_scene", "render_scene", "geometry_gallery",
-                                      "evaluate_baseline", "evaluate_experiment", "train_model",
-                                      "train_pareto", "figure_material_generalisation", "sim2real_no_context"}),
-    ("objects.ring_d15.split", _EXTRA_HEIGHT | {"geometry_object", "fea_scene", "render_scene", "geometry_gallery",
-                                "evaluate_baseline", "evaluate_experiment", "train_model",
-                                "train_pareto", "figure_material_generalisation", "sim2real_no_context"}),
-    ("objects.ellipse_16x9.split", {"fea_scene", "render_scene", "geometry_gallery", "dataset_manifest",
-                                    "fea_figures", "inference_latency",
-                                    "evaluate_experiment", "figure_material_generalisation",
-                                    "sim2real_no_context", "realtime_benchmark", "figure_annotated"}),
+    (
+        "objects.circle_d10.split",
+        _EXTRA_HEIGHT
+        | {
+            "geometry_object",
+            "fea_scene",
+            "render_scene",
+            "geometry_gallery",
+            "dataset_examples",
+            "dataset_manifest",
+            "evaluate_baseline",
+            "evaluate_experiment",
+            "render_benchmark",
+            "train_model",
+            "train_pareto",
+            "viewpoint_render",
+            # the first held-out shape: the live-stream benchmark's
+            # and the annotated figure's renders
+            "realtime_benchmark",
+            "figure_annotated",
+        },
+    ),  # it becomes the pitch object
+    (
+        "objects.square_s10_a30.split",
+        _EXTRA_HEIGHT
+        | {
+            "fea_scene",
+            "render_scene",
+            "geometry_gallery",
+            "evaluate_baseline",
+            "evaluate_experiment",
+            "train_model",
+            "train_pareto",
+            "figure_material_generalisation",
+            "sim2real_no_context",
+        },
+    ),
+    (
+        "objects.ring_d15.split",
+        _EXTRA_HEIGHT
+        | {
+            "geometry_object",
+            "fea_scene",
+            "render_scene",
+            "geometry_gallery",
+            "evaluate_baseline",
+            "evaluate_experiment",
+            "train_model",
+            "train_pareto",
+            "figure_material_generalisation",
+            "sim2real_no_context",
+        },
+    ),
+    (
+        "objects.ellipse_16x9.split",
+        {
+            "fea_scene",
+            "render_scene",
+            "geometry_gallery",
+            "dataset_manifest",
+            "fea_figures",
+            "inference_latency",
+            "evaluate_experiment",
+            "figure_material_generalisation",
+            "sim2real_no_context",
+            "realtime_benchmark",
+            "figure_annotated",
+        },
+    ),
     # its materials: a deformable one meshes the object; new scenes (train objects: in
     # the training lists), removed ones (the lists lose them)
-    ("objects.ring_d15.materials", {"geometry_object", "dataset_manifest", "evaluate_experiment",
-                                    "fea_figures", "figure_material_generalisation",
-                                    "inference_latency"}),
-    ("objects.ellipse_16x9.materials", {"geometry_object", "fea_scene", "render_scene",
-                                        "dataset_manifest", "evaluate_experiment",
-                                        "fea_figures", "inference_latency", "viewpoint_render",
-                                        "sim2real_no_context", "realtime_benchmark", "figure_annotated"}),
+    (
+        "objects.ring_d15.materials",
+        {
+            "geometry_object",
+            "dataset_manifest",
+            "evaluate_experiment",
+            "fea_figures",
+            "figure_material_generalisation",
+            "inference_latency",
+        },
+    ),
+    (
+        "objects.ellipse_16x9.materials",
+        {
+            "geometry_object",
+            "fea_scene",
+            "render_scene",
+            "dataset_manifest",
+            "evaluate_experiment",
+            "fea_figures",
+            "inference_latency",
+            "viewpoint_render",
+            "sim2real_no_context",
+            "realtime_benchmark",
+            "figure_annotated",
+        },
+    ),
     ("objects.*.materials", {"geometry_object", "fea_scene", "render_scene"} | _LISTS),
-    ("objects.circle_d10.*", {"geometry_object", "rig_prior_object"}),  # the rig prior's scene (smoke)
+    (
+        "objects.circle_d10.*",
+        {"geometry_object", "rig_prior_object"},
+    ),  # the rig prior's scene (smoke)
     ("objects.*", {"geometry_object"}),  # the shape
     # one generated object more: its scenes, and what lists the training scenes
     # (and, as a generated object now trains, the diversity comparison: the paper-objects
     # model is a new train_model job; its evaluation feeds the summary and the speed table)
-    ("generated.count", {"geometry_object", "fea_scene", "render_scene", "geometry_gallery",
-                         "evaluate_diversity", "evaluate_speed", "summary"} | _LISTS),
+    (
+        "generated.count",
+        {
+            "geometry_object",
+            "fea_scene",
+            "render_scene",
+            "geometry_gallery",
+            "evaluate_diversity",
+            "evaluate_speed",
+            "summary",
+        }
+        | _LISTS,
+    ),
     # the emulated lab rig: read by the lab's rules only (never by training or predict)
     # the drawn rigs (lab.rigs): one more rig is every rig rule's; the others change what
     # is drawn (a height's jitter renames the takes: new jobs, not re-planned ones)
-    ("lab.rigs.count", {"rig_finger", "rig_object", "rig_fea", "rig_take", "rig_ingest",
-                        "rig_sim2real", "sim2real_rigs"}),
+    (
+        "lab.rigs.count",
+        {
+            "rig_finger",
+            "rig_object",
+            "rig_fea",
+            "rig_take",
+            "rig_ingest",
+            "rig_sim2real",
+            "sim2real_rigs",
+        },
+    ),
     ("lab.rigs.colours.*", {"rig_take"}),
     ("lab.rigs.object_scale", {"rig_object"}),
     ("lab.rigs.height_jitter_mm", {"sim2real_rigs"}),
     # (heights over the face: the rig's objects, FEA, takes and their sim-to-real anew)
-    ("lab.rigs.height_span_mm", {"rig_object", "rig_fea", "rig_take", "rig_ingest", "rig_sim2real",
-                                 "sim2real_rigs"}),
+    (
+        "lab.rigs.height_span_mm",
+        {"rig_object", "rig_fea", "rig_take", "rig_ingest", "rig_sim2real", "sim2real_rigs"},
+    ),
     ("lab.rigs.*", {"rig_take", "sim2real_rigs"}),  # seed, uniform, choice: the camera's draws
     ("lab.camera.model", {"lab_take", "summary"}),  # a drawn rig names its own
     ("lab.seed", {"lab_take"}),
     ("lab.objects.*", {"lab_object"}),  # the shape
     # (the annotated figure draws the first take: an evaluation, like sim2real)
-    ("lab.heights_mm", {"lab_object", "lab_fea", "lab_take", "lab_ingest", "lab_qa", "sim2real",
-                        "figure_annotated"}),
+    (
+        "lab.heights_mm",
+        {
+            "lab_object",
+            "lab_fea",
+            "lab_take",
+            "lab_ingest",
+            "lab_qa",
+            "sim2real",
+            "figure_annotated",
+        },
+    ),
     # (the summary quotes how the takes were emulated: as built, motion, camera, sensor)
     ("lab.as_built.thickness_delta_mm", _LAB_GEOMETRY | {"summary"}),
     ("lab.as_built.*", {"lab_fea", "summary"}),
@@ -258,14 +489,34 @@ UNREAD = {
     "lab.rigs.selection": "read by the selection rigs' target only (results/evaluate/sim2real/rigs/selection/)",
     "benchmarks.training_budget.seeds": "read by the training-budget study only (its own target)",
     "benchmarks.training_budget.points": "read by the training-budget study only (its own target)",
-    **{f"benchmarks.fea_sweep.{k}": "read by the FEA sweep only (its own target, "
-                                    "results/benchmarks/fea_sweep/summary.md)"
-       for k in ("count", "seed", "batches", "circle_diameter_mm", "square_side_mm",
-                 "ellipse_axis_mm", "polygon_radius_mm", "height_max_mm")},
+    **{
+        f"benchmarks.fea_sweep.{k}": "read by the FEA sweep only (its own target, "
+        "results/benchmarks/fea_sweep/summary.md)"
+        for k in (
+            "count",
+            "seed",
+            "batches",
+            "circle_diameter_mm",
+            "square_side_mm",
+            "ellipse_axis_mm",
+            "polygon_radius_mm",
+            "height_max_mm",
+        )
+    },
     # (tests/test_config.py::test_generated_keys_are_in_every_blob_spec: each reaches the
     # objects entry of every generated object, whose provenance is that of objects.*)
-    **{f"generated.{k}": "the smoke config generates no objects (generated.count 0)"
-       for k in ("seed", "size_mm", "harmonics", "amplitude", "split", "materials", "compare_model")},
+    **{
+        f"generated.{k}": "the smoke config generates no objects (generated.count 0)"
+        for k in (
+            "seed",
+            "size_mm",
+            "harmonics",
+            "amplitude",
+            "split",
+            "materials",
+            "compare_model",
+        )
+    },
 }
 
 #: keys that cannot change alone (the config is refused), with the expected message
@@ -301,8 +552,12 @@ NEW_VALUES = {
     "dataset.threshold": "otsu",
     "dataset.foreground": "dark",
     "dataset.noise_levels": {"none": 0.0, "low": 0.02, "medium": 0.05, "high": 0.12},
-    "dataset.occlusion_levels": {"none": [0, 0], "low": [0.1, 0.3], "medium": [0.4, 0.8],
-                                 "high": [0.8, 0.9]},
+    "dataset.occlusion_levels": {
+        "none": [0, 0],
+        "low": [0.1, 0.3],
+        "medium": [0.4, 0.8],
+        "high": [0.8, 0.9],
+    },
     "dataset.occluder_value": 0.5,
     "dataset.pitch_object": "ring_d15",
     "generated.split": "shape",
@@ -323,25 +578,30 @@ NEW_VALUES = {
     "benchmarks.latency_model": "occlusion",
     "benchmarks.realtime_model": "plain",
     "materials.steel.rigid": lambda cfg: cfg["materials"]["steel"].update(
-        rigid=False, youngs_modulus_MPa=2e5, poisson_ratio=0.3),
+        rigid=False, youngs_modulus_MPa=2e5, poisson_ratio=0.3
+    ),
     "objects.circle_d10.type": lambda cfg: _with_wall(cfg["objects"]["circle_d10"]),
     "objects.square_s10_a30.type": lambda cfg: cfg["objects"]["square_s10_a30"].update(
-        type="circle", diameter_mm=10.0),
+        type="circle", diameter_mm=10.0
+    ),
     "objects.ring_d15.type": "circle",
     "objects.ellipse_16x9.type": lambda cfg: cfg["objects"]["ellipse_16x9"].update(
-        type="circle", diameter_mm=12.0),
+        type="circle", diameter_mm=12.0
+    ),
     "objects.circle_d10.split": "shape",
     "objects.square_s10_a30.split": "material",
     "objects.ring_d15.split": "train",
     "objects.ellipse_16x9.split": lambda cfg: (
         cfg["objects"]["ellipse_16x9"].update(split="material"),
-        cfg.setdefault("dataset", {}).update(pitch_object="ellipse_16x9")),
+        cfg.setdefault("dataset", {}).update(pitch_object="ellipse_16x9"),
+    ),
     "objects.circle_d10.materials": ["steel", "neoprene"],
     "objects.square_s10_a30.materials": ["steel", "neoprene"],
     "objects.ring_d15.materials": ["steel"],
     "objects.ellipse_16x9.materials": ["steel", "neoprene"],
     "lab.objects.cylinder.type": lambda cfg: cfg["lab"]["objects"]["cylinder"].update(
-        type="square", side_mm=15.0),
+        type="square", side_mm=15.0
+    ),
     "lab.scene.finger_colour": "orange",
     "lab.scene.clutter": [{"kind": "hand", "centre_mm": [30.0, 20.0], "size_mm": [20.0, 40.0]}],
     "lab.scene.lights": [{"position_mm": [-200.0, 300.0, 300.0], "intensity": 0.8}],
@@ -349,10 +609,28 @@ NEW_VALUES = {
     "lab.rigs.uniform": {"camera.distance_mm": [180.0, 240.0]},
     "lab.rigs.choice": {"camera.size_px": [[1280, 720], [848, 480]]},
     "lab.rigs.object_scale": [0.9, 1.1],
-    **{f"lab.rigs.colours.{k}": lambda cfg: cfg["lab"].setdefault("rigs", {}).update(colours={
-        "finger_hue_deg": [0.0, 360.0], "object_hue_offset_deg": [120.0, 240.0],
-        "saturation": [0.6, 0.95], "value": [0.5, 0.95], "background_grey": [0.15, 0.5]})
-       for k in ("finger_hue_deg", "object_hue_offset_deg", "saturation", "value", "background_grey")},
+    **{
+        f"lab.rigs.colours.{k}": lambda cfg: (
+            cfg["lab"]
+            .setdefault("rigs", {})
+            .update(
+                colours={
+                    "finger_hue_deg": [0.0, 360.0],
+                    "object_hue_offset_deg": [120.0, 240.0],
+                    "saturation": [0.6, 0.95],
+                    "value": [0.5, 0.95],
+                    "background_grey": [0.15, 0.5],
+                }
+            )
+        )
+        for k in (
+            "finger_hue_deg",
+            "object_hue_offset_deg",
+            "saturation",
+            "value",
+            "background_grey",
+        )
+    },
 }
 
 
@@ -411,7 +689,7 @@ def changed_config(raw: dict, full: dict, key: tuple[str, ...]) -> dict:
     d = cfg
     for i, k in enumerate(key[:-1]):
         if k not in d:  # a section the smoke config leaves at its defaults
-            d[k] = copy.deepcopy(_get(full, key[:i + 1]))
+            d[k] = copy.deepcopy(_get(full, key[: i + 1]))
         d = d[k]
     d[key[-1]] = new
     return cfg
@@ -429,8 +707,9 @@ def reordered(d):
 #: what the planner builds: the default run and the studies it built before they had
 #: their own home (studies/<name>/), whose provenance stays checked here; the seeds,
 #: training-budget and sweep studies were never planned (``UNREAD``)
-TARGETS = frozenset({"all", "fea_cost", "fea_stability", "render_throughput", "network_size",
-                     "realtime"})
+TARGETS = frozenset(
+    {"all", "fea_cost", "fea_stability", "render_throughput", "network_size", "realtime"}
+)
 
 
 class Planner:
@@ -441,8 +720,12 @@ class Planner:
 
     def _build(self, api, configfile: Path | list[Path]):
         files = list(configfile) if isinstance(configfile, (list, tuple)) else [configfile]
-        wf = api.workflow(ResourceSettings(cores=1), ConfigSettings(configfiles=files),
-                          snakefile=ROOT / "workflow" / "Snakefile", workdir=self.workdir)
+        wf = api.workflow(
+            ResourceSettings(cores=1),
+            ConfigSettings(configfiles=files),
+            snakefile=ROOT / "workflow" / "Snakefile",
+            workdir=self.workdir,
+        )
         wf.dag(DAGSettings(targets=TARGETS))
         w = wf._workflow
         w._prepare_dag(forceall=False, ignore_incomplete=False, lock_warn_only=True, nolock=True)
@@ -460,6 +743,7 @@ class Planner:
     def complete(self, configfile: Path) -> int:
         """Fake a finished run of ``configfile``: outputs touched in topological order,
         metadata recorded by Snakemake; returns the number of jobs."""
+
         def fn(w):
             w.execution_settings = ExecutionSettings()
             t, n = time.time(), 0
@@ -474,6 +758,7 @@ class Planner:
                     w.async_run(w.persistence.finished(job))
                     n += 1
             return n
+
         return self._run(fn, configfile)
 
     def plan(self, configfile: Path) -> tuple[dict[str, set[str]], set[str]]:
@@ -486,6 +771,7 @@ class Planner:
         params only when no upstream job reruns, so ``first`` holds the first stage
         that reads the change and ``readers`` every stage that does.
         """
+
         def fn(w):
             p, readers, first = w.persistence, {}, set()
             for job in w.dag.jobs:
@@ -503,16 +789,19 @@ class Planner:
                 if job.output and (r.is_provenance_triggered() or r._missing_output):
                     first.add(job.rule.name)
             return readers, first
+
         return self._run(fn, configfile)
 
     def jobs(self, configfile: Path) -> dict[str, list[str]]:
         """Rule -> its jobs' first outputs."""
+
         def fn(w):
             out: dict[str, list[str]] = {}
             for job in w.dag.jobs:
                 if job.output:
                     out.setdefault(job.rule.name, []).append(str(job.output[0]))
             return out
+
         return self._run(fn, configfile)
 
 
@@ -583,8 +872,12 @@ def expected_readers(key: str) -> set[str]:
 def test_no_script_reads_config():
     """Scripts read their params and input only (Snakemake does not track snakemake.config)."""
     scripts = [*(ROOT / "workflow" / "scripts").glob("*.py"), *(ROOT / "studies").glob("*/*.py")]
-    hits = [f"{p.name}:{i}" for p in sorted(scripts)
-            for i, line in enumerate(p.read_text().splitlines(), 1) if "snakemake.config" in line]
+    hits = [
+        f"{p.name}:{i}"
+        for p in sorted(scripts)
+        for i, line in enumerate(p.read_text().splitlines(), 1)
+        if "snakemake.config" in line
+    ]
     assert hits == []
 
 
@@ -636,23 +929,35 @@ def test_named_mappings(planner, smoke, tmp_path):
         f = _write(tmp_path, "x", changed_config(raw, full, key))
 
         def fn(w):
-            return sorted(str(j.output[0]) for j in w.dag.needrun_jobs()
-                          if j.rule.name == rule and (any_reason or w.dag.reason(j).params_changed))
+            return sorted(
+                str(j.output[0])
+                for j in w.dag.needrun_jobs()
+                if j.rule.name == rule and (any_reason or w.dag.reason(j).params_changed)
+            )
+
         return planner._run(fn, f)
 
-    assert replanned(("materials", "ninjaflex", "youngs_modulus_MPa"), "fea_scene") \
-        == sorted(jobs["fea_scene"])
+    assert replanned(("materials", "ninjaflex", "youngs_modulus_MPa"), "fea_scene") == sorted(
+        jobs["fea_scene"]
+    )
     assert replanned(("placement", "gap_mm"), "geometry_object") == sorted(jobs["geometry_object"])
     for key in [("mesh", k) for k in ("size_mm", "min_angle_deg", "order", "arc_chord_mm")]:
         assert replanned(key, "geometry_finger") == jobs["geometry_finger"], key
     assert replanned(("render", "stress_ref_MPa"), "render_scene") == sorted(jobs["render_scene"])
     # every model; one that starts from another's weights (train.models.<m>.start_from) for
     # its new input: Snakemake checks a job's params only where nothing upstream reruns
-    assert replanned(("train", "seed"), "train_model", any_reason=True) == sorted(jobs["train_model"])
-    fine_tuned = {f"results/train/{m}/model.pt" for m, e in full["train"]["models"].items()
-                  if e.get("start_from")}
+    assert replanned(("train", "seed"), "train_model", any_reason=True) == sorted(
+        jobs["train_model"]
+    )
+    fine_tuned = {
+        f"results/train/{m}/model.pt"
+        for m, e in full["train"]["models"].items()
+        if e.get("start_from")
+    }
     assert fine_tuned
-    assert replanned(("train", "seed"), "train_model") == sorted(set(jobs["train_model"]) - fine_tuned)
+    assert replanned(("train", "seed"), "train_model") == sorted(
+        set(jobs["train_model"]) - fine_tuned
+    )
 
 
 # ------------------------------------------------- training on generated objects
@@ -662,11 +967,17 @@ DIVERSE_SLICE = ROOT / "config" / "diverse_slice.yaml"
 
 def _train_and_diversity_jobs(planner, configfiles):
     """``({model: (params, sorted input)} of train_model, outputs of evaluate_diversity)``."""
+
     def fn(w):
-        train = {j.wildcards.model: ({k: v for k, v in j.params.items()}, sorted(map(str, j.input)))
-                 for j in w.dag.jobs if j.rule.name == "train_model"}
-        return train, sorted(str(f) for j in w.dag.jobs if j.rule.name == "evaluate_diversity"
-                             for f in j.output)
+        train = {
+            j.wildcards.model: ({k: v for k, v in j.params.items()}, sorted(map(str, j.input)))
+            for j in w.dag.jobs
+            if j.rule.name == "train_model"
+        }
+        return train, sorted(
+            str(f) for j in w.dag.jobs if j.rule.name == "evaluate_diversity" for f in j.output
+        )
+
     return planner._run(fn, configfiles)
 
 
@@ -688,7 +999,9 @@ def test_diversity_comparison_is_planned_with_generated_objects_only(tmp_path):
         blobs = [f for f in shards if f.startswith("results/dataset/shards/blob_s")]
         # each blob at the paper's 3 heights and at the training's face heights where it
         # clears the base (finray.config.face_heights)
-        cfg = validate_config(merge_config(read_config_file(DIVERSE), {"generated": {"count": n_blobs}}))
+        cfg = validate_config(
+            merge_config(read_config_file(DIVERSE), {"generated": {"count": n_blobs}})
+        )
         names = [n for n in cfg["objects"] if n.startswith("blob_s")]
         assert len(names) == n_blobs
         assert len(blobs) == sum(len(object_heights(cfg, n)) for n in names) > 3 * n_blobs
@@ -717,13 +1030,16 @@ def test_extra_heights_reach_their_model_only(tmp_path):
     trains on every training object at 17 mm as well, the other models and the ridge
     baseline on the paper's heights only; sim-to-real's no-context fit reads the camera
     model's shards. Without the key, every model trains on the same shards."""
+
     def fn(w):
         jobs = {j.rule.name + ":" + j.wildcards.get("model", ""): j for j in w.dag.jobs}
         inputs = {name: sorted(map(str, j.input)) for name, j in jobs.items()}
         return inputs, sorted(map(str, jobs["sim2real_no_context:"].input.sim))
 
     paper = ROOT / "config" / "config.yaml"
-    extra = _write(tmp_path, "extra", {"extends": str(paper), "extra_train_heights_mm": {"camera": [17]}})
+    extra = _write(
+        tmp_path, "extra", {"extends": str(paper), "extra_train_heights_mm": {"camera": [17]}}
+    )
     planner = Planner(tmp_path)
     before, _ = planner._run(fn, [paper])
     inputs, no_context = planner._run(fn, [extra])

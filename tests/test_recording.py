@@ -1,5 +1,6 @@
 """Lab recordings: `finray ingest` on synthetic takes with a known clock offset, force
 and finger mask (tests/recording_synth.py); the recording format's checks."""
+
 import json
 import shutil
 
@@ -39,8 +40,9 @@ def iou(a, b):
 def mp4(tmp_path_factory):
     """30 FPS H.264 (4:4:4) take with two pushes, ingested."""
     d = tmp_path_factory.mktemp("mp4")
-    truth = write_take(d / "take", pix_fmt="yuv444p", duration_s=2.5, starts=(0.3, 1.4),
-                       ramp=0.4, hold=0.25)
+    truth = write_take(
+        d / "take", pix_fmt="yuv444p", duration_s=2.5, starts=(0.3, 1.4), ramp=0.4, hold=0.25
+    )
     assert main(["ingest", str(d / "take"), "--out", str(d / "out")]) == 0
     return d, truth
 
@@ -59,7 +61,9 @@ def test_mp4_take_offset_masks_and_shard(mp4):
     assert abs(sync["offset_s"] - truth["offset_s"]) < 1 / 30  # within one frame
     assert 0 < sync["uncertainty_s"] < 1 / 30 and sync["method"]
     # the colour masks: object (blue, touching) and clamp (grey) stay out
-    frames = [f.to_ndarray(format="rgb24") for f in av.open(str(d / "take" / "take.mp4")).decode(video=0)]
+    frames = [
+        f.to_ndarray(format="rgb24") for f in av.open(str(d / "take" / "take.mp4")).decode(video=0)
+    ]
     colour = learn_colour(frames[:5])
     ious = [iou(segment_finger(f, colour), m) for f, m in zip(frames, truth["masks"])]
     assert len(ious) == 75 and min(ious) >= 0.95
@@ -109,7 +113,10 @@ def test_a_sideways_camera_is_turned_by_take_json(png, tmp_path, capsys):
     assert rc == 0, cap.err
     rc, cap = ingest_cli(d / "take", tmp_path / "out_up", capsys)
     assert rc == 0, cap.err
-    a, b = load_shard(tmp_path / "out_side" / "shard.npz"), load_shard(tmp_path / "out_up" / "shard.npz")
+    a, b = (
+        load_shard(tmp_path / "out_side" / "shard.npz"),
+        load_shard(tmp_path / "out_up" / "shard.npz"),
+    )
     np.testing.assert_array_equal(a["input_64x32"], b["input_64x32"])
 
 
@@ -122,9 +129,15 @@ def test_60_fps_take_and_4_2_0_chroma(tmp_path, capsys):
     assert load_shard(tmp_path / "out" / "shard.npz")["fx_N"].shape == (150,)
     # 4:2:0 chroma (half resolution) blurs the colour edges: with walls ~6 px the masks
     # lose IoU (docs/guide/recordings.md, "Lab recordings"); the finger must still be whole
-    frames = [f.to_ndarray(format="rgb24") for f in av.open(str(tmp_path / "take" / "take.mp4")).decode(video=0)]
+    frames = [
+        f.to_ndarray(format="rgb24")
+        for f in av.open(str(tmp_path / "take" / "take.mp4")).decode(video=0)
+    ]
     colour = learn_colour(frames[:5])
-    assert min(iou(segment_finger(f, colour), m) for f, m in zip(frames[::10], truth["masks"][::10])) > 0.8
+    assert (
+        min(iou(segment_finger(f, colour), m) for f, m in zip(frames[::10], truth["masks"][::10]))
+        > 0.8
+    )
 
 
 def test_a_frame_that_does_not_decode_is_kept_as_unreadable(tmp_path, capsys):
@@ -134,11 +147,14 @@ def test_a_frame_that_does_not_decode_is_kept_as_unreadable(tmp_path, capsys):
     video = tmp_path / "take" / "take.mp4"
     with av.open(str(video)) as c:
         s = c.streams.video[0]
-        packets = [(round(p.pts * p.time_base * s.average_rate), p.pos, p.size)
-                   for p in c.demux(s) if p.size and not p.is_keyframe]
+        packets = [
+            (round(p.pts * p.time_base * s.average_rate), p.pos, p.size)
+            for p in c.demux(s)
+            if p.size and not p.is_keyframe
+        ]
     rank, pos, size = max(packets)  # the last frame: no other frame depends on it
     data = bytearray(video.read_bytes())
-    data[pos:pos + size] = bytes(size)
+    data[pos : pos + size] = bytes(size)
     video.write_bytes(bytes(data))
     rc, cap = ingest_cli(tmp_path / "take", tmp_path / "out", capsys)
     assert rc == 0, cap.err
@@ -193,18 +209,24 @@ def test_error_non_monotonic_time(png, tmp_path, capsys):
     df = pd.read_csv(take / "forces.csv")
     df.loc[20, "t_s"] = df.loc[18, "t_s"]
     df.to_csv(take / "forces.csv", index=False)
-    assert "forces.csv: time is not increasing at line 22" in error_line(take, tmp_path / "out", capsys)
+    assert "forces.csv: time is not increasing at line 22" in error_line(
+        take, tmp_path / "out", capsys
+    )
     take2 = _copy(png, tmp_path / "b")
     lines = (take2 / "frames.csv").read_text().splitlines()
     lines[3], lines[4] = lines[4], lines[3]
     (take2 / "frames.csv").write_text("\n".join(lines) + "\n")
-    assert "frames.csv: time is not increasing at line 5" in error_line(take2, tmp_path / "out", capsys)
+    assert "frames.csv: time is not increasing at line 5" in error_line(
+        take2, tmp_path / "out", capsys
+    )
 
 
 def test_error_too_few_samples(png, tmp_path, capsys):
     take = _copy(png, tmp_path)
     pd.read_csv(take / "forces.csv").head(5).to_csv(take / "forces.csv", index=False)
-    assert "forces.csv: too few samples (5 rows; at least 10)" in error_line(take, tmp_path / "out", capsys)
+    assert "forces.csv: too few samples (5 rows; at least 10)" in error_line(
+        take, tmp_path / "out", capsys
+    )
 
 
 def test_error_unreadable_video(png, tmp_path, capsys):

@@ -7,6 +7,7 @@ field. It follows the solver's ``result.npz`` contract exactly, but it is not
 physics and is never used by the pipeline. The tests in this file check that the
 fixture itself honours the contract.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -21,8 +22,9 @@ from finray.render import load_fea_result
 FIXTURE_HEIGHT_MM = 30.0  # contact height of the fabricated object
 
 
-def synthetic_fields(points: np.ndarray, t: float, height_mm: float = FIXTURE_HEIGHT_MM,
-                     length_mm: float = 80.0) -> tuple[np.ndarray, np.ndarray]:
+def synthetic_fields(
+    points: np.ndarray, t: float, height_mm: float = FIXTURE_HEIGHT_MM, length_mm: float = 80.0
+) -> tuple[np.ndarray, np.ndarray]:
     """Analytic displacement (N, 2) mm and von Mises stress (N,) MPa at load fraction t."""
     x, y = points[:, 0], points[:, 1]
     eta = y / length_mm
@@ -36,9 +38,13 @@ def synthetic_fields(points: np.ndarray, t: float, height_mm: float = FIXTURE_HE
     return np.column_stack([ux, uy]), vm
 
 
-def write_synthetic_fea_result(path: str | Path, n_frames: int = 6, size_mm: float = 0.5,
-                               max_displacement_mm: float = 5.0,
-                               height_mm: float = FIXTURE_HEIGHT_MM) -> Path:
+def write_synthetic_fea_result(
+    path: str | Path,
+    n_frames: int = 6,
+    size_mm: float = 0.5,
+    max_displacement_mm: float = 5.0,
+    height_mm: float = FIXTURE_HEIGHT_MM,
+) -> Path:
     """Write a contract-conforming fake ``result.npz`` (test fixture only)."""
     p = FingerParams()
     mesh = mesh_finger(p, size_mm)
@@ -53,14 +59,27 @@ def write_synthetic_fea_result(path: str | Path, n_frames: int = 6, size_mm: flo
     k_pts = len(ang)
     cx0 = float(front_face_x(p, height_mm)) - 5.0 - 0.1
     disp = max_displacement_mm * t
-    obj = np.stack([np.column_stack([cx0 + d + 5.0 * np.cos(ang), height_mm + 5.0 * np.sin(ang)])
-                    for d in disp])
+    obj = np.stack(
+        [
+            np.column_stack([cx0 + d + 5.0 * np.cos(ang), height_mm + 5.0 * np.sin(ang)])
+            for d in disp
+        ]
+    )
     edges = np.column_stack([np.arange(k_pts), (np.arange(k_pts) + 1) % k_pts])
     path = Path(path)
     np.savez_compressed(
-        path, points=mesh.points, triangles=mesh.triangles, boundary_edges=mesh.boundary_edges,
-        displacement_mm=disp, u_mm=u, von_mises_MPa=vm,
-        fx_N=(3.0 * t**1.5), fy_N=(0.2 * t), object_points_mm=obj, object_edges=edges)
+        path,
+        points=mesh.points,
+        triangles=mesh.triangles,
+        boundary_edges=mesh.boundary_edges,
+        displacement_mm=disp,
+        u_mm=u,
+        von_mises_MPa=vm,
+        fx_N=(3.0 * t**1.5),
+        fy_N=(0.2 * t),
+        object_points_mm=obj,
+        object_edges=edges,
+    )
     return path
 
 

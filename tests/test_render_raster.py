@@ -1,4 +1,5 @@
 """Render stage: rasteriser correctness, pixel alignment, pyvista agreement, EXR files."""
+
 from __future__ import annotations
 
 import json
@@ -8,9 +9,21 @@ import pytest
 
 from finray.dataset import segment
 from finray.geometry.mesh import TriMesh
-from finray.render import (RenderParams, Rasterizer, ResultError, load_fea_result,
-                           load_render_index, read_exr, read_png, read_render_frame,
-                           render_scene, resample_frames, stress_transform, write_exr, write_png)
+from finray.render import (
+    RenderParams,
+    Rasterizer,
+    ResultError,
+    load_fea_result,
+    load_render_index,
+    read_exr,
+    read_png,
+    read_render_frame,
+    render_scene,
+    resample_frames,
+    stress_transform,
+    write_exr,
+    write_png,
+)
 
 from test_render_fixture import write_synthetic_fea_result
 
@@ -32,9 +45,13 @@ def result(result_path):
 @pytest.fixture(scope="module")
 def front_render(result_path, tmp_path_factory):
     out = tmp_path_factory.mktemp("render") / "p0"
-    render_scene(result_path, out, 0.0, scene={"object": "circle_d10", "material": "steel",
-                                               "height_mm": 30, "split": "train"},
-                 params=RenderParams(files_per_scene=None))  # every frame's files
+    render_scene(
+        result_path,
+        out,
+        0.0,
+        scene={"object": "circle_d10", "material": "steel", "height_mm": 30, "split": "train"},
+        params=RenderParams(files_per_scene=None),
+    )  # every frame's files
     return out
 
 
@@ -59,6 +76,7 @@ def test_coverage_integrates_to_the_finger_area(result):
     cov, stress, stress_area = r.render(result.points, np.zeros(len(result.points)))
     area = cov.sum() / params.px_per_mm**2
     from finray.geometry.mesh import signed_areas
+
     true_area = signed_areas(result.points, result.triangles).sum()
     assert area == pytest.approx(true_area, rel=2e-3)
     assert cov.max() <= 1.0 and cov.min() >= 0.0
@@ -67,8 +85,9 @@ def test_coverage_integrates_to_the_finger_area(result):
 
 def test_samples_on_shared_edges_count_once():
     # vertices exactly on sample centres: every edge passes through samples
-    params = RenderParams(window_x_mm=(0.0, 12.0), window_y_mm=(0.0, 12.0), px_per_mm=1.0,
-                          supersample=1)
+    params = RenderParams(
+        window_x_mm=(0.0, 12.0), window_y_mm=(0.0, 12.0), px_per_mm=1.0, supersample=1
+    )
     mesh = grid_mesh(5, 1.0, 1.5, 1.5)  # square [1.5, 6.5]^2, vertices on pixel centres
     r = Rasterizer(mesh, params)
     r.render(mesh.points)
@@ -77,11 +96,16 @@ def test_samples_on_shared_edges_count_once():
 
 
 def test_stress_is_the_area_average_of_the_transformed_field():
-    params = RenderParams(window_x_mm=(0.0, 10.0), window_y_mm=(0.0, 10.0), px_per_mm=2.0,
-                          supersample=4, stress_ref_MPa=1e-3)
+    params = RenderParams(
+        window_x_mm=(0.0, 10.0),
+        window_y_mm=(0.0, 10.0),
+        px_per_mm=2.0,
+        supersample=4,
+        stress_ref_MPa=1e-3,
+    )
     mesh = grid_mesh(8, 1.0, 1.1, 1.1)
     s_nodes = 0.5 + 0.2 * mesh.points[:, 0] + 0.1 * mesh.points[:, 1]  # linear in the image
-    sigma = 1e-3 * (10.0 ** s_nodes - 1.0)  # inverse transform
+    sigma = 1e-3 * (10.0**s_nodes - 1.0)  # inverse transform
     np.testing.assert_allclose(stress_transform(sigma), s_nodes, rtol=1e-12)
     cov, stress, stress_area = Rasterizer(mesh, params).render(mesh.points, sigma)
     full = cov == 1.0
@@ -123,8 +147,9 @@ def test_framing_is_fixed_across_frames_and_files_are_complete(front_render, res
         assert chans["stress"].dtype == np.float32
     assert shapes == {(params.height, params.width, 3)}
     assert index["params"]["window_x_mm"] == [-5.0, 35.0]
-    np.testing.assert_allclose([f["displacement_mm"] for f in index["frames"]],
-                               result.displacement_mm)
+    np.testing.assert_allclose(
+        [f["displacement_mm"] for f in index["frames"]], result.displacement_mm
+    )
     # the clamped base does not move in the image: row of the base's lower edge is fixed
     bottoms = []
     for k in (0, index["n_frames"] - 1):
@@ -178,7 +203,9 @@ def test_pitched_view_projects_with_the_documented_camera(result_path, result, t
     assert abs(rows.min() - px[:, 1].min()) < 1.5 and abs(rows.max() - px[:, 1].max()) < 1.5
     assert abs(cols.min() - px[:, 0].min()) < 1.5 and abs(cols.max() - px[:, 0].max()) < 1.5
     # the stress maps stay in the front frame at every pitch
-    cov_front = Rasterizer(result.mesh, params).render(result.deformed_points(result.n_frames - 1))[0]
+    cov_front = Rasterizer(result.mesh, params).render(result.deformed_points(result.n_frames - 1))[
+        0
+    ]
     np.testing.assert_array_equal(maps["coverage"], cov_front)
 
 
@@ -262,7 +289,7 @@ def test_draw_object_for_figures(result_path, tmp_path):
     a = read_png(tmp_path / "a" / plain["frames"][0]["image"])
     b = read_png(tmp_path / "b" / drawn["frames"][0]["image"])
     obj_rgb = np.rint(np.array(params.object_rgb) * 255)
-    ob = (np.abs(b.astype(int) - obj_rgb).sum(axis=2) < 6)
+    ob = np.abs(b.astype(int) - obj_rgb).sum(axis=2) < 6
     area = ob.sum() / params.px_per_mm**2
     assert area == pytest.approx(np.pi * 25, rel=0.05)  # the 10 mm circle
     assert not (np.abs(a.astype(int) - obj_rgb).sum(axis=2) < 6).any()

@@ -5,6 +5,7 @@ leaves a timer that wakes the scheduler each second while a ready job waits; a t
 workflow of short jobs counts the threads of Snakemake's own process (Linux's /proc)
 while a ready job waits for cores. And it samples a benchmarked job every 0.5 s: a job
 of 20 s of CPU reads as such in its benchmark file, not as its first 15 s."""
+
 import subprocess
 import sys
 from pathlib import Path
@@ -56,15 +57,22 @@ rule blocked:
 def snakemake_in(tmp_path, snakefile, *args):
     """Run ``snakefile`` in ``tmp_path`` (``args`` on the command line); fail on errors."""
     (tmp_path / "Snakefile").write_text(snakefile)
-    r = subprocess.run([sys.executable, "-m", "snakemake", "--quiet", *args],
-                       cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    r = subprocess.run(
+        [sys.executable, "-m", "snakemake", "--quiet", *args],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert r.returncode == 0, r.stderr[-2000:]
 
 
 def run_toy(tmp_path, *args):
     snakemake_in(tmp_path, SNAKEFILE, "--cores", "2", *args)
-    return ((tmp_path / "dropped.txt").read_text() == "True",
-            int((tmp_path / "threads.txt").read_text()))
+    return (
+        (tmp_path / "dropped.txt").read_text() == "True",
+        int((tmp_path / "threads.txt").read_text()),
+    )
 
 
 def test_default_rate_limit_is_dropped_and_timers_do_not_pile_up(tmp_path):
@@ -99,5 +107,7 @@ def test_a_long_job_s_benchmark_holds_its_cpu_time(tmp_path):
     # reads this job's 20 s of CPU as about 15 s
     snakemake_in(tmp_path, BENCH_SNAKEFILE, "--cores", "1")
     assert (tmp_path / "sampled.txt").read_text() == "True"
-    head, values = (line.split("\t") for line in (tmp_path / "busy.tsv").read_text().splitlines()[:2])
+    head, values = (
+        line.split("\t") for line in (tmp_path / "busy.tsv").read_text().splitlines()[:2]
+    )
     assert 19.0 <= float(values[head.index("cpu_time")]) <= 21.0

@@ -1,5 +1,6 @@
 """The config schema is the one home of every default: a dataclass field that stands for a
 config key takes its default with ``schema_default``, never as a literal of its own."""
+
 import ast
 from dataclasses import fields
 from pathlib import Path
@@ -16,7 +17,7 @@ SRC = Path(finray.__file__).parent
 NOT_CONFIG_KEYS = {
     ("IngestParams", "seed"): "ingest's own draws (the QA frames), no config key",
     ("IngestParams", "min_object_frac"): "the colour segmentation of a camera frame "
-                                         "(recording), not the dataset's grey segmentation",
+    "(recording), not the dataset's grey segmentation",
     ("FingerFinder", "min_object_frac"): "the colour segmentation of a camera frame",
 }
 
@@ -54,11 +55,15 @@ def _dataclass_fields():
         tree = ast.parse(path.read_text(encoding="utf-8"))
         for cls in ast.walk(tree):
             if not isinstance(cls, ast.ClassDef) or not any(
-                    "dataclass" in ast.unparse(d) for d in cls.decorator_list):
+                "dataclass" in ast.unparse(d) for d in cls.decorator_list
+            ):
                 continue
             for st in cls.body:
-                if isinstance(st, ast.AnnAssign) and st.value is not None \
-                        and isinstance(st.target, ast.Name):
+                if (
+                    isinstance(st, ast.AnnAssign)
+                    and st.value is not None
+                    and isinstance(st.target, ast.Name)
+                ):
                     yield path.relative_to(SRC.parent), cls.name, st.target.id, st.value
 
 
@@ -82,8 +87,9 @@ def test_no_default_is_written_twice():
         hits = [p for p, d in keys.get(name, []) if _same(d, lit)]
         if hits and (cls, name) not in NOT_CONFIG_KEYS:
             twice.append(f"{path}: {cls}.{name} = {lit!r} is the schema's {hits[0]}")
-    assert not twice, "defaults written twice (use finray.schema.schema_default):\n" + \
-        "\n".join(twice)
+    assert not twice, "defaults written twice (use finray.schema.schema_default):\n" + "\n".join(
+        twice
+    )
 
 
 def test_schema_defaults_name_their_own_key():
@@ -105,18 +111,20 @@ def test_schema_defaults_name_their_own_key():
 
 
 def _section_defaults(path: str) -> dict:
-    return {k: v["default"] for k, v in schema_node(path)["properties"].items()
-            if "default" in v}
+    return {k: v["default"] for k, v in schema_node(path)["properties"].items() if "default" in v}
 
 
-@pytest.mark.parametrize("cls_path, section", [
-    ("finray.render.params.RenderParams", "render"),
-    ("finray.dataset.params.DatasetParams", "dataset"),
-    ("finray.render.camera_views.CameraViews", "render.camera_views"),
-    ("finray.lab.motion.GripperMotion", "lab.motion"),
-    ("finray.lab.sensor.ForceSensor", "lab.sensor"),
-    ("finray.geometry.finger.FingerParams", "finger"),
-])
+@pytest.mark.parametrize(
+    "cls_path, section",
+    [
+        ("finray.render.params.RenderParams", "render"),
+        ("finray.dataset.params.DatasetParams", "dataset"),
+        ("finray.render.camera_views.CameraViews", "render.camera_views"),
+        ("finray.lab.motion.GripperMotion", "lab.motion"),
+        ("finray.lab.sensor.ForceSensor", "lab.sensor"),
+        ("finray.geometry.finger.FingerParams", "finger"),
+    ],
+)
 def test_a_class_built_from_the_schema_defaults_is_its_default(cls_path, section):
     """``from_config`` of the section the schema fills in on an empty config gives the
     class's defaults: the same values and the same types (tuples, floats)."""
@@ -124,8 +132,10 @@ def test_a_class_built_from_the_schema_defaults_is_its_default(cls_path, section
 
     module, name = cls_path.rsplit(".", 1)
     cls = getattr(importlib.import_module(module), name)
-    built = cls.from_config(_section_defaults(section) | (
-        {"ribs": _section_defaults("finger.ribs")} if section == "finger" else {}))
+    built = cls.from_config(
+        _section_defaults(section)
+        | ({"ribs": _section_defaults("finger.ribs")} if section == "finger" else {})
+    )
     assert built == cls()
     for f in fields(cls):
         assert type(getattr(built, f.name)) is type(getattr(cls(), f.name)), f.name

@@ -1,5 +1,6 @@
 """One shard reader: training (load_split) and evaluation (load_test_set) read the same
 frames through finray.dataset.load_frames."""
+
 import json
 
 import numpy as np
@@ -18,19 +19,33 @@ def _shard(path, scene_id, n, seed):
         arrays[f"input_{h}x{w}"] = rng.integers(0, 256, (n, h, w), dtype=np.uint8)
         arrays[f"stress_{h}x{w}"] = rng.normal(size=(n, h, w)).astype(np.float32)
         arrays[f"mask_{h}x{w}"] = rng.random((n, h, w)) > 0.5
-    scene = {"scene_id": scene_id, "object": scene_id.split("_")[0], "material": "steel",
-             "height_mm": 30.0, "pitch_deg": 0.0, "split": "train", "splits": ["train"]}
-    arrays.update(frame=np.arange(n, dtype=np.int32), fea_frame=np.linspace(0, 20, n),
-                  displacement_mm=np.linspace(0, 10, n), fx_N=-np.linspace(0, 5, n) * (seed + 1),
-                  fy_N=np.zeros(n), meta=np.array(json.dumps({"scene": scene})))
+    scene = {
+        "scene_id": scene_id,
+        "object": scene_id.split("_")[0],
+        "material": "steel",
+        "height_mm": 30.0,
+        "pitch_deg": 0.0,
+        "split": "train",
+        "splits": ["train"],
+    }
+    arrays.update(
+        frame=np.arange(n, dtype=np.int32),
+        fea_frame=np.linspace(0, 20, n),
+        displacement_mm=np.linspace(0, 10, n),
+        fx_N=-np.linspace(0, 5, n) * (seed + 1),
+        fy_N=np.zeros(n),
+        meta=np.array(json.dumps({"scene": scene})),
+    )
     save_npz(path, arrays)
     return path
 
 
 @pytest.fixture()
 def shards(tmp_path):
-    return [_shard(tmp_path / "b.npz", "square_s10", 5, 1),
-            _shard(tmp_path / "a.npz", "circle_d5", 4, 0)]
+    return [
+        _shard(tmp_path / "b.npz", "square_s10", 5, 1),
+        _shard(tmp_path / "a.npz", "circle_d5", 4, 0),
+    ]
 
 
 def test_load_frames_reads_one_size_as_stored(shards):
@@ -38,7 +53,11 @@ def test_load_frames_reads_one_size_as_stored(shards):
     d0, d1 = load_shard(shards[0]), load_shard(shards[1])
     for key, stored in (("images", "input_16x8"), ("stress", "stress_16x8"), ("mask", "mask_16x8")):
         np.testing.assert_array_equal(a[key], np.concatenate([d0[stored][::2], d1[stored][::2]]))
-    assert a["images"].dtype == np.uint8 and a["stress"].dtype == np.float32 and a["mask"].dtype == bool
+    assert (
+        a["images"].dtype == np.uint8
+        and a["stress"].dtype == np.float32
+        and a["mask"].dtype == bool
+    )
     assert list(t.columns) == FRAME_COLUMNS
     assert t["scene_id"].tolist() == ["square_s10"] * 3 + ["circle_d5"] * 2  # the order given
     assert t["frame"].tolist() == [0, 2, 4, 0, 2]
@@ -83,7 +102,9 @@ def test_no_context_frames_in_each_view(shards, tmp_path):
     np.testing.assert_array_equal(y_c, y_f)
     np.testing.assert_array_equal(y_b, np.r_[y_f, y_f])
     assert t_b["scene_id"].tolist() == t_f["scene_id"].tolist() * 2 and len(t_b) == len(y_b)
-    with pytest.raises(ValueError, match="sim_views: both reads the camera views.*set sim_views: front"):
+    with pytest.raises(
+        ValueError, match="sim_views: both reads the camera views.*set sim_views: front"
+    ):
         _frames(shards, (16, 8), views="both")
     with pytest.raises(ValueError, match="sim_views: 'side' is not one of"):
         _frames(cam, (16, 8), views="side")

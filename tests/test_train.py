@@ -1,11 +1,19 @@
 """Training loop: determinism, learning, checkpoint and TorchScript parity."""
+
 import numpy as np
 import pytest
 import torch
 
 from finray.model import NetConfig
-from finray.train import (TrainConfig, evaluate, export_torchscript, load_checkpoint, save_checkpoint,
-                          train, training_curves)
+from finray.train import (
+    TrainConfig,
+    evaluate,
+    export_torchscript,
+    load_checkpoint,
+    save_checkpoint,
+    train,
+    training_curves,
+)
 
 
 def toy(n=96, seed=0):
@@ -23,17 +31,33 @@ CFG = dict(epochs=2, batch_size=16, progress=False, lr=1e-3, contact_weight=0.0)
 
 def test_two_trainings_give_identical_losses():
     x, s, f = toy()
-    runs = [train(x, s, f, (x[:16], s[:16], f[:16]), NetConfig(height=32, width=16, base_channels=4),
-                  TrainConfig(**CFG), log=lambda m: None)[1] for _ in range(2)]
+    runs = [
+        train(
+            x,
+            s,
+            f,
+            (x[:16], s[:16], f[:16]),
+            NetConfig(height=32, width=16, base_channels=4),
+            TrainConfig(**CFG),
+            log=lambda m: None,
+        )[1]
+        for _ in range(2)
+    ]
     assert runs[0].train_loss == runs[1].train_loss
     assert runs[0].val_loss == runs[1].val_loss
 
 
 def test_training_reduces_the_loss():
     x, s, f = toy(256)
-    _, hist = train(x, s, f, None, NetConfig(height=32, width=16, base_channels=4),
-                    TrainConfig(**{**CFG, "epochs": 4, "bf16": False}),
-                    log=lambda m: None)
+    _, hist = train(
+        x,
+        s,
+        f,
+        None,
+        NetConfig(height=32, width=16, base_channels=4),
+        TrainConfig(**{**CFG, "epochs": 4, "bf16": False}),
+        log=lambda m: None,
+    )
     assert hist.train_loss[-1] < 0.7 * hist.train_loss[0]
 
 
@@ -46,8 +70,15 @@ def test_nan_data_is_refused():
 
 def test_checkpoint_and_torchscript_parity(tmp_path):
     x, s, f = toy(64)
-    model, hist = train(x, s, f, None, NetConfig(height=32, width=16, base_channels=4),
-                        TrainConfig(**CFG), log=lambda m: None)
+    model, hist = train(
+        x,
+        s,
+        f,
+        None,
+        NetConfig(height=32, width=16, base_channels=4),
+        TrainConfig(**CFG),
+        log=lambda m: None,
+    )
     save_checkpoint(model, hist, tmp_path / "m.pt")
     back, ck = load_checkpoint(tmp_path / "m.pt")
     export_torchscript(back, tmp_path / "m.ts")
@@ -92,8 +123,9 @@ def test_batchnorm_re_estimate_is_the_plain_average_over_the_frames():
     assert n == 300
     # per batch the mean and the unbiased variance, averaged over the batches (update_bn's
     # estimate; the last batch is short)
-    assert torch.allclose(bn.running_mean, torch.stack([b.mean(0) for b in z.split(64)]).mean(0),
-                          atol=1e-5)
+    assert torch.allclose(
+        bn.running_mean, torch.stack([b.mean(0) for b in z.split(64)]).mean(0), atol=1e-5
+    )
     var = torch.stack([b.var(0) for b in z.split(64)]).mean(0)
     assert torch.allclose(bn.running_var, var, rtol=1e-4)
     assert bn.momentum == 0.1 and not model.training  # both restored
@@ -105,7 +137,9 @@ def test_kept_epoch_follows_train_keep():
     net = NetConfig(height=32, width=16, base_channels=4)
     _, last = train(x, s, f, val, net, TrainConfig(**CFG, keep="last"), log=lambda m: None)
     assert last.best_epoch == 2 and len(last.lr) == 2 and last.lr[-1] < 1e-6
-    _, best = train(x, s, f, val, net, TrainConfig(**CFG, keep="val_force_rmse"), log=lambda m: None)
+    _, best = train(
+        x, s, f, val, net, TrainConfig(**CFG, keep="val_force_rmse"), log=lambda m: None
+    )
     assert best.best_epoch == 1 + int(np.argmin(best.val_force_rmse_N))
     with pytest.raises(ValueError, match="train.keep"):
         train(x, s, f, val, net, TrainConfig(**CFG, keep="best"), log=lambda m: None)
@@ -118,9 +152,15 @@ def test_validation_scenes_follow_split_seed_not_seed(tmp_path, monkeypatch):
 
     n_scenes, per = 20, 3
     ids = np.repeat([f"scene{k:02d}" for k in range(n_scenes)], per)
-    images = np.repeat(np.arange(n_scenes, dtype="f4"), per)[:, None, None, None] * np.ones((1, 1, 32, 16), "f4")
-    fake = {"images": images, "stress": np.zeros_like(images),
-            "force_N": np.zeros((len(ids), 1), "f4"), "scene_id": ids}
+    images = np.repeat(np.arange(n_scenes, dtype="f4"), per)[:, None, None, None] * np.ones(
+        (1, 1, 32, 16), "f4"
+    )
+    fake = {
+        "images": images,
+        "stress": np.zeros_like(images),
+        "force_N": np.zeros((len(ids), 1), "f4"),
+        "scene_id": ids,
+    }
     monkeypatch.setattr(stage, "load_split", lambda *a, **k: fake)
 
     class Stop(Exception):
@@ -129,12 +169,18 @@ def test_validation_scenes_follow_split_seed_not_seed(tmp_path, monkeypatch):
     def held_out(seed, split_seed):
         def capture(images, stress, force, val, *a, **k):
             raise Stop({f"scene{int(v):02d}" for v in val[0][:, 0, 0, 0]})
+
         monkeypatch.setattr(stage, "train", capture)
         with pytest.raises(Stop) as stop:
-            stage.train_from_shards([], tmp_path, NetConfig(height=32, width=16),
-                                    TrainConfig(seed=seed, split_seed=split_seed,
-                                                contact_weight=0.0), None, 0.1,
-                                    log=lambda m: None)
+            stage.train_from_shards(
+                [],
+                tmp_path,
+                NetConfig(height=32, width=16),
+                TrainConfig(seed=seed, split_seed=split_seed, contact_weight=0.0),
+                None,
+                0.1,
+                log=lambda m: None,
+            )
         return stop.value.args[0]
 
     same = held_out(0, 0)
@@ -151,10 +197,19 @@ def test_training_starts_from_the_given_weights():
     net = NetConfig(height=32, width=16, base_channels=4)
     start, _ = train(x, s, f, None, net, TrainConfig(**CFG), log=lambda m: None)
     x2, s2, f2 = toy(64, seed=1)  # other data: another force scale of its own
-    still, hist = train(x2, s2, f2, None, net, TrainConfig(**{**CFG, "lr": 0.0, "seed": 3}),
-                        log=lambda m: None, init_state=start.state_dict())
-    fresh, _ = train(x2, s2, f2, None, net, TrainConfig(**{**CFG, "lr": 0.0, "seed": 3}),
-                     log=lambda m: None)
+    still, hist = train(
+        x2,
+        s2,
+        f2,
+        None,
+        net,
+        TrainConfig(**{**CFG, "lr": 0.0, "seed": 3}),
+        log=lambda m: None,
+        init_state=start.state_dict(),
+    )
+    fresh, _ = train(
+        x2, s2, f2, None, net, TrainConfig(**{**CFG, "lr": 0.0, "seed": 3}), log=lambda m: None
+    )
     for (name, a), b, c in zip(start.named_parameters(), still.parameters(), fresh.parameters()):
         assert torch.equal(a, b), name
         assert not torch.equal(a, c), name
@@ -168,17 +223,31 @@ def test_a_start_of_another_network_is_refused(tmp_path, monkeypatch):
     import finray.train.stage as stage
 
     x, s, f = toy(32)
-    model, hist = train(x, s, f, None, NetConfig(height=32, width=16, base_channels=4),
-                        TrainConfig(**CFG), log=lambda m: None)
+    model, hist = train(
+        x,
+        s,
+        f,
+        None,
+        NetConfig(height=32, width=16, base_channels=4),
+        TrainConfig(**CFG),
+        log=lambda m: None,
+    )
     save_checkpoint(model, hist, tmp_path / "start.pt")
     ids = np.repeat([f"scene{k}" for k in range(4)], 8)
     fake = {"images": x[:, :1], "stress": s, "force_N": f, "scene_id": ids}
     monkeypatch.setattr(stage, "load_split", lambda *a, **k: fake)
     monkeypatch.setattr(stage, "train", lambda *a, **k: pytest.fail("trained"))
     with pytest.raises(ValueError, match=r"start\.pt: its network .* is not the one to train"):
-        stage.train_from_shards([], tmp_path / "out", NetConfig(height=32, width=16, base_channels=8),
-                                TrainConfig(**CFG), None, 0.25, log=lambda m: None,
-                                init=tmp_path / "start.pt")
+        stage.train_from_shards(
+            [],
+            tmp_path / "out",
+            NetConfig(height=32, width=16, base_channels=8),
+            TrainConfig(**CFG),
+            None,
+            0.25,
+            log=lambda m: None,
+            init=tmp_path / "start.pt",
+        )
 
 
 def toy_contact(n=128, seed=0):
@@ -208,10 +277,11 @@ def test_the_contact_head_learns_a_height_it_can_see():
     keep = np.abs(val[2][:, 0]) > cfg.contact_min_force_N
     assert hist.val_contact_rmse_mm[-1] < 0.4 * val[3][keep].std()
     assert hist.train_contact_mse[-1] < 0.5 * hist.train_contact_mse[0]
-    ev = evaluate(model, *(torch.as_tensor(a) for a in val[:3]), cfg,
-                  contact_mm=torch.as_tensor(val[3]))
+    ev = evaluate(
+        model, *(torch.as_tensor(a) for a in val[:3]), cfg, contact_mm=torch.as_tensor(val[3])
+    )
     err = (ev["contact_pred_mm"].numpy() - val[3])[keep]
-    assert ev["contact_rmse_mm"] == pytest.approx(float(np.sqrt(np.mean(err ** 2))), rel=1e-4)
+    assert ev["contact_rmse_mm"] == pytest.approx(float(np.sqrt(np.mean(err**2))), rel=1e-4)
 
 
 def test_the_contact_loss_sees_the_masked_frames_only():
@@ -251,8 +321,9 @@ def test_contact_training_in_bfloat16_autocast():
     head too: finite losses, a finite validation RMSE."""
     x, s, f, c = toy_contact(48)
     cfg = TrainConfig(**{**CFG, "epochs": 1, "bf16": True, "contact_weight": 1.0})
-    _, hist = train(x, s, f, toy_contact(16, seed=1), CONTACT_NET, cfg, log=lambda m: None,
-                    contact_mm=c)
+    _, hist = train(
+        x, s, f, toy_contact(16, seed=1), CONTACT_NET, cfg, log=lambda m: None, contact_mm=c
+    )
     assert hist.precision == "bfloat16"
     assert np.isfinite(hist.train_contact_mse).all() and np.isfinite(hist.val_contact_rmse_mm).all()
 
@@ -270,8 +341,9 @@ def test_contact_checkpoint_torchscript_and_onnx_parity(tmp_path):
 
     x, s, f, c = toy_contact(64)
     cfg = TrainConfig(**{**CFG, "contact_weight": 1.0, "contact_min_force_N": 0.3})
-    model, hist = train(x, s, f, toy_contact(16, seed=1), CONTACT_NET, cfg, log=lambda m: None,
-                        contact_mm=c)
+    model, hist = train(
+        x, s, f, toy_contact(16, seed=1), CONTACT_NET, cfg, log=lambda m: None, contact_mm=c
+    )
     training_curves(hist, tmp_path / "curves.png")  # a third panel: the contact RMSE
     save_checkpoint(model, hist, tmp_path / "m.pt")
     back, ck = load_checkpoint(tmp_path / "m.pt")
@@ -313,8 +385,16 @@ def test_uniform_force_weights_train_as_the_plain_loss():
     x, s, f = toy()
     net = NetConfig(height=32, width=16, base_channels=4)
     plain = train(x, s, f, None, net, TrainConfig(**CFG, bf16=False), log=lambda m: None)[1]
-    ones = train(x, s, f, None, net, TrainConfig(**CFG, bf16=False), log=lambda m: None,
-                 force_weight=np.ones(len(x), "f4"))[1]
+    ones = train(
+        x,
+        s,
+        f,
+        None,
+        net,
+        TrainConfig(**CFG, bf16=False),
+        log=lambda m: None,
+        force_weight=np.ones(len(x), "f4"),
+    )[1]
     np.testing.assert_allclose(ones.train_loss, plain.train_loss, rtol=1e-5)
     with pytest.raises(ValueError, match="force weights"):
         train(x, s, f, None, net, TrainConfig(**CFG), log=lambda m: None, force_weight=np.ones(3))

@@ -1,6 +1,7 @@
 """Finding the finger in camera footage (finray.recording.finder) and flagging the frames
 that cannot be trusted (finray.validity): one test per failure mode, each asserting the
 flag and the message; the stress reference saved with the model labels the colour bar."""
+
 import csv
 import json
 
@@ -16,10 +17,19 @@ from finray.train import export_torchscript
 from finray.validity import check_frame, training_ranges
 from recording_synth import APEX, FINGER_RGB, background, render_frame, write_video
 
-PREPROCESS = {"base_width_mm": 30.0, "crop_x_mm": [-5.0, 35.0], "crop_y_mm": [0.0, 80.0],
-              "base_band": 0.03,
-              "segment": {"threshold": "isodata", "foreground": "bright", "min_object_frac": 1e-3,
-                          "max_hole_frac": 2e-4, "keep_largest": True}}
+PREPROCESS = {
+    "base_width_mm": 30.0,
+    "crop_x_mm": [-5.0, 35.0],
+    "crop_y_mm": [0.0, 80.0],
+    "base_band": 0.03,
+    "segment": {
+        "threshold": "isodata",
+        "foreground": "bright",
+        "min_object_frac": 1e-3,
+        "max_hole_frac": 2e-4,
+        "keep_largest": True,
+    },
+}
 SIZE = (360, 480)  # a camera frame (H, W)
 PPM = SIZE[0] / 120.0
 ORIGIN = (0.45 * SIZE[1], 0.88 * SIZE[0])
@@ -31,7 +41,7 @@ def frame(defl_mm=0.0, clutter=False, seed=0):
     orange disc of the finger's colour standing apart, left of it."""
     img, truth = render_frame(background(SIZE, seed), PPM, ORIGIN, defl_mm, 0.0)
     if clutter:
-        rr, cc = np.ogrid[:SIZE[0], :SIZE[1]]
+        rr, cc = np.ogrid[: SIZE[0], : SIZE[1]]
         disc = (rr - 0.45 * SIZE[0]) ** 2 + (cc - 0.15 * SIZE[1]) ** 2 < (0.1 * SIZE[0]) ** 2
         img[disc] = FINGER_RGB.astype(np.uint8)
     return img, truth
@@ -55,10 +65,17 @@ def model(tmp_path_factory):
     d = tmp_path_factory.mktemp("model")
     export_torchscript(net, d / "old.ts", PREPROCESS, contact_min_force_N=0.0)
     x = finger_inputs(Predictor(d / "old.ts", backend="torchscript"))
-    trained = training_ranges(x, np.array([[-1e3], [1e3], [0], [0], [0]]), ["fx_N"],
-                              np.array([-1e4, 1e4, 0, 0, 0]), -1.0)
-    export_torchscript(net, d / "model.ts", PREPROCESS, contact_min_force_N=0.0,
-                       stress_ref_MPa=1e-3, trained=trained)
+    trained = training_ranges(
+        x, np.array([[-1e3], [1e3], [0], [0], [0]]), ["fx_N"], np.array([-1e4, 1e4, 0, 0, 0]), -1.0
+    )
+    export_torchscript(
+        net,
+        d / "model.ts",
+        PREPROCESS,
+        contact_min_force_N=0.0,
+        stress_ref_MPa=1e-3,
+        trained=trained,
+    )
     return d
 
 
@@ -86,15 +103,44 @@ def test_the_finger_is_found_by_its_colour_where_the_grey_threshold_takes_the_ba
 def test_a_take_where_the_finger_is_never_found_stops_with_one_line(model, tmp_path, capsys):
     """Finger not found: every frame lacks it -> exit 2, one line naming the count."""
     video = tmp_path / "empty.mp4"
-    write_video(video, [np.clip(background(SIZE, k), 0, 255).astype(np.uint8) for k in range(4)], 10)
-    assert main(["predict", "--model", str(model / "model.ts"), str(video), "--out",
-                 str(tmp_path / "out"), "--finger-colour", "orange"]) == 2
+    write_video(
+        video, [np.clip(background(SIZE, k), 0, 255).astype(np.uint8) for k in range(4)], 10
+    )
+    assert (
+        main(
+            [
+                "predict",
+                "--model",
+                str(model / "model.ts"),
+                str(video),
+                "--out",
+                str(tmp_path / "out"),
+                "--finger-colour",
+                "orange",
+            ]
+        )
+        == 2
+    )
     err = [line for line in capsys.readouterr().err.strip().splitlines() if "note:" not in line]
-    assert len(err) == 1 and err[0].startswith("finray predict: the finger was found in none of "
-                                               "the 4 frames of"), err
+    assert len(err) == 1 and err[0].startswith(
+        "finray predict: the finger was found in none of the 4 frames of"
+    ), err
     assert "--finger-colour" in err[0] and "--check" in err[0]
-    assert main(["predict", "--model", str(model / "model.ts"), str(video), "--out",
-                 str(tmp_path / "out"), "--segmentation", "colour"]) == 2
+    assert (
+        main(
+            [
+                "predict",
+                "--model",
+                str(model / "model.ts"),
+                str(video),
+                "--out",
+                str(tmp_path / "out"),
+                "--segmentation",
+                "colour",
+            ]
+        )
+        == 2
+    )
     assert "no finger colour could be learned" in capsys.readouterr().err
 
 
@@ -103,15 +149,41 @@ def test_a_mask_filling_the_frame_is_flagged(model, tmp_path, capsys):
     a column of forces.csv and a warning with the count; the learned colour: none."""
     video = tmp_path / "take.mp4"
     write_video(video, [frame(d)[0] for d in (0.0, 1.0, 2.0)], 10)
-    assert main(["predict", "--model", str(model / "model.ts"), str(video), "--out",
-                 str(tmp_path / "grey"), "--segmentation", "grey", "--force-only"]) == 0
+    assert (
+        main(
+            [
+                "predict",
+                "--model",
+                str(model / "model.ts"),
+                str(video),
+                "--out",
+                str(tmp_path / "grey"),
+                "--segmentation",
+                "grey",
+                "--force-only",
+            ]
+        )
+        == 0
+    )
     rows = list(csv.DictReader(open(tmp_path / "grey" / "forces.csv")))
     assert len(rows) == 3 and all("fills_frame" in r["valid"] for r in rows)
     io = capsys.readouterr()
     assert "finray predict: warning: 3 of 3 frames flagged" in io.err and "fills_frame 3" in io.err
     assert io.out.count("\tNOT VALID: fills_frame") == 3  # each frame's line says so too
-    assert main(["predict", "--model", str(model / "model.ts"), str(video), "--out",
-                 str(tmp_path / "auto"), "--force-only"]) == 0
+    assert (
+        main(
+            [
+                "predict",
+                "--model",
+                str(model / "model.ts"),
+                str(video),
+                "--out",
+                str(tmp_path / "auto"),
+                "--force-only",
+            ]
+        )
+        == 0
+    )
     rows = list(csv.DictReader(open(tmp_path / "auto" / "forces.csv")))
     assert [r["valid"] for r in rows] == ["ok"] * 3
     io = capsys.readouterr()
@@ -125,8 +197,7 @@ def test_a_mask_filling_the_frame_is_flagged(model, tmp_path, capsys):
 def test_clutter_of_the_fingers_colour_is_flagged(model, tmp_path, capsys):
     """A second object of the finger's colour in view: the finger is still the one kept,
     but the frame is flagged low_confidence; the annotated frame gets a red border."""
-    p = Predictor(model / "model.ts", backend="torchscript",
-                  finder=finder_from_spec("orange"))
+    p = Predictor(model / "model.ts", backend="torchscript", finder=finder_from_spec("orange"))
     clean, truth = frame(1.0)
     mask, conf = p.find(clean)
     assert p.check(mask, conf, p.network_input(mask), p.forces(clean)) == []
@@ -137,8 +208,22 @@ def test_clutter_of_the_fingers_colour_is_flagged(model, tmp_path, capsys):
     from PIL import Image
 
     Image.fromarray(cluttered).save(tmp_path / "cluttered.png")
-    assert main(["predict", "--model", str(model / "model.ts"), str(tmp_path / "cluttered.png"),
-                 "--out", str(tmp_path / "out"), "--finger-colour", "orange", "--annotate"]) == 0
+    assert (
+        main(
+            [
+                "predict",
+                "--model",
+                str(model / "model.ts"),
+                str(tmp_path / "cluttered.png"),
+                "--out",
+                str(tmp_path / "out"),
+                "--finger-colour",
+                "orange",
+                "--annotate",
+            ]
+        )
+        == 0
+    )
     assert "low_confidence 1 (much of the finger's colour lies outside" in capsys.readouterr().err
     ann = np.asarray(Image.open(tmp_path / "out" / "cluttered_annotated.png"))
     assert (ann[SIZE[0] // 2, 0] == (255, 40, 40)).all()  # the red border
@@ -196,7 +281,9 @@ def test_the_stress_reference_saved_with_the_model_labels_the_colour_bar(model, 
         r = min(max(int(round(row)), int(0.12 * H)), int(0.88 * H) - 1)  # on the ramp
         bar = panel[r, 18].astype(int)
         shown = int(np.argmin(((lut - bar) ** 2).sum(axis=1)))
-        want = round(float(stress_log(t, p.stress_ref_MPa)) / stress_log_max(p.stress_ref_MPa) * 255)
+        want = round(
+            float(stress_log(t, p.stress_ref_MPa)) / stress_log_max(p.stress_ref_MPa) * 255
+        )
         assert abs(shown - want) <= 3, (t, shown, want)
     # the 1 kPa labels would sit elsewhere: 0.1 MPa at 67 % of the bar, not 52 %
     assert abs(float(stress_log(0.1)) / stress_log_max() - 0.667) < 0.01
@@ -234,18 +321,27 @@ def test_the_emulated_rig_draws_clutter_that_the_finder_flags(tmp_path):
     from finray.render.result import load_fea_result
     from test_render_fixture import write_synthetic_fea_result
 
-    res = load_fea_result(write_synthetic_fea_result(tmp_path / "result.npz", n_frames=3,
-                                                     max_displacement_mm=2.0, size_mm=1.0))
+    res = load_fea_result(
+        write_synthetic_fea_result(
+            tmp_path / "result.npz", n_frames=3, max_displacement_mm=2.0, size_mm=1.0
+        )
+    )
     look = dict(load_config("config/smoke.yaml")["lab"]["scene"])
-    cam = PinholeCamera.looking_at((5.0, 38.0, 0.0), width=320, height=240, hfov_deg=69.4,
-                                   distance_mm=200)
+    cam = PinholeCamera.looking_at(
+        (5.0, 38.0, 0.0), width=320, height=240, hfov_deg=69.4, distance_mm=200
+    )
     outline = res.object_points_mm[0].astype(float)
     views = {}
-    for name, clutter in (("plain", []),
-                          ("clutter", [{"kind": "object", "centre_mm": [65.0, 40.0],
-                                        "size_mm": [14.0, 20.0]},
-                                       {"kind": "hand", "centre_mm": [-45.0, 75.0],
-                                        "size_mm": [40.0, 25.0]}])):
+    for name, clutter in (
+        ("plain", []),
+        (
+            "clutter",
+            [
+                {"kind": "object", "centre_mm": [65.0, 40.0], "size_mm": [14.0, 20.0]},
+                {"kind": "hand", "centre_mm": [-45.0, 75.0], "size_mm": [40.0, 25.0]},
+            ],
+        ),
+    ):
         with LabScene(res.mesh, outline, cam, look | {"clutter": clutter}, 20.0) as scene:
             scene.pose(res.deformed_points(0), 0.0)
             views[name] = (scene.render_colour().copy(), scene.render_mask().copy())
@@ -254,7 +350,7 @@ def test_the_emulated_rig_draws_clutter_that_the_finder_flags(tmp_path):
     box = cam.project(np.array([[58.0, 30.0, 10.0], [72.0, 50.0, 10.0]]))
     c0, c1 = sorted(box[:, 0].astype(int))
     r0, r1 = sorted(box[:, 1].astype(int))
-    patch = cluttered[r0 + 2:r1 - 2, c0 + 2:c1 - 2].reshape(-1, 3).astype(int)
+    patch = cluttered[r0 + 2 : r1 - 2, c0 + 2 : c1 - 2].reshape(-1, 3).astype(int)
     assert (patch[:, 0] > patch[:, 2] + 60).mean() > 0.9  # the finger's orange
     finder = finder_from_spec("orange", stride=2)
     mask, conf = finder.find(plain)
@@ -291,21 +387,37 @@ def test_a_trained_model_saves_its_stress_reference_and_ranges(tmp_path, monkeyp
     images = np.zeros((n, 1, 32, 16), "f4")
     images[:, :, 4:, 3:11] = 1.0
     force = rng.uniform(0.5, 6.0, (n, 1)).astype("f4")
-    fake = {"images": images, "stress": np.zeros_like(images), "force_N": force,
-            "contact_mm": np.full(n, np.nan, "f4"),
-            "scene_id": np.repeat([f"s{k}" for k in range(8)], n // 8)}
+    fake = {
+        "images": images,
+        "stress": np.zeros_like(images),
+        "force_N": force,
+        "contact_mm": np.full(n, np.nan, "f4"),
+        "scene_id": np.repeat([f"s{k}" for k in range(8)], n // 8),
+    }
     monkeypatch.setattr(stage, "load_split", lambda *a, **k: fake)
-    np.savez(tmp_path / "shard.npz", meta=np.array(json.dumps({"render": {"stress_ref_MPa": 0.004}})))
-    stage.train_from_shards([tmp_path / "shard.npz"], tmp_path / "out",
-                            NetConfig(in_channels=1, height=32, width=16, base_channels=4),
-                            TrainConfig(epochs=1, batch_size=16, contact_weight=0.0, threads=1,
-                                        progress=False), None, 0.25, log=lambda m: None)
+    np.savez(
+        tmp_path / "shard.npz", meta=np.array(json.dumps({"render": {"stress_ref_MPa": 0.004}}))
+    )
+    stage.train_from_shards(
+        [tmp_path / "shard.npz"],
+        tmp_path / "out",
+        NetConfig(in_channels=1, height=32, width=16, base_channels=4),
+        TrainConfig(epochs=1, batch_size=16, contact_weight=0.0, threads=1, progress=False),
+        None,
+        0.25,
+        log=lambda m: None,
+    )
     meta = json.loads((tmp_path / "out" / "model.ts.json").read_text())
     assert meta["stress_ref_MPa"] == 0.004
     train_ids = ~np.isin(fake["scene_id"], list(stage.validation_scenes(fake["scene_id"], 0.25, 0)))
     lo, hi = meta["trained"]["force_N"]["fx_N"]
-    assert lo == pytest.approx(force[train_ids].min()) and hi == pytest.approx(force[train_ids].max())
-    assert meta["trained"]["fill"] == pytest.approx([28 / 32 * 8 / 16] * 2) and meta["trained"]["shape_iou_min"] == 1.0
+    assert lo == pytest.approx(force[train_ids].min()) and hi == pytest.approx(
+        force[train_ids].max()
+    )
+    assert (
+        meta["trained"]["fill"] == pytest.approx([28 / 32 * 8 / 16] * 2)
+        and meta["trained"]["shape_iou_min"] == 1.0
+    )
     assert len(meta["force_normalisation"]["mean_N"]) == 1
     p = Predictor(tmp_path / "out" / "model.ts", backend="torchscript")
     assert p.stress_ref_MPa == 0.004 and p.trained == meta["trained"] and p.notes == []
@@ -321,8 +433,12 @@ def test_check_reports_the_mask_and_validity_of_a_few_frames(model, tmp_path, ca
     out = capsys.readouterr().out.strip().splitlines()
     assert out[0].startswith("finger found by colour")
     frames = [line for line in out if line.startswith("take_")]
-    assert [f.split("\t")[0] for f in frames] == ["take_00000", "take_00003", "take_00006",
-                                                  "take_00009"]
+    assert [f.split("\t")[0] for f in frames] == [
+        "take_00000",
+        "take_00003",
+        "take_00006",
+        "take_00009",
+    ]
     assert all(f.endswith("\tok") for f in frames) and out[-1].startswith("set-up OK: 4 of 4")
     assert (tmp_path / "good" / "check.png").is_file()
     assert main([*args, "--out", str(tmp_path / "bad"), "--segmentation", "grey"]) == 1

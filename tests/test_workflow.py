@@ -1,4 +1,5 @@
 """The Snakemake DAG on the smoke config: lint, dry run of the full config, a real run."""
+
 import json
 import subprocess
 import sys
@@ -35,12 +36,16 @@ def test_dry_run_full_config_plans_every_object_and_height():
     for name in full["objects"]:
         for h in object_heights(full, name):
             assert f"results/geometry/objects/{name}_h{h:g}.npz" in planned
-    assert sum("results/geometry/objects/" in p and p.endswith(".npz") for p in planned) == n_objects
+    assert (
+        sum("results/geometry/objects/" in p and p.endswith(".npz") for p in planned) == n_objects
+    )
 
 
 def test_bad_config_stops_before_any_job(tmp_path):
     bad = tmp_path / "bad.yaml"
-    bad.write_text("objects:\n  c: {type: circle, diameter_mm: 5}\nfinger: {base_thickness_mm: -2}\n")
+    bad.write_text(
+        "objects:\n  c: {type: circle, diameter_mm: 5}\nfinger: {base_thickness_mm: -2}\n"
+    )
     r = snakemake("-n", "--configfile", str(bad))
     assert r.returncode != 0
     assert "finger.base_thickness_mm" in r.stderr
@@ -49,8 +54,15 @@ def test_bad_config_stops_before_any_job(tmp_path):
 @pytest.fixture(scope="module")
 def smoke_run(tmp_path_factory):
     work = tmp_path_factory.mktemp("smoke")
-    r = snakemake("--cores", "2", "--configfile", str(ROOT / "config" / "smoke.yaml"),
-                  "--directory", str(work), cwd=work)
+    r = snakemake(
+        "--cores",
+        "2",
+        "--configfile",
+        str(ROOT / "config" / "smoke.yaml"),
+        "--directory",
+        str(work),
+        cwd=work,
+    )
     assert r.returncode == 0, r.stderr[-3000:]
     return work
 
@@ -103,7 +115,11 @@ def test_smoke_dataset_and_training(smoke_run):
     # the FEA's contact heights reach the shards (NaN at rest), on the finger's face
     assert man.contact_y_mm.notna().any() and man.contact_y_mm.dropna().between(0, 85).all()
     # train.epochs is 2; the occlusion model is fine-tuned from plain's weights for its own 1
-    for model, epochs, start in (("plain", 2, None), ("occlusion", 1, "plain"), ("camera", 2, None)):
+    for model, epochs, start in (
+        ("plain", 2, None),
+        ("occlusion", 1, "plain"),
+        ("camera", 2, None),
+    ):
         d = smoke_run / "results" / "train" / model
         hist = json.loads((d / "history.json").read_text())
         assert len(hist["train_loss"]) == epochs and np.isfinite(hist["train_loss"]).all()
@@ -121,10 +137,18 @@ def test_smoke_spread(smoke_run):
     (training is deterministic), so its figures are the run's own. The training-budget
     study beside it: its default point is the spread's seed 0, its point f2 trains on
     every other frame."""
-    r = snakemake("--cores", "2", "--configfile", str(ROOT / "config" / "smoke.yaml"),
-                  "--directory", str(smoke_run), "results/evaluate/spread/summary.json",
-                  "results/benchmarks/training_budget.md", "results/evaluate/spread/rigs/summary.json",
-                  cwd=smoke_run)
+    r = snakemake(
+        "--cores",
+        "2",
+        "--configfile",
+        str(ROOT / "config" / "smoke.yaml"),
+        "--directory",
+        str(smoke_run),
+        "results/evaluate/spread/summary.json",
+        "results/benchmarks/training_budget.md",
+        "results/evaluate/spread/rigs/summary.json",
+        cwd=smoke_run,
+    )
     assert r.returncode == 0, r.stderr[-3000:]
     spread = smoke_run / "results" / "evaluate" / "spread"
     s = json.loads((spread / "summary.json").read_text())
@@ -133,8 +157,12 @@ def test_smoke_spread(smoke_run):
     f = s["figures"]
     for model in ("plain", "camera"):
         shape = f[f"shape | all | {model} | force NRMSE %"]
-        assert shape["s0_auto"] == pytest.approx(run["experiments"]["shape"]["all"][model]["all"]["nrmse_pct"])
-        assert shape["min"] <= shape["mean"] <= shape["max"] and shape["s1_auto"] != shape["s0_auto"]
+        assert shape["s0_auto"] == pytest.approx(
+            run["experiments"]["shape"]["all"][model]["all"]["nrmse_pct"]
+        )
+        assert (
+            shape["min"] <= shape["mean"] <= shape["max"] and shape["s1_auto"] != shape["s0_auto"]
+        )
     vp = f["viewpoint | 30 | camera | force NRMSE %"]
     assert vp["s0_auto"] == pytest.approx(run["viewpoint"]["nrmse_pct"]["camera"]["30"])
     cov = f["sim2real | 1 context | coverage %"]
@@ -146,7 +174,9 @@ def test_smoke_spread(smoke_run):
     b = json.loads((smoke_run / "results" / "benchmarks" / "training_budget.json").read_text())
     assert b["points"] == {"default": {}, "f2": {"epochs": 1, "frame_every": 2}}
     shape = b["figures"]["shape | all | camera | force NRMSE %"]
-    assert shape["default"]["mean"] == pytest.approx(f["shape | all | camera | force NRMSE %"]["s0_auto"])
+    assert shape["default"]["mean"] == pytest.approx(
+        f["shape | all | camera | force NRMSE %"]["s0_auto"]
+    )
     assert shape["f2"]["n"] == 1 and shape["f2"]["mean"] != shape["default"]["mean"]
     assert sorted(p.name for p in (spread / "s1_auto" / "train").iterdir()) == ["camera", "plain"]
     assert s["runs"]["s1_auto"]["camera"]["precision"] in ("float32", "bfloat16")
@@ -160,7 +190,9 @@ def test_smoke_spread(smoke_run):
     assert (smoke_run / "results" / "benchmarks" / "training_budget.png").stat().st_size > 1000
     # the rigs over the variants: seed 0's are the run's own rigs' figures
     rigs = json.loads((spread / "rigs" / "summary.json").read_text())
-    own = json.loads((smoke_run / "results" / "evaluate" / "sim2real" / "rigs" / "summary.json").read_text())
+    own = json.loads(
+        (smoke_run / "results" / "evaluate" / "sim2real" / "rigs" / "summary.json").read_text()
+    )
     assert rigs["emulated"] and rigs["acceptance"]["rigs"] == own["rigs"] == ["default", "rig1"]
     for k, e in enumerate(own["per_rig"]["rig1"]["nrmse_pct"]):
         got = rigs["figures"][f"sim2real rigs | rig1 | {k} context | NRMSE %"]
@@ -209,7 +241,9 @@ def test_smoke_evaluation_summary_and_paper(smoke_run):
     assert set(exps) == {"shape", "material", "occlusion", "pitch", "viewpoint"}
     shape = exps["shape"]["all"]["plain"]["all"]
     assert shape["mse_N2"] == pytest.approx(shape["rmse_N"] ** 2, rel=1e-6)
-    assert shape["nrmse_pct"] == pytest.approx(100 * shape["rmse_N"] / shape["max_true_N"], rel=1e-6)
+    assert shape["nrmse_pct"] == pytest.approx(
+        100 * shape["rmse_N"] / shape["max_true_N"], rel=1e-6
+    )
     assert shape["r2"] <= 1 and np.isfinite(shape["stress_mse_log"]) and -1 <= shape["ssim"] <= 1
     assert set(exps["shape"]["all"]) == {"plain", "camera", "occlusion", "pitch", "baseline"}
     assert shape["fy_nrmse_pct"] > 0 and shape["mag_nrmse_pct"] > 0  # the force vector
@@ -217,7 +251,9 @@ def test_smoke_evaluation_summary_and_paper(smoke_run):
     vp = s["viewpoint"]
     assert set(vp["nrmse_pct"]) == {"plain", "pitch", "camera", "baseline"}
     assert [float(p) for p in vp["nrmse_pct"]["camera"]] == [0, 5, 10, 15, 20, 25, 30]
-    assert vp["distances_mm"] == [200.0, 350.0] and vp["n_frames_per_pitch"] == 2 * 2 * 2  # heights, distances, frames
+    assert (
+        vp["distances_mm"] == [200.0, 350.0] and vp["n_frames_per_pitch"] == 2 * 2 * 2
+    )  # heights, distances, frames
     assert set(s["camera_model"]) == {"shape", "material"}
     assert list(exps["occlusion"]) == ["none", "low", "medium", "high"]
     assert set(exps["occlusion"]["high"]) == {"plain", "occlusion", "baseline"}
@@ -231,9 +267,12 @@ def test_smoke_evaluation_summary_and_paper(smoke_run):
     for exp in ("shape", "material"):
         m = pd.read_csv(smoke_run / "results" / "evaluate" / exp / "metrics.csv")
         cam = m[(m["path"] == "camera") & (m["group"] == "all")].set_index("predictor")
-        same = m[(m["path"] == "shard") & (m["frames"] == "rendered") & (m["group"] == "all")
-                 ].set_index("predictor")
-        models = {"plain", "camera", "occlusion", "pitch"} if exp == "shape" else {"plain", "camera"}
+        same = m[
+            (m["path"] == "shard") & (m["frames"] == "rendered") & (m["group"] == "all")
+        ].set_index("predictor")
+        models = (
+            {"plain", "camera", "occlusion", "pitch"} if exp == "shape" else {"plain", "camera"}
+        )
         assert set(cam.index) == models | {"baseline"} and (cam["n"] > 0).all()
         assert (cam["n"] == same["n"]).all()
         assert exps[exp]["all"]["plain"]["camera"]["all"]["n"] == cam.loc["plain", "n"]
@@ -246,13 +285,22 @@ def test_smoke_evaluation_summary_and_paper(smoke_run):
     for f in r["fits"]:
         d = f["diagnostics"]
         # gain and offset held at 1 and 0 (their prior sd 0): the noise terms are sampled
-        assert d["steps"] >= d["walkers"] and set(d["tau_steps"]) == {"log_sigma_N", "log_rho",
-                                                                      "log_kappa", "log_nu"}
+        assert d["steps"] >= d["walkers"] and set(d["tau_steps"]) == {
+            "log_sigma_N",
+            "log_rho",
+            "log_kappa",
+            "log_nu",
+        }
     # the no-context intervals' rig gain: the rig prior's FEA (one scene in the smoke config)
-    prior = json.loads((smoke_run / "results" / "evaluate" / "sim2real" / "rig_prior" / "rig_prior.json")
-                       .read_text())
+    prior = json.loads(
+        (
+            smoke_run / "results" / "evaluate" / "sim2real" / "rig_prior" / "rig_prior.json"
+        ).read_text()
+    )
     assert set(prior["gains"]) == {"circle_d10_h20"} and len(prior["gains"]["circle_d10_h20"]) == 5
-    assert prior["gains"]["circle_d10_h20"]["t0.15"] > prior["gains"]["circle_d10_h20"]["t0.075"] > 1
+    assert (
+        prior["gains"]["circle_d10_h20"]["t0.15"] > prior["gains"]["circle_d10_h20"]["t0.075"] > 1
+    )
     assert prior["gains"]["circle_d10_h20"]["mu0.6"] > 1 and prior["gain_log_sd"] > 0
     assert r["config"]["rig_prior"]["gain_log_mean"] == prior["gain_log_mean"]
     m = pd.read_csv(smoke_run / "results" / "evaluate" / "sim2real" / "metrics.csv")
@@ -260,12 +308,21 @@ def test_smoke_evaluation_summary_and_paper(smoke_run):
     assert one["n"] == r["by_context"]["1"]["n_frames"] and 0 <= one["coverage_pct"] <= 100
     assert (smoke_run / "results" / "evaluate" / "sim2real" / "corner.pdf").stat().st_size > 1000
     # sim-to-real on the smoke config's one drawn emulated rig, beside the configured one
-    rigs = json.loads((smoke_run / "results" / "evaluate" / "sim2real" / "rigs" / "summary.json").read_text())
+    rigs = json.loads(
+        (smoke_run / "results" / "evaluate" / "sim2real" / "rigs" / "summary.json").read_text()
+    )
     assert rigs["emulated"] and rigs["rigs"] == ["default", "rig1"]
     assert set(rigs["by_context"]) == set(r["by_context"])
     assert "emulated" in rigs["settings"]["rig1"]["camera"]["model"]
-    for name in ("shape_generalisation", "material_generalisation", "occlusion", "viewpoint", "speed",
-                 "sim2real", "sim2real_rigs"):
+    for name in (
+        "shape_generalisation",
+        "material_generalisation",
+        "occlusion",
+        "viewpoint",
+        "speed",
+        "sim2real",
+        "sim2real_rigs",
+    ):
         for ext in ("pdf", "png"):
             assert (smoke_run / "paper" / "figures" / f"{name}.{ext}").stat().st_size > 1000
     html = (smoke_run / "paper" / "manuscript.html").read_text()
@@ -277,8 +334,9 @@ def test_smoke_evaluation_summary_and_paper(smoke_run):
 
     full = json.loads((ROOT / "tests" / "data" / "summary_full.json").read_text())
     full = {k: v for k, v in full.items() if k not in STUDY_NODES}
-    assert key_structure({k: v for k, v in s.items() if k not in STUDY_NODES}) == key_structure(full), \
-        "tests/data/summary_full.json is stale: refresh it with tests/data/make_summary_full.py"
+    assert key_structure({k: v for k, v in s.items() if k not in STUDY_NODES}) == key_structure(
+        full
+    ), "tests/data/summary_full.json is stale: refresh it with tests/data/make_summary_full.py"
     assert f"{shape['nrmse_pct']:.1f} %" in html
     assert 'src="figures/shape_generalisation.png"' in html
     assert "Through the camera path" in html
@@ -293,8 +351,18 @@ def test_smoke_calibrate_and_predict_a_take(smoke_run, tmp_path, capsys):
 
     take = smoke_run / "results" / "lab" / "cylinder_h30"
     out = tmp_path / "rig" / "calibration.json"
-    rc = main(["calibrate", str(take), "--model", str(smoke_run / "results" / "train" / "camera" / "model.pt"),
-               "--out", str(out), "--config", str(ROOT / "config" / "smoke.yaml")])
+    rc = main(
+        [
+            "calibrate",
+            str(take),
+            "--model",
+            str(smoke_run / "results" / "train" / "camera" / "model.pt"),
+            "--out",
+            str(out),
+            "--config",
+            str(ROOT / "config" / "smoke.yaml"),
+        ]
+    )
     cal, printed = json.loads(out.read_text()), capsys.readouterr().out
     # the smoke network barely varies on the take, so the chain may not converge: then
     # calibrate says so and exits 1, writing everything
@@ -304,23 +372,46 @@ def test_smoke_calibrate_and_predict_a_take(smoke_run, tmp_path, capsys):
     assert "gain: 1 (fixed)" in printed and "offset_N: 0 (fixed)" in printed
     assert cal["model"] == "calibration.model.ts" and len(cal["posterior"]["samples"]) > 0
     assert (tmp_path / "rig" / "calibration.corner.png").stat().st_size > 1000
-    rc = main(["predict", "--calibration", str(out), str(take / "take.mp4"), "--out", str(tmp_path / "pred"),
-               "--force-only"])
+    rc = main(
+        [
+            "predict",
+            "--calibration",
+            str(out),
+            str(take / "take.mp4"),
+            "--out",
+            str(tmp_path / "pred"),
+            "--force-only",
+        ]
+    )
     assert rc == 0
     f = pd.read_csv(tmp_path / "pred" / "forces.csv")
     shard = pd.read_csv(smoke_run / "results" / "lab" / "ingest" / "cylinder_h30" / "frames.csv")
-    assert len(f) == len(shard) and (f["lo_N"] <= f["force_N"]).all() and (f["force_N"] <= f["hi_N"]).all()
+    assert (
+        len(f) == len(shard)
+        and (f["lo_N"] <= f["force_N"]).all()
+        and (f["force_N"] <= f["hi_N"]).all()
+    )
 
 
 def test_one_figure_builds_only_what_it_needs(tmp_path):
     """`snakemake paper/figures/shape_generalisation.pdf` plans the models it compares
     (all four on the held-out shapes) and the shape evaluation, not the other
     experiments or figures."""
-    r = snakemake("-n", "--configfile", str(ROOT / "config" / "smoke.yaml"), "--directory",
-                  str(tmp_path), "paper/figures/shape_generalisation.pdf", cwd=tmp_path)
+    r = snakemake(
+        "-n",
+        "--configfile",
+        str(ROOT / "config" / "smoke.yaml"),
+        "--directory",
+        str(tmp_path),
+        "paper/figures/shape_generalisation.pdf",
+        cwd=tmp_path,
+    )
     assert r.returncode == 0, r.stderr
-    jobs = dict(line.split()[:2] for line in r.stdout.splitlines()
-                if len(line.split()) == 2 and line.split()[1].isdigit())
+    jobs = dict(
+        line.split()[:2]
+        for line in r.stdout.splitlines()
+        if len(line.split()) == 2 and line.split()[1].isdigit()
+    )
     assert jobs["train_model"] == "4" and jobs["evaluate_experiment"] == "1"
     assert jobs["figure_shape_generalisation"] == "1"
     assert not {"figure_speed", "summary", "manuscript", "fea_pareto"} & set(jobs)
@@ -328,22 +419,40 @@ def test_one_figure_builds_only_what_it_needs(tmp_path):
 
 #: each study's own target (studies/<name>/) and rules whose jobs only the studies plan
 STUDY_RULES = {
-    "fea_cost": {"fea_pareto"}, "fea_stability": {"fea_stability"},
+    "fea_cost": {"fea_pareto"},
+    "fea_stability": {"fea_stability"},
     "fea_sweep": {"fea_sweep_batch", "fea_sweep_summary"},
-    "render_throughput": {"render_benchmark"}, "network_size": {"train_pareto"},
+    "render_throughput": {"render_benchmark"},
+    "network_size": {"train_pareto"},
     "realtime": {"realtime_benchmark"},
-    "seeds": {"spread_train", "spread_experiment", "spread_sim2real", "spread_summary", "spread_rigs"},
+    "seeds": {
+        "spread_train",
+        "spread_experiment",
+        "spread_sim2real",
+        "spread_summary",
+        "spread_rigs",
+    },
     "training_budget": {"spread_train", "training_budget"},
 }
 
 
 def _planned(tmp_path, *targets):
     """The rules a dry run of the smoke config plans for ``targets`` (none: rule all)."""
-    r = snakemake("-n", "--configfile", str(ROOT / "config" / "smoke.yaml"), "--directory",
-                  str(tmp_path), *targets, cwd=tmp_path)
+    r = snakemake(
+        "-n",
+        "--configfile",
+        str(ROOT / "config" / "smoke.yaml"),
+        "--directory",
+        str(tmp_path),
+        *targets,
+        cwd=tmp_path,
+    )
     assert r.returncode == 0, r.stderr
-    return {line.split()[0] for line in r.stdout.splitlines()
-            if len(line.split()) == 2 and line.split()[1].isdigit()}
+    return {
+        line.split()[0]
+        for line in r.stdout.splitlines()
+        if len(line.split()) == 2 and line.split()[1].isdigit()
+    }
 
 
 def test_default_run_plans_no_study_and_each_study_has_its_target(tmp_path):
@@ -379,8 +488,16 @@ def test_pitch_augmentation_matches_the_pitched_renders(smoke_run):
     geo = pitch_geometry(cfg["dataset"], cfg["render"], 128, cfg["finger"]["extrusion_mm"])
     for pitch in (10, 30):
         true = load_shard(series[0].with_name(f"p{pitch}.npz"))["input_128x64"] >= 128
-        aug = pitch_silhouette(x0, torch.full((len(x0),), float(pitch)), geo["mm_per_px"],
-                               geo["pitch_centre_row"], geo["extrusion_mm"])[:, 0].numpy() >= 0.5
+        aug = (
+            pitch_silhouette(
+                x0,
+                torch.full((len(x0),), float(pitch)),
+                geo["mm_per_px"],
+                geo["pitch_centre_row"],
+                geo["extrusion_mm"],
+            )[:, 0].numpy()
+            >= 0.5
+        )
         iou = (aug & true).sum((1, 2)) / (aug | true).sum((1, 2))
         front = d0["input_128x64"] >= 128
         iou0 = (front & true).sum((1, 2)) / (front | true).sum((1, 2))

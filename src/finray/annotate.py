@@ -9,6 +9,7 @@ crop_box` places on the camera frame (pixel edges, rows down): each camera pixel
 finger's mask inside that window takes the map's value of the cell it falls in (nearest;
 vectorised), coloured on a fixed log scale so that a video's frames compare.
 """
+
 from __future__ import annotations
 
 import functools
@@ -63,8 +64,14 @@ def stress_cells(shape: tuple[int, int], box, map_shape: tuple[int, int]):
     return np.clip(i, 0, h - 1), np.clip(j, 0, w - 1), (i >= 0) & (i < h), (j >= 0) & (j < w)
 
 
-def overlay_stress(frame: np.ndarray, mask: np.ndarray, box, stress: np.ndarray,
-                   alpha: float = 0.65, vmax: float = STRESS_LOG_MAX) -> np.ndarray:
+def overlay_stress(
+    frame: np.ndarray,
+    mask: np.ndarray,
+    box,
+    stress: np.ndarray,
+    alpha: float = 0.65,
+    vmax: float = STRESS_LOG_MAX,
+) -> np.ndarray:
     """RGB (H, W, 3) uint8: ``frame`` (grey or RGB) with the log-stress map ``stress``
     (h, w) blended over the pixels of ``mask`` inside ``box``; pixels elsewhere keep the
     frame's values."""
@@ -73,21 +80,28 @@ def overlay_stress(frame: np.ndarray, mask: np.ndarray, box, stress: np.ndarray,
     return _overlay_into(rgb.astype(np.uint8, copy=True), mask, box, stress, alpha, vmax)
 
 
-def _overlay_into(rgb: np.ndarray, mask: np.ndarray, box, stress: np.ndarray, alpha: float,
-                  vmax: float) -> np.ndarray:
+def _overlay_into(
+    rgb: np.ndarray, mask: np.ndarray, box, stress: np.ndarray, alpha: float, vmax: float
+) -> np.ndarray:
     """:func:`overlay_stress` in place on ``rgb`` (H, W, 3) uint8 (returned)."""
     i, j, in_r, in_c = stress_cells(rgb.shape[:2], box, stress.shape)
     rows, cols = np.flatnonzero(in_r), np.flatnonzero(in_c)
     if not len(rows) or not len(cols):
         return rgb
-    sub = np.s_[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1]  # the window's part of the frame
+    sub = np.s_[rows[0] : rows[-1] + 1, cols[0] : cols[-1] + 1]  # the window's part of the frame
     # 8-bit fixed point (alpha in 256ths): the map's cells coloured once, each masked
     # pixel of the window blended with its cell's colour in one compiled pass (a third
     # of the time of numpy's passes over the whole window: docs/studies/realtime.md, the live loop)
     a = int(round(alpha * 256))
     cells = _lut()[np.clip(np.rint(stress / vmax * 255), 0, 255).astype(np.int64)]
-    _blend_cells(rgb[sub], np.asarray(mask, bool)[sub], cells.astype(np.uint16) * a + 128,
-                 i[rows], j[cols], 256 - a)
+    _blend_cells(
+        rgb[sub],
+        np.asarray(mask, bool)[sub],
+        cells.astype(np.uint16) * a + 128,
+        i[rows],
+        j[cols],
+        256 - a,
+    )
     return rgb
 
 
@@ -106,8 +120,9 @@ def _blend_cells(part, mask, colour, ci, cj, keep):  # pragma: no cover - compil
                     part[r, c, k] = (np.uint32(part[r, c, k]) * keep + cell[k]) >> 8
 
 
-def peak_front_point(mask: np.ndarray, box, stress: np.ndarray,
-                     clamp_frac: float = 0.12) -> tuple[int, int] | None:
+def peak_front_point(
+    mask: np.ndarray, box, stress: np.ndarray, clamp_frac: float = 0.12
+) -> tuple[int, int] | None:
     """(row, col) of the finger's front edge (its leftmost mask pixel) at the row of the
     map's largest stress above the clamp (the window's lowest ``clamp_frac``, where the
     base's stress peaks whatever the contact): where the arrow points (the contact)."""
@@ -121,8 +136,9 @@ def peak_front_point(mask: np.ndarray, box, stress: np.ndarray,
     return r, int(np.argmax(mask[r]))
 
 
-def contact_point(mask: np.ndarray, box, crop_y_mm: tuple[float, float],
-                  contact_mm: float) -> tuple[int, int] | None:
+def contact_point(
+    mask: np.ndarray, box, crop_y_mm: tuple[float, float], contact_mm: float
+) -> tuple[int, int] | None:
     """(row, col) of the finger's front edge (its leftmost mask pixel) at the height
     ``contact_mm`` (mm above the clamped base): the window ``box`` (pixel edges, rows
     down) spans ``crop_y_mm`` (its bottom edge at ``crop_y_mm[0]``), so a height is a row
@@ -153,18 +169,31 @@ def _draw_contact(canvas: np.ndarray, point: tuple[int, int], H: int) -> None:
     pad = 3 * rad + width
 
     def mark(draw, dx, dy):
-        draw.ellipse([c - rad - dx, r - rad - dy, c + rad - dx, r + rad - dy],
-                     outline=CONTACT_RGB, width=width)
-        draw.line([(c - 3 * rad - dx, r - dy), (c - rad - dx, r - dy)], fill=CONTACT_RGB,
-                  width=width)
+        draw.ellipse(
+            [c - rad - dx, r - rad - dy, c + rad - dx, r + rad - dy],
+            outline=CONTACT_RGB,
+            width=width,
+        )
+        draw.line(
+            [(c - 3 * rad - dx, r - dy), (c - rad - dx, r - dy)], fill=CONTACT_RGB, width=width
+        )
+
     _draw_on(canvas, (c - pad, r - pad, c + pad + 1, r + pad + 1), mark)
 
 
-def annotate_frame(frame: np.ndarray, mask: np.ndarray, box, stress: np.ndarray,
-                   forces: dict[str, float], calibrated: dict | None = None,
-                   label: str = "", crop_y_mm: tuple[float, float] | None = None,
-                   contact_min_force_N: float = 0.0, stress_ref_MPa: float = STRESS_REF_MPA,
-                   flags: list[str] | tuple = ()) -> np.ndarray:
+def annotate_frame(
+    frame: np.ndarray,
+    mask: np.ndarray,
+    box,
+    stress: np.ndarray,
+    forces: dict[str, float],
+    calibrated: dict | None = None,
+    label: str = "",
+    crop_y_mm: tuple[float, float] | None = None,
+    contact_min_force_N: float = 0.0,
+    stress_ref_MPa: float = STRESS_REF_MPA,
+    flags: list[str] | tuple = (),
+) -> np.ndarray:
     """The annotated frame (H, W + BAR_PX, 3) uint8: the stress overlay
     (:func:`overlay_stress`), the force arrow at the front edge (``fx_N`` along the push,
     to the right; ``fy_N`` across it, up), its magnitude, the calibrated force and its
@@ -194,32 +223,40 @@ def annotate_frame(frame: np.ndarray, mask: np.ndarray, box, stress: np.ndarray,
         head = max(6.0, H / 60)
         width = max(2, H // 240)
         lines = [[(c - scale * fx, r + scale * fy), (c, r)]]  # image rows grow down
-        lines += [[(c, r), (c + head * math.cos(ang + da), r + head * math.sin(ang + da))]
-                  for da in (2.6, -2.6)]
+        lines += [
+            [(c, r), (c + head * math.cos(ang + da), r + head * math.sin(ang + da))]
+            for da in (2.6, -2.6)
+        ]
         pts = np.array([p for line in lines for p in line])
 
         def arrow(draw, dx, dy):
             for line in lines:
                 draw.line([(x - dx, y - dy) for x, y in line], fill=(0, 255, 255), width=width)
+
         _draw_on(canvas, (*(pts.min(0) - width), *(pts.max(0) + width + 1)), arrow)
     text = [label] if label else []
-    text.append(f"|F| {mag:.2f} N  (fx {fx:.2f} N, fy {fy:.2f} N)" if "fy_N" in forces
-                else f"fx {fx:.2f} N")
+    text.append(
+        f"|F| {mag:.2f} N  (fx {fx:.2f} N, fy {fy:.2f} N)" if "fy_N" in forces else f"fx {fx:.2f} N"
+    )
     contact = forces.get("contact_mm")
     if contact is not None and math.isfinite(contact) and abs(fx) > contact_min_force_N:
         if crop_y_mm is None:
-            raise ValueError("a contact height needs crop_y_mm (the window's heights, mm) to be drawn")
+            raise ValueError(
+                "a contact height needs crop_y_mm (the window's heights, mm) to be drawn"
+            )
         point = contact_point(np.asarray(mask, bool), box, crop_y_mm, contact)
         if point is not None:
             _draw_contact(canvas, point, H)
         text[-1] += f"  contact {contact:.1f} mm"
     if calibrated:
-        text.append(f"calibrated {calibrated['force_N']:.2f} N, "
-                    f"{100 * calibrated['level']:.0f} % [{calibrated['lo_N']:.2f}, "
-                    f"{calibrated['hi_N']:.2f}] N")
+        text.append(
+            f"calibrated {calibrated['force_N']:.2f} N, "
+            f"{100 * calibrated['level']:.0f} % [{calibrated['lo_N']:.2f}, "
+            f"{calibrated['hi_N']:.2f}] N"
+        )
     if flags:
         b = max(3, H // 120)
-        for sub in (np.s_[:b, :W], np.s_[-b:, :W], np.s_[:, :b], np.s_[:, W - b:W]):
+        for sub in (np.s_[:b, :W], np.s_[-b:, :W], np.s_[:, :b], np.s_[:, W - b : W]):
             canvas[sub] = INVALID_RGB
         text.append("NOT VALID: " + ", ".join(flags))
     draw_text(canvas, (8, 6), "\n".join(text), max(12, H // 40))
@@ -242,15 +279,16 @@ def _glyph(ch: str, size: int, stroke: int) -> tuple[np.ndarray, np.ndarray, int
     adv = font.getlength(ch)
     img_w, img_h = int(math.ceil(adv)) + 2 * pad, _line_height(size, stroke) + 2 * pad
     outer, inner = Image.new("L", (img_w, img_h)), Image.new("L", (img_w, img_h))
-    ImageDraw.Draw(outer).text((pad, pad), ch, fill=255, font=font, stroke_width=stroke,
-                               stroke_fill=255)
+    ImageDraw.Draw(outer).text(
+        (pad, pad), ch, fill=255, font=font, stroke_width=stroke, stroke_fill=255
+    )
     ImageDraw.Draw(inner).text((pad, pad), ch, fill=255, font=font)
     outer, inner = np.asarray(outer, np.uint8), np.asarray(inner, np.uint8)
     rows, cols = np.flatnonzero(outer.any(axis=1)), np.flatnonzero(outer.any(axis=0))
     if not len(rows):
         return outer[:0, :0], inner[:0, :0], 0, 0, adv
     # trimmed to the ink: the padding was most of each patch
-    sub = np.s_[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1]
+    sub = np.s_[rows[0] : rows[-1] + 1, cols[0] : cols[-1] + 1]
     return outer[sub].copy(), inner[sub].copy(), int(cols[0]) - pad, int(rows[0]) - pad, adv
 
 
@@ -259,13 +297,15 @@ def _line_height(size: int, stroke: int) -> int:
     """Pillow's multi-line spacing (its ``multiline_text`` with ``spacing=4``)."""
     from PIL import Image, ImageDraw
 
-    box = ImageDraw.Draw(Image.new("L", (1, 1))).textbbox((0, 0), "A", font=_font(size),
-                                                           stroke_width=stroke)
+    box = ImageDraw.Draw(Image.new("L", (1, 1))).textbbox(
+        (0, 0), "A", font=_font(size), stroke_width=stroke
+    )
     return int(box[3]) + stroke + 4
 
 
-def draw_text(canvas: np.ndarray, xy: tuple[int, int], text: str, size: int,
-              stroke: int = TEXT_STROKE_PX) -> None:
+def draw_text(
+    canvas: np.ndarray, xy: tuple[int, int], text: str, size: int, stroke: int = TEXT_STROKE_PX
+) -> None:
     """White text with a black outline on ``canvas`` (H, W, 3) uint8 in place, lines
     down from the pen ``xy`` (x, y: px, the first line's top). Composed from cached
     glyphs (:func:`_glyph`), not drawn anew: at 30 frames a second Pillow's rendering of
@@ -288,7 +328,7 @@ def draw_text(canvas: np.ndarray, xy: tuple[int, int], text: str, size: int,
     outer_all = np.zeros((bottom - top, right - left), np.uint8)
     inner_all = np.zeros_like(outer_all)
     for r, c, outer, inner in pieces:
-        sub = np.s_[r - top:r - top + outer.shape[0], c - left:c - left + outer.shape[1]]
+        sub = np.s_[r - top : r - top + outer.shape[0], c - left : c - left + outer.shape[1]]
         np.maximum(outer_all[sub], outer, out=outer_all[sub])
         np.maximum(inner_all[sub], inner, out=inner_all[sub])
     # clip the text's box to the canvas
@@ -296,7 +336,7 @@ def draw_text(canvas: np.ndarray, xy: tuple[int, int], text: str, size: int,
     r0, c0, r1, c1 = max(top, 0), max(left, 0), min(bottom, H), min(right, W)
     if r1 <= r0 or c1 <= c0:
         return
-    sub = np.s_[r0 - top:r1 - top, c0 - left:c1 - left]
+    sub = np.s_[r0 - top : r1 - top, c0 - left : c1 - left]
     _compose_text(canvas[r0:r1, c0:c1], outer_all[sub], inner_all[sub])
 
 
@@ -324,7 +364,10 @@ def _draw_on(canvas: np.ndarray, box, draw_fn) -> None:
     from PIL import Image, ImageDraw
 
     x0, y0 = max(int(math.floor(box[0])), 0), max(int(math.floor(box[1])), 0)
-    x1, y1 = min(int(math.ceil(box[2])), canvas.shape[1]), min(int(math.ceil(box[3])), canvas.shape[0])
+    x1, y1 = (
+        min(int(math.ceil(box[2])), canvas.shape[1]),
+        min(int(math.ceil(box[3])), canvas.shape[0]),
+    )
     if x1 <= x0 or y1 <= y0:
         return
     patch = Image.fromarray(canvas[y0:y1, x0:x1])
@@ -360,8 +403,9 @@ def bar_tick_rows(H: int, stress_ref_MPa: float = STRESS_REF_MPA) -> dict[float,
     has the colour that :func:`overlay_stress` gives a map value of that stress."""
     top, bottom = int(0.12 * H), int(0.88 * H)
     vmax = stress_log_max(stress_ref_MPa)
-    return {t: bottom - float(stress_log(t, stress_ref_MPa)) / vmax * (bottom - top)
-            for t in TICKS_MPA}
+    return {
+        t: bottom - float(stress_log(t, stress_ref_MPa)) / vmax * (bottom - top) for t in TICKS_MPA
+    }
 
 
 def _colour_bar(draw, img, x0: int, H: int, font, stress_ref_MPa: float = STRESS_REF_MPA) -> None:
@@ -383,8 +427,9 @@ def display_missing() -> str | None:
     import os
     import sys
 
-    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY")
-                                                 or os.environ.get("WAYLAND_DISPLAY")):
+    if sys.platform.startswith("linux") and not (
+        os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
+    ):
         return "no display (DISPLAY and WAYLAND_DISPLAY unset)"
     return None
 
@@ -396,8 +441,9 @@ class Window:
     Raises :class:`RuntimeError` (one line) where no window can open; closing the window
     stops the drawing, not the run."""
 
-    def __init__(self, title: str = "finray predict", max_fps: float = 15.0,
-                 max_height_px: int = 900):
+    def __init__(
+        self, title: str = "finray predict", max_fps: float = 15.0, max_height_px: int = 900
+    ):
         import time
 
         why = display_missing()
@@ -407,6 +453,7 @@ class Window:
             import tkinter
 
             from PIL import ImageTk  # noqa: F401 - Pillow's Tk support, checked here
+
             self._root = tkinter.Tk()
         except Exception as exc:
             raise RuntimeError(f"cannot open a window ({str(exc).splitlines()[0]})") from None
@@ -449,15 +496,22 @@ def force_time_figure(rows: list[dict], path: str | Path, title: str = "") -> No
     t = np.array([r.get("t_s") if r.get("t_s") is not None else np.nan for r in rows], float)
     x, xlabel = (t, "time (s)") if np.isfinite(t).all() else (np.arange(len(rows)), "frame")
     contact = bool(rows) and "contact_mm" in rows[0]
-    fig, axes = plt.subplots(2 if contact else 1, 1, figsize=(7, 5 if contact else 3),
-                             sharex=True, squeeze=False)
+    fig, axes = plt.subplots(
+        2 if contact else 1, 1, figsize=(7, 5 if contact else 3), sharex=True, squeeze=False
+    )
     ax = axes[0, 0]
     for name in ("fx_N", "fy_N"):
         if rows and name in rows[0]:
             ax.plot(x, [r[name] for r in rows], lw=1, label=name.replace("_N", " (network)"))
     if rows and "force_N" in rows[0]:
-        ax.fill_between(x, [r["lo_N"] for r in rows], [r["hi_N"] for r in rows], alpha=0.3,
-                        color="C2", label=f"{100 * rows[0]['level']:.0f} % interval")
+        ax.fill_between(
+            x,
+            [r["lo_N"] for r in rows],
+            [r["hi_N"] for r in rows],
+            alpha=0.3,
+            color="C2",
+            label=f"{100 * rows[0]['level']:.0f} % interval",
+        )
         ax.plot(x, [r["force_N"] for r in rows], color="C2", lw=1, label="calibrated")
     ax.set_ylabel("force (N)")
     ax.legend(fontsize=7)

@@ -1,4 +1,5 @@
 """The ``finray`` command line. Lengths in mm, angles in degrees."""
+
 from __future__ import annotations
 
 import argparse
@@ -51,32 +52,56 @@ examples:
 def _add_object_options(p, object_help: str) -> None:
     """Options that describe one object (shared by geometry and simulate)."""
     p.add_argument("--object", choices=["circle", "square", "ring", "ellipse"], help=object_help)
-    p.add_argument("--object-file", type=Path,
-                   help="polygon: JSON list of [x, y] in mm around the reference point")
-    p.add_argument("--size-mm", type=float,
-                   help="circle/ring diameter, square side or ellipse width (mm)")
+    p.add_argument(
+        "--object-file",
+        type=Path,
+        help="polygon: JSON list of [x, y] in mm around the reference point",
+    )
+    p.add_argument(
+        "--size-mm", type=float, help="circle/ring diameter, square side or ellipse width (mm)"
+    )
     p.add_argument("--minor-mm", type=float, help="ellipse height before rotation (mm)")
     p.add_argument("--wall-mm", type=float, default=2.0, help="ring wall thickness (mm, default 2)")
-    p.add_argument("--angle-deg", type=float, default=0.0,
-                   help="rotation of the object about its reference point (deg, counter-clockwise)")
-    p.add_argument("--fillet-mm", type=float, default=None,
-                   help="corner fillet of squares and polygons (mm; squares default 0.5)")
+    p.add_argument(
+        "--angle-deg",
+        type=float,
+        default=0.0,
+        help="rotation of the object about its reference point (deg, counter-clockwise)",
+    )
+    p.add_argument(
+        "--fillet-mm",
+        type=float,
+        default=None,
+        help="corner fillet of squares and polygons (mm; squares default 0.5)",
+    )
 
 
 def _geometry_parser(sub) -> None:
-    p = sub.add_parser("geometry", help="build the finger mesh and place the objects",
-                       description=GEOMETRY_HELP,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--config", type=Path, default=None,
-                   help="YAML config (default: config/config.yaml of the source tree)")
+    p = sub.add_parser(
+        "geometry",
+        help="build the finger mesh and place the objects",
+        description=GEOMETRY_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument(
+        "--config",
+        type=Path,
+        default=None,
+        help="YAML config (default: config/config.yaml of the source tree)",
+    )
     p.add_argument("--out", type=Path, required=True, help="output directory")
     _add_object_options(p, "build only this object kind instead of the config's objects")
-    p.add_argument("--height-mm", type=float, action="append",
-                   help="contact height of the reference point (mm); repeat for several "
-                        "(default: the config's heights_mm)")
+    p.add_argument(
+        "--height-mm",
+        type=float,
+        action="append",
+        help="contact height of the reference point (mm); repeat for several "
+        "(default: the config's heights_mm)",
+    )
     p.add_argument("--mesh-size-mm", type=float, help="target element edge length (mm)")
-    p.add_argument("--deformable", action="store_true",
-                   help="mesh the object (default: rigid, boundary only)")
+    p.add_argument(
+        "--deformable", action="store_true", help="mesh the object (default: rigid, boundary only)"
+    )
     p.add_argument("--plot", action="store_true", help="also draw a PNG of each scene")
     p.set_defaults(func=_run_geometry)
 
@@ -151,12 +176,16 @@ def _run_geometry(args) -> int:
     out = _out_dir(args.out)
     summary = build_finger(cfg, out)
     q = summary["quality"]
-    print(f"finger: {q['n_triangles']} P{q['order']} triangles, {q['n_nodes']} nodes, "
-          f"min angle {q['min_angle_deg']:.1f} deg -> {out / 'finger.npz'}")
+    print(
+        f"finger: {q['n_triangles']} P{q['order']} triangles, {q['n_nodes']} nodes, "
+        f"min angle {q['min_angle_deg']:.1f} deg -> {out / 'finger.npz'}"
+    )
     finger = TriMesh.load(out / "finger.npz")
     placed = {}
     for name, spec in cfg["objects"].items():
-        deformable = args.deformable or any(not cfg["materials"][m]["rigid"] for m in spec["materials"])
+        deformable = args.deformable or any(
+            not cfg["materials"][m]["rigid"] for m in spec["materials"]
+        )
         for h in cfg["heights_mm"]:
             f = out / "objects" / f"{name}_h{h:g}.npz"
             obj = build_object(cfg, name, h, f, deformable)
@@ -166,8 +195,13 @@ def _run_geometry(args) -> int:
             if args.plot:
                 scene_figure(finger, obj, f.with_suffix(".png"))
     if one is None:
-        gallery(finger, placed, out / "gallery.pdf", out / "gallery.png",
-                {n: s["split"] for n, s in cfg["objects"].items()})
+        gallery(
+            finger,
+            placed,
+            out / "gallery.pdf",
+            out / "gallery.png",
+            {n: s["split"] for n, s in cfg["objects"].items()},
+        )
         print(f"gallery -> {out / 'gallery.pdf'}")
     return 0
 
@@ -184,19 +218,34 @@ examples:
 
 
 def _simulate_parser(sub) -> None:
-    p = sub.add_parser("simulate", help="simulate one object pushed into the finger (FEA)",
-                       description=SIMULATE_HELP,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--config", type=Path, default=None,
-                   help="YAML config for the finger, mesh, materials and solver "
-                        "(default: config/config.yaml of the source tree)")
+    p = sub.add_parser(
+        "simulate",
+        help="simulate one object pushed into the finger (FEA)",
+        description=SIMULATE_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument(
+        "--config",
+        type=Path,
+        default=None,
+        help="YAML config for the finger, mesh, materials and solver "
+        "(default: config/config.yaml of the source tree)",
+    )
     p.add_argument("--out", type=Path, required=True, help="output directory")
     _add_object_options(p, "object kind (or --object-file)")
-    p.add_argument("--height-mm", type=float, required=True, action="append",
-                   help="contact height of the object's reference point (mm; one: "
-                        "finray geometry places an object at several)")
-    p.add_argument("--material", default="steel",
-                   help="object material, a key of the config's materials (default steel: rigid)")
+    p.add_argument(
+        "--height-mm",
+        type=float,
+        required=True,
+        action="append",
+        help="contact height of the object's reference point (mm; one: "
+        "finray geometry places an object at several)",
+    )
+    p.add_argument(
+        "--material",
+        default="steel",
+        help="object material, a key of the config's materials (default steel: rigid)",
+    )
     p.add_argument("--mesh-size-mm", type=float, help="element edge length of the finger (mm)")
     p.add_argument("--no-vtu", action="store_true", help="skip the ParaView series")
     p.set_defaults(func=_run_simulate)
@@ -217,9 +266,11 @@ def _run_simulate(args) -> int:
     if one is None:
         raise UsageError("give --object or --object-file")
     if len(args.height_mm) > 1:
-        raise UsageError(f"--height-mm takes one height, got {len(args.height_mm)} "
-                         f"({', '.join(f'{h:g}' for h in args.height_mm)}): simulate each "
-                         "on its own (finray geometry places an object at several)")
+        raise UsageError(
+            f"--height-mm takes one height, got {len(args.height_mm)} "
+            f"({', '.join(f'{h:g}' for h in args.height_mm)}): simulate each "
+            "on its own (finray geometry places an object at several)"
+        )
     args.height_mm = args.height_mm[0]
     name, spec = one
     spec["materials"] = [args.material]
@@ -230,13 +281,25 @@ def _run_simulate(args) -> int:
     cfg = validate_config(raw, base_dir=Path.cwd())
     _out_dir(args.out)
     m = cfg["mesh"]
-    finger = mesh_finger(finger_from_config(cfg), m["size_mm"], m["min_angle_deg"], m["order"],
-                         m["arc_chord_mm"])
-    obj = object_geometry(name, cfg["objects"][name], finger_from_config(cfg), args.height_mm,
-                          m["size_mm"], object_is_meshed(cfg, name), cfg["placement"]["gap_mm"],
-                          m["min_angle_deg"])
-    scene = {"scene": f"{name}_{args.material}_h{args.height_mm:g}", "object": name,
-             "material": args.material, "height_mm": args.height_mm}
+    finger = mesh_finger(
+        finger_from_config(cfg), m["size_mm"], m["min_angle_deg"], m["order"], m["arc_chord_mm"]
+    )
+    obj = object_geometry(
+        name,
+        cfg["objects"][name],
+        finger_from_config(cfg),
+        args.height_mm,
+        m["size_mm"],
+        object_is_meshed(cfg, name),
+        cfg["placement"]["gap_mm"],
+        m["min_angle_deg"],
+    )
+    scene = {
+        "scene": f"{name}_{args.material}_h{args.height_mm:g}",
+        "object": name,
+        "material": args.material,
+        "height_mm": args.height_mm,
+    }
     # the solver's progress lines (frame k/n, travel, elapsed) on stderr
     logger = logging.getLogger("finray")
     progress, level = logging.StreamHandler(sys.stderr), logger.level
@@ -291,62 +354,112 @@ examples:
 
 
 def _predict_parser(sub) -> None:
-    p = sub.add_parser("predict", help="force and stress map from camera images",
-                       description=PREDICT_HELP,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--model", type=Path,
-                   help="exported model (model.ts, with model.ts.json beside it); with "
-                        "--calibration, its adapted model by default")
-    p.add_argument("--calibration", type=Path,
-                   help="calibration.json of finray calibrate: each frame's force also "
-                        "calibrated, with its predictive interval")
-    p.add_argument("source", help="image, folder of images, video, or a live source: a camera "
-                                  "device (/dev/video0, or its index 0) or a network stream "
-                                  "(rtsp://, udp://, tcp://, http:// ...), read until it ends or Ctrl-C")
+    p = sub.add_parser(
+        "predict",
+        help="force and stress map from camera images",
+        description=PREDICT_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument(
+        "--model",
+        type=Path,
+        help="exported model (model.ts, with model.ts.json beside it); with "
+        "--calibration, its adapted model by default",
+    )
+    p.add_argument(
+        "--calibration",
+        type=Path,
+        help="calibration.json of finray calibrate: each frame's force also "
+        "calibrated, with its predictive interval",
+    )
+    p.add_argument(
+        "source",
+        help="image, folder of images, video, or a live source: a camera "
+        "device (/dev/video0, or its index 0) or a network stream "
+        "(rtsp://, udp://, tcp://, http:// ...), read until it ends or Ctrl-C",
+    )
     p.add_argument("--out", type=Path, required=True, help="output directory")
     p.add_argument("--threads", type=int, default=1, help="intra-op threads (default 1)")
-    p.add_argument("--backend", choices=["auto", "onnx", "torchscript"], default="auto",
-                   help="network runtime: ONNX Runtime, TorchScript, or auto (ONNX Runtime "
-                        "when model.onnx is there; default)")
-    p.add_argument("--device", choices=["auto", "cpu", "cuda"], default="auto",
-                   help="where the network runs: auto (a CUDA GPU when torch sees one, else "
-                        "the CPU; default), cpu, or cuda (stops with one line without a GPU)")
-    p.add_argument("--force-only", action="store_true",
-                   help="forces (N) only, no stress maps (skips the stress decoder)")
-    p.add_argument("--show", action="store_true",
-                   help="also show the annotated frames in a window as they come (implies "
-                        "--annotate; where there is no display, one line says so and the "
-                        "files are written as without it)")
-    p.add_argument("--no-maps", dest="maps", action="store_false",
-                   help="no per-frame stress map files (a long video or a stream; "
-                        "--annotate still draws the maps)")
-    p.add_argument("--overwrite", action="store_true",
-                   help="replace an earlier run's forces.csv and stress maps in --out (refused "
-                        "without it)")
-    p.add_argument("--annotate", action="store_true",
-                   help="also each frame with its stress map drawn over the finger (MPa, log "
-                        "scale), the force arrow (N) and the calibrated force: "
-                        "<name>_annotated.png, for a video annotated.mp4; and forces.png, the "
-                        "force against time")
-    p.add_argument("--segmentation", choices=["auto", "colour", "grey"], default="auto",
-                   help="how the finger is found: auto (its colour learned from the first "
-                        "frames, or the grey-level threshold of the renders where that finds "
-                        "the same finger; default), colour (learned), grey (the threshold)")
-    p.add_argument("--finger-colour", metavar="COLOUR",
-                   help="the finger's colour: a name (red, orange, yellow, green, cyan, blue, "
-                        "purple, magenta), a JSON range {\"space\": \"hsv\", \"lo\": [...], "
-                        "\"hi\": [...]}, or a saved segmentation (segmentation.json of an "
-                        "earlier run, ingest.json, calibration.json)")
-    p.add_argument("--check", nargs="?", type=int, const=6, metavar="N",
-                   help="check the set-up instead of predicting: N frames (default 6) spread "
-                        "over the source, each with its mask, the segmentation's confidence "
-                        "and its validity; check.png in --out (exit code 1 when a frame fails)")
+    p.add_argument(
+        "--backend",
+        choices=["auto", "onnx", "torchscript"],
+        default="auto",
+        help="network runtime: ONNX Runtime, TorchScript, or auto (ONNX Runtime "
+        "when model.onnx is there; default)",
+    )
+    p.add_argument(
+        "--device",
+        choices=["auto", "cpu", "cuda"],
+        default="auto",
+        help="where the network runs: auto (a CUDA GPU when torch sees one, else "
+        "the CPU; default), cpu, or cuda (stops with one line without a GPU)",
+    )
+    p.add_argument(
+        "--force-only",
+        action="store_true",
+        help="forces (N) only, no stress maps (skips the stress decoder)",
+    )
+    p.add_argument(
+        "--show",
+        action="store_true",
+        help="also show the annotated frames in a window as they come (implies "
+        "--annotate; where there is no display, one line says so and the "
+        "files are written as without it)",
+    )
+    p.add_argument(
+        "--no-maps",
+        dest="maps",
+        action="store_false",
+        help="no per-frame stress map files (a long video or a stream; "
+        "--annotate still draws the maps)",
+    )
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace an earlier run's forces.csv and stress maps in --out (refused without it)",
+    )
+    p.add_argument(
+        "--annotate",
+        action="store_true",
+        help="also each frame with its stress map drawn over the finger (MPa, log "
+        "scale), the force arrow (N) and the calibrated force: "
+        "<name>_annotated.png, for a video annotated.mp4; and forces.png, the "
+        "force against time",
+    )
+    p.add_argument(
+        "--segmentation",
+        choices=["auto", "colour", "grey"],
+        default="auto",
+        help="how the finger is found: auto (its colour learned from the first "
+        "frames, or the grey-level threshold of the renders where that finds "
+        "the same finger; default), colour (learned), grey (the threshold)",
+    )
+    p.add_argument(
+        "--finger-colour",
+        metavar="COLOUR",
+        help="the finger's colour: a name (red, orange, yellow, green, cyan, blue, "
+        'purple, magenta), a JSON range {"space": "hsv", "lo": [...], '
+        '"hi": [...]}, or a saved segmentation (segmentation.json of an '
+        "earlier run, ingest.json, calibration.json)",
+    )
+    p.add_argument(
+        "--check",
+        nargs="?",
+        type=int,
+        const=6,
+        metavar="N",
+        help="check the set-up instead of predicting: N frames (default 6) spread "
+        "over the source, each with its mask, the segmentation's confidence "
+        "and its validity; check.png in --out (exit code 1 when a frame fails)",
+    )
     p.set_defaults(func=_run_predict)
 
 
 def _invalid(row: dict) -> list[str]:
     """``["NOT VALID: <flags>"]`` for a flagged row (:mod:`finray.validity`), else []."""
-    return [f"NOT VALID: {row['valid'].replace('+', ', ')}"] if row.get("valid", "ok") != "ok" else []
+    return (
+        [f"NOT VALID: {row['valid'].replace('+', ', ')}"] if row.get("valid", "ok") != "ok" else []
+    )
 
 
 def _force_line(row: dict) -> str:
@@ -354,16 +467,26 @@ def _force_line(row: dict) -> str:
     <flags>]`` of a predicted row."""
     t = [f"t {row['t_s']:.4f} s"] if row.get("t_s") is not None else []
     c = [f"contact {row['contact_mm']:.2f} mm"] if "contact_mm" in row else []
-    return "\t".join([row["frame"], *t, *(f"{k.removesuffix('_N')} {v:.4f} N"
-                                           for k, v in row.items() if k.endswith("_N")), *c,
-                      *_invalid(row)])
+    return "\t".join(
+        [
+            row["frame"],
+            *t,
+            *(f"{k.removesuffix('_N')} {v:.4f} N" for k, v in row.items() if k.endswith("_N")),
+            *c,
+            *_invalid(row),
+        ]
+    )
 
 
 def _calibrated_line(row: dict) -> str:
     """``<frame>\tfx 1.2345 N\tcalibrated 1.30 N [1.10, 1.50] 90 %[\tNOT VALID: <flags>]``."""
-    return "\t".join([f"{row['frame']}\tfx {row['fx_N']:.4f} N\tcalibrated {row['force_N']:.4f} N "
-                      f"[{row['lo_N']:.4f}, {row['hi_N']:.4f}] {100 * row['level']:.0f} %",
-                      *_invalid(row)])
+    return "\t".join(
+        [
+            f"{row['frame']}\tfx {row['fx_N']:.4f} N\tcalibrated {row['force_N']:.4f} N "
+            f"[{row['lo_N']:.4f}, {row['hi_N']:.4f}] {100 * row['level']:.0f} %",
+            *_invalid(row),
+        ]
+    )
 
 
 def _run_predict(args) -> int:
@@ -390,8 +513,10 @@ def _predict(args) -> int:
         if args.model is None:
             args.model = cal_model
         elif args.model.resolve() != cal_model.resolve():
-            raise UsageError(f"--model {args.model} is not the model {args.calibration} "
-                             f"calibrates ({cal_model}): leave --model out")
+            raise UsageError(
+                f"--model {args.model} is not the model {args.calibration} "
+                f"calibrates ({cal_model}): leave --model out"
+            )
     if args.model is None:
         raise UsageError("give --model (or --calibration)")
     if (args.annotate or args.show) and args.force_only:
@@ -404,40 +529,62 @@ def _predict(args) -> int:
         try:
             window = Window(f"finray predict {args.source}")
         except RuntimeError as exc:
-            print(f"finray predict: --show: {exc}; writing the annotated files only",
-                  file=sys.stderr, flush=True)
+            print(
+                f"finray predict: --show: {exc}; writing the annotated files only",
+                file=sys.stderr,
+                flush=True,
+            )
     if args.check is not None:
         return _check(args, cal)
     line = _calibrated_line if cal is not None else _force_line
-    out = predict_files(args.model, args.source, args.out, args.threads, args.backend,
-                        args.force_only, calibration=cal,
-                        on_frame=lambda r: print(line(r), flush=True),
-                        on_skip=lambda name, msg: print(f"finray predict: skipped {msg}",
-                                                        file=sys.stderr, flush=True),
-                        device=args.device, overwrite=args.overwrite, annotate=args.annotate,
-                        maps=args.maps, on_annotated=window.show if window else None,
-                        segmentation=args.segmentation, finger_colour=args.finger_colour,
-                        on_note=lambda msg: print(f"finray predict: note: {msg}",
-                                                  file=sys.stderr, flush=True))
+    out = predict_files(
+        args.model,
+        args.source,
+        args.out,
+        args.threads,
+        args.backend,
+        args.force_only,
+        calibration=cal,
+        on_frame=lambda r: print(line(r), flush=True),
+        on_skip=lambda name, msg: print(
+            f"finray predict: skipped {msg}", file=sys.stderr, flush=True
+        ),
+        device=args.device,
+        overwrite=args.overwrite,
+        annotate=args.annotate,
+        maps=args.maps,
+        on_annotated=window.show if window else None,
+        segmentation=args.segmentation,
+        finger_colour=args.finger_colour,
+        on_note=lambda msg: print(f"finray predict: note: {msg}", file=sys.stderr, flush=True),
+    )
     if window is not None:
         window.close()
     if out["flagged"]:
         from .validity import FLAGS
 
         n_bad = sum(r["valid"] != "ok" for r in out["rows"])
-        print(f"finray predict: warning: {n_bad} of {len(out['rows'])} frames flagged, not to be "
-              "trusted (column valid of forces.csv): "
-              + "; ".join(f"{k} {v} ({FLAGS.get(k, k)})" for k, v in out["flagged"].items()),
-              file=sys.stderr)
+        print(
+            f"finray predict: warning: {n_bad} of {len(out['rows'])} frames flagged, not to be "
+            "trusted (column valid of forces.csv): "
+            + "; ".join(f"{k} {v} ({FLAGS.get(k, k)})" for k, v in out["flagged"].items()),
+            file=sys.stderr,
+        )
     if "received" in out:  # a live source: what it sent, what could be kept up with
-        print(f"finray predict: {len(out['rows'])} frames predicted of {out['received']} received "
-              f"({out['dropped']} dropped while the network was busy"
-              + ("; stopped by Ctrl-C" if out["interrupted"] else "; the stream ended")
-              + f"), forces in {Path(args.out) / 'forces.csv'}", file=sys.stderr)
+        print(
+            f"finray predict: {len(out['rows'])} frames predicted of {out['received']} received "
+            f"({out['dropped']} dropped while the network was busy"
+            + ("; stopped by Ctrl-C" if out["interrupted"] else "; the stream ended")
+            + f"), forces in {Path(args.out) / 'forces.csv'}",
+            file=sys.stderr,
+        )
     if out["skipped"]:
         n = len(out["rows"]) + len(out["skipped"])
-        print(f"finray predict: {len(out['skipped'])} of {n} frames skipped; the other "
-              f"{len(out['rows'])} are in {Path(args.out) / 'forces.csv'}", file=sys.stderr)
+        print(
+            f"finray predict: {len(out['skipped'])} of {n} frames skipped; the other "
+            f"{len(out['rows'])} are in {Path(args.out) / 'forces.csv'}",
+            file=sys.stderr,
+        )
         return 1
     return 0
 
@@ -446,17 +593,30 @@ def _check(args, cal) -> int:
     """``finray predict --check``: the set-up's report (:func:`finray.predict.check_setup`)."""
     from .predict import check_setup
 
-    rep = check_setup(args.model, args.source, args.out, args.check, args.segmentation,
-                      args.finger_colour, cal, args.backend, args.device)
+    rep = check_setup(
+        args.model,
+        args.source,
+        args.out,
+        args.check,
+        args.segmentation,
+        args.finger_colour,
+        cal,
+        args.backend,
+        args.device,
+    )
     print(f"finger found by {rep['finder']}")
     for note in rep["notes"]:
         print(f"note: {note}")
     for r in rep["frames"]:
-        print(f"{r['frame']}\tmask {100 * r['mask_frac']:.1f} % of the frame\tconfidence "
-              f"{r['confidence']:.2f}\tfx {r['fx_N']:.3f} N\t{r['valid']}")
+        print(
+            f"{r['frame']}\tmask {100 * r['mask_frac']:.1f} % of the frame\tconfidence "
+            f"{r['confidence']:.2f}\tfx {r['fx_N']:.3f} N\t{r['valid']}"
+        )
     n_ok = sum(r["valid"] == "ok" for r in rep["frames"])
-    print(f"set-up {'OK' if rep['ok'] else 'NOT OK'}: {n_ok} of {len(rep['frames'])} frames "
-          f"valid; masks in {Path(args.out) / 'check.png'}")
+    print(
+        f"set-up {'OK' if rep['ok'] else 'NOT OK'}: {n_ok} of {len(rep['frames'])} frames "
+        f"valid; masks in {Path(args.out) / 'check.png'}"
+    )
     return 0 if rep["ok"] else 1
 
 
@@ -476,14 +636,21 @@ example:
 
 
 def _ingest_parser(sub) -> None:
-    p = sub.add_parser("ingest", help="lab take (video + force log) -> dataset shard",
-                       description=INGEST_HELP,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser(
+        "ingest",
+        help="lab take (video + force log) -> dataset shard",
+        description=INGEST_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("take", type=Path, help="take folder (video or frames/, forces.csv, take.json)")
     p.add_argument("--out", type=Path, required=True, help="output directory")
-    p.add_argument("--config", type=Path, default=None,
-                   help="YAML config whose dataset sizes and crop (mm) and finger base width "
-                        "(mm) to use (default: config/config.yaml of the source tree)")
+    p.add_argument(
+        "--config",
+        type=Path,
+        default=None,
+        help="YAML config whose dataset sizes and crop (mm) and finger base width "
+        "(mm) to use (default: config/config.yaml of the source tree)",
+    )
     p.set_defaults(func=_run_ingest)
 
 
@@ -495,8 +662,9 @@ def _ingest_params(raw: dict):
 
     d = DatasetParams.from_config(raw.get("dataset"))
     base = float((raw.get("finger") or {}).get("base_width_mm", 30.0))
-    return IngestParams(sizes=d.sizes, crop_x_mm=d.crop_x_mm, crop_y_mm=d.crop_y_mm,
-                        base_width_mm=base)
+    return IngestParams(
+        sizes=d.sizes, crop_x_mm=d.crop_x_mm, crop_y_mm=d.crop_y_mm, base_width_mm=base
+    )
 
 
 def _run_ingest(args) -> int:
@@ -526,20 +694,35 @@ example:
 
 
 def _calibrate_parser(sub) -> None:
-    p = sub.add_parser("calibrate", help="fit a model and its force calibration to a rig's takes",
-                       description=CALIBRATE_HELP,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser(
+        "calibrate",
+        help="fit a model and its force calibration to a rig's takes",
+        description=CALIBRATE_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("takes", type=Path, nargs="+", help="take folders (as finray ingest reads)")
-    p.add_argument("--model", type=Path, required=True,
-                   help="the simulation-trained model: model.pt (or its model.ts, beside it)")
+    p.add_argument(
+        "--model",
+        type=Path,
+        required=True,
+        help="the simulation-trained model: model.pt (or its model.ts, beside it)",
+    )
     p.add_argument("--out", type=Path, required=True, help="calibration.json to write")
-    p.add_argument("--no-context", type=Path, default=None,
-                   help="the same model's no-context fit (results/evaluate/sim2real/no_context.pt): "
-                        "where the config's evaluate.sim2real.sim_replay_frames is above 0 (it is 0 "
-                        "by default), that many of its simulated frames are fitted beside the takes")
-    p.add_argument("--config", type=Path, default=None,
-                   help="YAML config (dataset crop, finger base width, evaluate.sim2real; "
-                        "default: config/config.yaml of the source tree)")
+    p.add_argument(
+        "--no-context",
+        type=Path,
+        default=None,
+        help="the same model's no-context fit (results/evaluate/sim2real/no_context.pt): "
+        "where the config's evaluate.sim2real.sim_replay_frames is above 0 (it is 0 "
+        "by default), that many of its simulated frames are fitted beside the takes",
+    )
+    p.add_argument(
+        "--config",
+        type=Path,
+        default=None,
+        help="YAML config (dataset crop, finger base width, evaluate.sim2real; "
+        "default: config/config.yaml of the source tree)",
+    )
     p.set_defaults(func=_run_calibrate)
 
 
@@ -552,21 +735,36 @@ def _run_calibrate(args) -> int:
     if args.no_context is not None and not args.no_context.is_file():
         raise UsageError(f"--no-context: no file at {args.no_context}")
     if args.no_context is not None and not c.sim_replay_frames:
-        print("--no-context: evaluate.sim2real.sim_replay_frames is 0, so the heads are fitted "
-              "on the takes alone", flush=True)
-    cal = calibrate_takes(args.takes, args.model, args.out, _ingest_params(raw), c.heads, c.folds,
-                          c.priors, c.sampler, c.level,
-                          log=lambda m: print(m, flush=True), no_context=args.no_context,
-                          replay_frames=c.sim_replay_frames)
+        print(
+            "--no-context: evaluate.sim2real.sim_replay_frames is 0, so the heads are fitted "
+            "on the takes alone",
+            flush=True,
+        )
+    cal = calibrate_takes(
+        args.takes,
+        args.model,
+        args.out,
+        _ingest_params(raw),
+        c.heads,
+        c.folds,
+        c.priors,
+        c.sampler,
+        c.level,
+        log=lambda m: print(m, flush=True),
+        no_context=args.no_context,
+        replay_frames=c.sim_replay_frames,
+    )
     sm, dg = cal["summary"], cal["diagnostics"]
     for k in ("gain", "offset_N", "sigma_N", "rho", "kappa", "nu"):
         if k in cal.get("fixed", {}):  # held (prior sd 0): the heads are fitted to the sensor
             print(f"{k}: {cal['fixed'][k]:.4g} (fixed)")
         else:
             print(f"{k}: {sm[k]['median']:.4g} (95 % {sm[k]['q2.5']:.4g} to {sm[k]['q97.5']:.4g})")
-    print(f"chain: {dg['steps']} steps x {dg['walkers']} walkers, {dg['steps_over_tau_min']:.0f} "
-          f"autocorrelation times, acceptance {dg['acceptance_fraction']['mean']:.2f}"
-          f"{'' if dg['ok'] else ' -- NOT CONVERGED: see diagnostics'}")
+    print(
+        f"chain: {dg['steps']} steps x {dg['walkers']} walkers, {dg['steps_over_tau_min']:.0f} "
+        f"autocorrelation times, acceptance {dg['acceptance_fraction']['mean']:.2f}"
+        f"{'' if dg['ok'] else ' -- NOT CONVERGED: see diagnostics'}"
+    )
     print(f"wrote {args.out} and {cal['model']}")
     return 0 if dg["ok"] else 1
 
@@ -575,7 +773,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="finray",
         description="Force and stress of a soft Fin Ray finger from camera images, "
-                    "learned from finite-element simulations. Units: mm, N, MPa, deg.")
+        "learned from finite-element simulations. Units: mm, N, MPa, deg.",
+    )
     parser.add_argument("--version", action="version", version=f"finray {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     _geometry_parser(sub)

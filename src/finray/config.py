@@ -4,6 +4,7 @@ The schema is ``workflow/schemas/config.schema.yaml`` (shipped inside the packag
 as ``finray/config.schema.yaml``). A bad config raises :class:`ConfigError`
 whose message is one line naming the key and the reason.
 """
+
 from __future__ import annotations
 
 import copy
@@ -74,12 +75,16 @@ def validate_config(config: dict, base_dir: str | Path = ".") -> dict:
         raise _schema_error_message(best)
     mats = cfg["materials"]
     if cfg["finger"]["material"] not in mats:
-        raise ConfigError("finger.material", f"'{cfg['finger']['material']}' is not a key of materials")
+        raise ConfigError(
+            "finger.material", f"'{cfg['finger']['material']}' is not a key of materials"
+        )
     if mats[cfg["finger"]["material"]]["rigid"]:
         raise ConfigError("finger.material", "the finger cannot be rigid")
     finger = FingerParams.from_config(cfg["finger"])
     if finger.wall_thickness_mm * 2 >= finger.base_width_mm:
-        raise ConfigError("finger.wall_thickness_mm", "the walls are thicker than the finger is wide")
+        raise ConfigError(
+            "finger.wall_thickness_mm", "the walls are thicker than the finger is wide"
+        )
     if finger.base_thickness_mm >= finger.height_mm / 2:
         raise ConfigError("finger.base_thickness_mm", "the base plate fills half the finger")
     try:
@@ -91,20 +96,30 @@ def validate_config(config: dict, base_dir: str | Path = ".") -> dict:
     _check_stage_sections(cfg)
     for h in cfg["heights_mm"]:
         if h >= finger.height_mm:
-            raise ConfigError("heights_mm", (
-                f"contact height {h} mm is at or above the finger (height {finger.height_mm} mm)"))
+            raise ConfigError(
+                "heights_mm",
+                (f"contact height {h} mm is at or above the finger (height {finger.height_mm} mm)"),
+            )
     for model, hs in cfg.get("extra_train_heights_mm", {}).items():
         if model not in cfg["train"]["models"]:
             raise ConfigError(f"extra_train_heights_mm.{model}", "is not a model of train.models")
         for h in hs:
             if h >= finger.height_mm:
-                raise ConfigError(f"extra_train_heights_mm.{model}", (
-                    f"contact height {h} mm is at or above the finger (height {finger.height_mm} mm)"))
+                raise ConfigError(
+                    f"extra_train_heights_mm.{model}",
+                    (
+                        f"contact height {h} mm is at or above the finger (height {finger.height_mm} mm)"
+                    ),
+                )
     for split, hs in cfg.get("face_heights_mm", {}).items():
         for h in hs:
             if h >= finger.height_mm:
-                raise ConfigError(f"face_heights_mm.{split}", (
-                    f"contact height {h} mm is at or above the finger (height {finger.height_mm} mm)"))
+                raise ConfigError(
+                    f"face_heights_mm.{split}",
+                    (
+                        f"contact height {h} mm is at or above the finger (height {finger.height_mm} mm)"
+                    ),
+                )
     for name, spec in cfg["objects"].items():
         for m in spec["materials"]:
             if m not in mats:
@@ -134,8 +149,12 @@ def _add_generated(cfg: dict) -> None:
         raise ConfigError(exc.key, str(exc).split(": ", 1)[1]) from None
     for name, spec in gen.items():
         if cfg["objects"].setdefault(name, spec) != spec:
-            raise ConfigError("generated.seed", (
-                f"generated object '{name}' is also a key of objects (rename it or move the seeds)"))
+            raise ConfigError(
+                "generated.seed",
+                (
+                    f"generated object '{name}' is also a key of objects (rename it or move the seeds)"
+                ),
+            )
 
 
 #: Suffix of the model trained on the paper's objects only (``generated.compare_model``).
@@ -167,15 +186,25 @@ def _check_diversity(cfg: dict) -> None:
         return
     models = cfg["train"]["models"]
     if pair[1] not in models:
-        raise ConfigError("generated.compare_model", (
-            f"'{pair[1]}' is not a key of train.models ({', '.join(sorted(models))}); null: no comparison"))
+        raise ConfigError(
+            "generated.compare_model",
+            (
+                f"'{pair[1]}' is not a key of train.models ({', '.join(sorted(models))}); null: no comparison"
+            ),
+        )
     if pair[0] in models:
-        raise ConfigError("generated.compare_model", (
-            f"train.models already has '{pair[0]}', the name of its paper-objects model"))
+        raise ConfigError(
+            "generated.compare_model",
+            (f"train.models already has '{pair[0]}', the name of its paper-objects model"),
+        )
     if models[pair[1]].get("start_from") is not None:
-        raise ConfigError("generated.compare_model", (
-            f"'{pair[1]}' starts from another model's weights (train.models.{pair[1]}.start_from), "
-            "which saw the generated objects: compare a model trained from scratch"))
+        raise ConfigError(
+            "generated.compare_model",
+            (
+                f"'{pair[1]}' starts from another model's weights (train.models.{pair[1]}.start_from), "
+                "which saw the generated objects: compare a model trained from scratch"
+            ),
+        )
 
 
 #: keys of a train.models entry that set how it trains, not how its frames are augmented
@@ -203,9 +232,13 @@ def _check_start_from(cfg: dict) -> None:
         while (src := models[chain[-1]].get("start_from")) is not None:
             key = f"train.models.{chain[-1]}.start_from"
             if src not in models:
-                raise ConfigError(key, f"'{src}' is not a key of train.models ({', '.join(sorted(models))})")
+                raise ConfigError(
+                    key, f"'{src}' is not a key of train.models ({', '.join(sorted(models))})"
+                )
             if src in chain:
-                raise ConfigError(key, f"the models start from one another: {' -> '.join(chain + [src])}")
+                raise ConfigError(
+                    key, f"the models start from one another: {' -> '.join(chain + [src])}"
+                )
             chain.append(src)
 
 
@@ -215,12 +248,15 @@ def _check_spread(cfg: dict) -> None:
     chosen = cfg["evaluate"]["spread"]["models"]
     unknown = [m for m in chosen if m not in models]
     if unknown:
-        raise ConfigError("evaluate.spread.models", (
-            f"{', '.join(map(repr, unknown))} not in train.models ({', '.join(sorted(models))})"))
+        raise ConfigError(
+            "evaluate.spread.models",
+            (f"{', '.join(map(repr, unknown))} not in train.models ({', '.join(sorted(models))})"),
+        )
     start = sim2real_model_name(cfg)
     if chosen and start not in chosen:
-        raise ConfigError("evaluate.spread.models", (
-            f"must hold '{start}', the model sim-to-real starts from"))
+        raise ConfigError(
+            "evaluate.spread.models", (f"must hold '{start}', the model sim-to-real starts from")
+        )
 
 
 def _check_lab(cfg: dict, finger: FingerParams) -> None:
@@ -254,8 +290,10 @@ def _check_stage_sections(cfg: dict) -> None:
     from .dataset.splits import pitch_object
     from .render.params import RenderParams
 
-    for section, build in (("render", RenderParams.from_config),
-                           ("dataset", DatasetParams.from_config)):
+    for section, build in (
+        ("render", RenderParams.from_config),
+        ("dataset", DatasetParams.from_config),
+    ):
         try:
             build(cfg[section])
         except (ValueError, TypeError) as exc:
@@ -269,19 +307,29 @@ def _check_stage_sections(cfg: dict) -> None:
             raise ConfigError("dataset.pitch_object", str(exc).split(": ", 1)[-1]) from None
     sizes = [list(s) for s in cfg["dataset"]["sizes"]]
     if list(cfg["train"]["input_size"]) not in sizes:
-        raise ConfigError("train.input_size", (
-            f"{cfg['train']['input_size']} is not one of dataset.sizes {sizes}"))
+        raise ConfigError(
+            "train.input_size",
+            (f"{cfg['train']['input_size']} is not one of dataset.sizes {sizes}"),
+        )
     if cfg["train"]["input_size"][0] % 16 or cfg["train"]["input_size"][1] % 16:
         raise ConfigError("train.input_size", "height and width must be multiples of 16")
     b = cfg["benchmarks"]
     for size in b["train_sizes"]:
         if list(size) not in sizes:
-            raise ConfigError("benchmarks.train_sizes", f"{size} is not one of dataset.sizes {sizes}")
+            raise ConfigError(
+                "benchmarks.train_sizes", f"{size} is not one of dataset.sizes {sizes}"
+            )
         if size[0] % 16 or size[1] % 16:
-            raise ConfigError("benchmarks.train_sizes", f"{size}: height and width must be multiples of 16")
+            raise ConfigError(
+                "benchmarks.train_sizes", f"{size}: height and width must be multiples of 16"
+            )
     if b["latency_model"] not in cfg["train"]["models"]:
-        raise ConfigError("benchmarks.latency_model", (
-            f"'{b['latency_model']}' is not a key of train.models {sorted(cfg['train']['models'])}"))
+        raise ConfigError(
+            "benchmarks.latency_model",
+            (
+                f"'{b['latency_model']}' is not a key of train.models {sorted(cfg['train']['models'])}"
+            ),
+        )
 
 
 def read_config_file(path: str | Path) -> dict:
@@ -302,13 +350,18 @@ def read_config_file_raw(path: str | Path) -> dict:
     try:
         raw = yaml.safe_load(path.read_text(encoding="utf-8"))
     except UnicodeDecodeError as exc:
-        raise ConfigError("<config>", f"'{path}' is not UTF-8 text (byte {exc.start}: "
-                                      f"{exc.object[exc.start:exc.start + 1]!r})") from None
+        raise ConfigError(
+            "<config>",
+            f"'{path}' is not UTF-8 text (byte {exc.start}: "
+            f"{exc.object[exc.start : exc.start + 1]!r})",
+        ) from None
     except yaml.YAMLError as exc:
         raise ConfigError("<config>", f"'{path}' is not valid YAML ({exc})".replace("\n", " "))
     if raw is None:
-        raise ConfigError("<config>", f"'{path}' is empty: give the config's keys, or leave "
-                                      "--config out for the defaults")
+        raise ConfigError(
+            "<config>",
+            f"'{path}' is empty: give the config's keys, or leave --config out for the defaults",
+        )
     if not isinstance(raw, dict):
         raise ConfigError("<config>", f"'{path}' is not a mapping of config keys")
     return raw
@@ -319,8 +372,11 @@ def merge_config(base: dict, over: dict) -> dict:
     value (lists included) replaced, as Snakemake merges ``--configfile a b``."""
     out = copy.deepcopy(base)
     for k, v in over.items():
-        out[k] = merge_config(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) \
+        out[k] = (
+            merge_config(out[k], v)
+            if isinstance(v, dict) and isinstance(out.get(k), dict)
             else copy.deepcopy(v)
+        )
     return out
 
 
@@ -414,7 +470,9 @@ def scenes(cfg: dict) -> list[Scene]:
     """Every scene of the config: every object at each of :func:`object_heights` (every
     height of ``heights_mm``; the training objects' extra heights; the face heights of
     the object's split)."""
-    return [Scene(name, m, h, spec["split"])
-            for name, spec in cfg["objects"].items()
-            for m in spec["materials"]
-            for h in object_heights(cfg, name)]
+    return [
+        Scene(name, m, h, spec["split"])
+        for name, spec in cfg["objects"].items()
+        for m in spec["materials"]
+        for h in object_heights(cfg, name)
+    ]

@@ -9,6 +9,7 @@ code that catches those keeps working. A failure part way through work that was 
 to start (an FEA scene that does not converge: :class:`SimulationError`, also a
 :class:`RuntimeError`) is not bad input: ``finray`` exits with 1.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -85,8 +86,14 @@ class SimulationError(FinrayError, RuntimeError):
     ``force_N`` (F, 2): the force on the object), where the solver got that far, else
     None."""
 
-    def __init__(self, message: str, step: int | None = None, load: float | None = None,
-                 cause: str = "", partial: dict | None = None):
+    def __init__(
+        self,
+        message: str,
+        step: int | None = None,
+        load: float | None = None,
+        cause: str = "",
+        partial: dict | None = None,
+    ):
         super().__init__(message)
         self.step = step
         self.load = load

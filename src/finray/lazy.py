@@ -1,5 +1,6 @@
 """Names of a package that load their module on first use (PEP 562): planning the DAG
 or reading shards does not load torch, the rasterisers or VTK."""
+
 from __future__ import annotations
 
 import importlib

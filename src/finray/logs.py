@@ -1,4 +1,5 @@
 """Logging for workflow jobs: send a job's stdout, stderr and warnings to its log file."""
+
 from __future__ import annotations
 
 import contextlib
@@ -13,7 +14,11 @@ def log_to(path: str | Path):
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     # line-buffered, so that a running job's log can be followed (tail -f)
-    with open(path, "w", buffering=1) as f, contextlib.redirect_stdout(f), contextlib.redirect_stderr(f):
+    with (
+        open(path, "w", buffering=1) as f,
+        contextlib.redirect_stdout(f),
+        contextlib.redirect_stderr(f),
+    ):
         handler = logging.StreamHandler(f)
         logging.getLogger().addHandler(handler)
         logging.getLogger().setLevel(logging.INFO)
@@ -40,5 +45,8 @@ class Progress:
         if k < self.n and now - self.t_last < self.every_s:
             return
         self.t_last = now
-        self.logger.info(f"{self.what}: frame {k}/{self.n}" + (f", {detail}" if detail else "")
-                         + f", {now - self.t0:.1f} s")
+        self.logger.info(
+            f"{self.what}: frame {k}/{self.n}"
+            + (f", {detail}" if detail else "")
+            + f", {now - self.t0:.1f} s"
+        )

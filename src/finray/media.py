@@ -8,6 +8,7 @@ never came out of the decoder, e.g. its packet did not decode: after the video's
 frames, with its rank and time), so that the caller reports it and goes on. A source
 that cannot be read at all raises :class:`MediaError`.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -135,8 +136,14 @@ def video_frames(path: str | Path, threads: bool = False):
                 except StopIteration:
                     break
                 except av.FFmpegError as exc:
-                    yield Frame(k, None, None, None,
-                                f"the video cannot be read on ({one_line(exc)})", rest=True)
+                    yield Frame(
+                        k,
+                        None,
+                        None,
+                        None,
+                        f"the video cannot be read on ({one_line(exc)})",
+                        rest=True,
+                    )
                     return
                 try:
                     decoded = packet.decode()
@@ -156,8 +163,15 @@ def video_frames(path: str | Path, threads: bool = False):
         if rate and None not in ranks:
             for r in range(int(stream.frames or 0)):
                 if r not in ranks:
-                    yield Frame(k, r / rate, r, None, why.pop(0) if why else
-                                "the frame was not decoded (a frame it depends on was lost)")
+                    yield Frame(
+                        k,
+                        r / rate,
+                        r,
+                        None,
+                        why.pop(0)
+                        if why
+                        else "the frame was not decoded (a frame it depends on was lost)",
+                    )
                     k += 1
 
     return frames()
@@ -171,8 +185,11 @@ def is_live(source: str | Path) -> bool:
     """A live source: a network stream URL (:data:`STREAM_SCHEMES`), a V4L2 camera
     device (``/dev/video*``) or a camera's index (``0``, ``1``, ...: ``/dev/video<k>``)."""
     s = str(source)
-    return (s.split("://", 1)[0].lower() in STREAM_SCHEMES and "://" in s) or \
-        s.startswith("/dev/video") or s.isdigit()
+    return (
+        (s.split("://", 1)[0].lower() in STREAM_SCHEMES and "://" in s)
+        or s.startswith("/dev/video")
+        or s.isdigit()
+    )
 
 
 class LiveFrames:
@@ -200,10 +217,13 @@ class LiveFrames:
         fmt = "v4l2" if device.startswith("/dev/video") else None
         options = {"rtsp_transport": "tcp"} if s.lower().startswith("rtsp") else {}
         try:
-            self._container = av.open(device, format=fmt, options=options,
-                                      timeout=(open_timeout_s, open_timeout_s))
+            self._container = av.open(
+                device, format=fmt, options=options, timeout=(open_timeout_s, open_timeout_s)
+            )
         except (av.FFmpegError, OSError) as exc:
-            raise MediaError(f"{source} cannot be opened as a live source ({one_line(exc)})") from None
+            raise MediaError(
+                f"{source} cannot be opened as a live source ({one_line(exc)})"
+            ) from None
         if not self._container.streams.video:
             self._container.close()
             raise MediaError(f"{source} has no video stream")
@@ -224,8 +244,11 @@ class LiveFrames:
 
         try:
             for fr in self._container.decode(video=0):
-                t = float(fr.pts * fr.time_base) if fr.pts is not None and fr.time_base else \
-                    time.perf_counter() - self._t0
+                t = (
+                    float(fr.pts * fr.time_base)
+                    if fr.pts is not None and fr.time_base
+                    else time.perf_counter() - self._t0
+                )
                 frame = Frame(self.received, t, None, fr.to_ndarray(format="rgb24"))
                 with self._cond:
                     if len(self._frames) == self._frames.maxlen:
@@ -286,9 +309,17 @@ class VideoWriter:
     time than the default bilinear, for the annotated frames' flat text and cells);
     None: converted by the encoder. A context manager (``close`` on exit)."""
 
-    def __init__(self, path: str | Path, fps: float = 30.0, size: tuple[int, int] | None = None,
-                 crf: int | None = None, pix_fmt: str = "yuv420p", preset: str = "ultrafast",
-                 tune: str | None = None, interpolation: str | None = None):
+    def __init__(
+        self,
+        path: str | Path,
+        fps: float = 30.0,
+        size: tuple[int, int] | None = None,
+        crf: int | None = None,
+        pix_fmt: str = "yuv420p",
+        preset: str = "ultrafast",
+        tune: str | None = None,
+        interpolation: str | None = None,
+    ):
         self.path, self.fps, self.size = Path(path), float(fps), size
         self.crf, self.pix_fmt, self.preset, self.tune = crf, pix_fmt, preset, tune
         self.interpolation = interpolation
@@ -313,8 +344,10 @@ class VideoWriter:
         if h264 and self.crf is not None:
             options["crf"] = str(int(self.crf))
         self._stream = self._container.add_stream(
-            "libx264" if h264 else "mpeg4", rate=Fraction(self.fps).limit_denominator(1001),
-            options=options)
+            "libx264" if h264 else "mpeg4",
+            rate=Fraction(self.fps).limit_denominator(1001),
+            options=options,
+        )
         self._stream.width, self._stream.height = w, h
         self._stream.pix_fmt = self.pix_fmt
 
@@ -323,7 +356,7 @@ class VideoWriter:
 
         if self._container is None:
             self._open(rgb)
-        rgb = np.ascontiguousarray(rgb[:self._stream.height, :self._stream.width])
+        rgb = np.ascontiguousarray(rgb[: self._stream.height, : self._stream.width])
         # the array's buffer as the frame's, not a copy (from_ndarray copies row by row:
         # 3.5 ms of a 1280x816 frame)
         frame = av.VideoFrame.from_numpy_buffer(rgb, format="rgb24")

@@ -29,6 +29,7 @@ that variance), under which the latent came out ~1e-4 of the input's scale and t
 force head's first batch-norm saw sigmoid outputs that differed by less than bfloat16
 resolves (docs/studies/seeds.md, "Seeds, numeric types and what to expect").
 """
+
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
@@ -55,8 +56,9 @@ class NetConfig:
         if self.init not in INITS:
             raise ValueError(f"init must be one of {INITS}, not {self.init!r}")
         if self.height % 16 or self.width % 16:
-            raise ValueError(f"input size {self.height}x{self.width} must be divisible by 16 "
-                             "(four 2x2 poolings)")
+            raise ValueError(
+                f"input size {self.height}x{self.width} must be divisible by 16 (four 2x2 poolings)"
+            )
         if self.base_channels < 2 or self.base_channels % 2:
             raise ValueError("base_channels must be an even number >= 2")
 
@@ -73,14 +75,18 @@ def he_init(module: nn.Module) -> None:
     for k, m in enumerate(mods):
         if isinstance(m, nn.Conv2d):
             relu = k + 1 < len(mods) and isinstance(mods[k + 1], nn.ReLU)
-            nn.init.kaiming_normal_(m.weight, mode="fan_in", nonlinearity="relu" if relu else "linear")
+            nn.init.kaiming_normal_(
+                m.weight, mode="fan_in", nonlinearity="relu" if relu else "linear"
+            )
             nn.init.zeros_(m.bias)
 
 
 def _double_conv(c_in: int, c_out: int) -> nn.Sequential:
     return nn.Sequential(
-        nn.Conv2d(c_in, c_out, 3, padding=1), nn.ReLU(inplace=True),
-        nn.Conv2d(c_out, c_out, 3, padding=1), nn.ReLU(inplace=True),
+        nn.Conv2d(c_in, c_out, 3, padding=1),
+        nn.ReLU(inplace=True),
+        nn.Conv2d(c_out, c_out, 3, padding=1),
+        nn.ReLU(inplace=True),
     )
 
 
@@ -123,8 +129,12 @@ class FinRayNet(nn.Module):
         self.stress_out = nn.Conv2d(c_prev, 1, 1)
         n_latent = chans[-1] * (cfg.height // 16) * (cfg.width // 16)
         h = cfg.hidden
-        layers: list[nn.Module] = [nn.Flatten(), nn.Linear(n_latent, h[0]), nn.Sigmoid(),
-                                   nn.BatchNorm1d(h[0])]
+        layers: list[nn.Module] = [
+            nn.Flatten(),
+            nn.Linear(n_latent, h[0]),
+            nn.Sigmoid(),
+            nn.BatchNorm1d(h[0]),
+        ]
         layers += [nn.Linear(h[0], h[1]), nn.ReLU(inplace=True), nn.BatchNorm1d(h[1])]
         for a, c in zip(h[1:-1], h[2:]):
             layers += [nn.Linear(a, c), nn.ReLU(inplace=True)]
@@ -136,9 +146,13 @@ class FinRayNet(nn.Module):
             he_init(self)
         if cfg.contact:  # drawn last: the other layers' initial weights are a model's without it
             self.contact_head = nn.Sequential(
-                nn.Flatten(), nn.Linear(n_latent, CONTACT_HIDDEN[0]), nn.ReLU(inplace=True),
-                nn.Linear(CONTACT_HIDDEN[0], CONTACT_HIDDEN[1]), nn.ReLU(inplace=True),
-                nn.Linear(CONTACT_HIDDEN[1], 1))
+                nn.Flatten(),
+                nn.Linear(n_latent, CONTACT_HIDDEN[0]),
+                nn.ReLU(inplace=True),
+                nn.Linear(CONTACT_HIDDEN[0], CONTACT_HIDDEN[1]),
+                nn.ReLU(inplace=True),
+                nn.Linear(CONTACT_HIDDEN[1], 1),
+            )
             self.register_buffer("contact_mean_mm", torch.zeros(1))
             self.register_buffer("contact_scale_mm", torch.ones(1))
 
@@ -189,8 +203,11 @@ class FinRayNet(nn.Module):
     def forward_contact(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Stress map (log scale), force (B, n_forces) in N and contact height (B,) in mm."""
         stress, f, c = self.forward_normalised_all(x)
-        return (stress, f * self.force_scale_N + self.force_mean_N,
-                c * self.contact_scale_mm + self.contact_mean_mm)
+        return (
+            stress,
+            f * self.force_scale_N + self.force_mean_N,
+            c * self.contact_scale_mm + self.contact_mean_mm,
+        )
 
     def forward_normalised_all(self, x: torch.Tensor):
         """Stress map, force and contact height (B,) in normalised units (what the loss

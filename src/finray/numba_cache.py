@@ -9,6 +9,7 @@ editable install or a clone shared by several users would get files written into
 system's temporary folder where that one cannot be written; a ``NUMBA_CACHE_DIR`` set
 by the user is kept.
 """
+
 from __future__ import annotations
 
 import getpass

@@ -1,6 +1,7 @@
 """The paper's reference numbers (``paper_reference.yaml``): one home for every value
 the manuscript, the speed table and the figures compare against, each with its unit
 and where the paper states it. It imports no stage, so any stage may read it."""
+
 from __future__ import annotations
 
 import copy

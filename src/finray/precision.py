@@ -11,6 +11,7 @@ it) and oneDNN's instruction set (``ONEDNN_MAX_CPU_ISA`` caps it), beside the
 hardware flags. On a GPU, ``auto`` means bfloat16 where the GPU has native bfloat16
 units (NVIDIA Ampere and later).
 """
+
 from __future__ import annotations
 
 import os
@@ -19,9 +20,17 @@ from dataclasses import dataclass
 from .errors import DeviceError
 
 # oneDNN ISA caps (ONEDNN_MAX_CPU_ISA) under which bf16 convolutions run natively
-_ONEDNN_BF16_ISAS = ("AVX512_CORE_BF16", "AVX10_1_512", "AVX512_CORE_AMX", "AVX10_1_512_AMX",
-                     "AVX512_CORE_AMX_FP16", "AVX10_1_512_AMX_FP16", "AVX10_2_512",
-                     "AVX10_2_512_AMX_2", "ALL")
+_ONEDNN_BF16_ISAS = (
+    "AVX512_CORE_BF16",
+    "AVX10_1_512",
+    "AVX512_CORE_AMX",
+    "AVX10_1_512_AMX",
+    "AVX512_CORE_AMX_FP16",
+    "AVX10_1_512_AMX_FP16",
+    "AVX10_2_512",
+    "AVX10_2_512_AMX_2",
+    "ALL",
+)
 
 
 @dataclass(frozen=True)
@@ -38,8 +47,12 @@ class CpuPrecision:
     def native_bf16(self) -> bool:
         """bfloat16 convolutions run in hardware on the kernels torch will use."""
         isa_ok = self.onednn_max_isa is None or self.onednn_max_isa.upper() in _ONEDNN_BF16_ISAS
-        return ("AVX512" in self.aten_capability.upper() and (self.avx512_bf16 or self.amx)
-                and self.onednn_bf16 and isa_ok)
+        return (
+            "AVX512" in self.aten_capability.upper()
+            and (self.avx512_bf16 or self.amx)
+            and self.onednn_bf16
+            and isa_ok
+        )
 
     def describe(self) -> str:
         flags = [f for f, on in (("avx512_bf16", self.avx512_bf16), ("amx", self.amx)) if on]
@@ -61,10 +74,13 @@ def cpu_precision() -> CpuPrecision:
         onednn = bool(torch.ops.mkldnn._is_mkldnn_bf16_supported())
     except (AttributeError, RuntimeError):  # a torch built without oneDNN
         onednn = False
-    return CpuPrecision(aten_capability=torch.backends.cpu.get_cpu_capability(),
-                        avx512_bf16=flag("_is_avx512_bf16_supported"),
-                        amx=flag("_is_amx_tile_supported"), onednn_bf16=onednn,
-                        onednn_max_isa=os.environ.get("ONEDNN_MAX_CPU_ISA") or None)
+    return CpuPrecision(
+        aten_capability=torch.backends.cpu.get_cpu_capability(),
+        avx512_bf16=flag("_is_avx512_bf16_supported"),
+        amx=flag("_is_amx_tile_supported"),
+        onednn_bf16=onednn,
+        onednn_max_isa=os.environ.get("ONEDNN_MAX_CPU_ISA") or None,
+    )
 
 
 @dataclass(frozen=True)
@@ -90,8 +106,12 @@ def gpu_precision(device=None) -> GpuPrecision:
         return GpuPrecision(torch.cuda.get_device_name(), native)
 
 
-def resolve_bf16(setting: bool | str, cpu: CpuPrecision | None = None, device=None,
-                 gpu: GpuPrecision | None = None) -> tuple[bool, str]:
+def resolve_bf16(
+    setting: bool | str,
+    cpu: CpuPrecision | None = None,
+    device=None,
+    gpu: GpuPrecision | None = None,
+) -> tuple[bool, str]:
     """``train.bf16`` (``"auto"``, true or false) -> (use bfloat16 autocast, a one-line
     reason for the log), for ``device`` (a torch device or its name; the CPU if None).
     ``cpu``/``gpu``: the hardware's description (read from torch if None)."""
@@ -106,9 +126,14 @@ def resolve_bf16(setting: bool | str, cpu: CpuPrecision | None = None, device=No
         why = "native bfloat16" if native else "no native bfloat16"
         return native, f"{kind} (train.bf16: auto; {why}: {hw.describe()})"
     if setting and not native:
-        return True, (f"bfloat16 autocast (train.bf16: true) on a {where} without native bfloat16 "
-                      f"({hw.describe()}): expect steps many times slower than float32")
-    return bool(setting), f"{'bfloat16 autocast' if setting else 'float32'} (train.bf16: {str(bool(setting)).lower()}; {hw.describe()})"
+        return True, (
+            f"bfloat16 autocast (train.bf16: true) on a {where} without native bfloat16 "
+            f"({hw.describe()}): expect steps many times slower than float32"
+        )
+    return (
+        bool(setting),
+        f"{'bfloat16 autocast' if setting else 'float32'} (train.bf16: {str(bool(setting)).lower()}; {hw.describe()})",
+    )
 
 
 #: Values of ``train.device`` and of ``Predictor(device=...)``.
@@ -130,10 +155,16 @@ def resolve_device(name: str = "auto", what: str = "device"):
     if name == "cpu" or (name == "auto" and not torch.cuda.is_available()):
         return torch.device("cpu")
     if not torch.cuda.is_available():
-        build = (f"built with CUDA {torch.version.cuda}, but no GPU is visible (driver, "
-                 "CUDA_VISIBLE_DEVICES?)" if torch.version.cuda else "a CPU-only build")
-        raise DeviceError(f"{what} is cuda, but torch {torch.__version__} sees no CUDA GPU "
-                          f"({build}); use auto or cpu")
+        build = (
+            f"built with CUDA {torch.version.cuda}, but no GPU is visible (driver, "
+            "CUDA_VISIBLE_DEVICES?)"
+            if torch.version.cuda
+            else "a CPU-only build"
+        )
+        raise DeviceError(
+            f"{what} is cuda, but torch {torch.__version__} sees no CUDA GPU "
+            f"({build}); use auto or cpu"
+        )
     return torch.device("cuda", torch.cuda.current_device())
 
 

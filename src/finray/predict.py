@@ -4,6 +4,7 @@ folder: ``forces.csv`` written row by row, stress maps, annotated frames or vide
 run's files are moved into place only when it ends, so nothing half-written is left.
 :class:`Predictor` is re-exported here, the API a control loop imports.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -12,8 +13,15 @@ from pathlib import Path
 import numpy as np
 
 from .errors import DeviceInputError, FrameError, InputError  # noqa: F401 - callers import them here
-from .media import (IMAGE_SUFFIXES, VIDEO_SUFFIXES, LiveFrames, MediaError, is_live,
-                    read_image, video_frames)
+from .media import (
+    IMAGE_SUFFIXES,
+    VIDEO_SUFFIXES,
+    LiveFrames,
+    MediaError,
+    is_live,
+    read_image,
+    video_frames,
+)
 from .predictor import Predictor  # the API: finray.predict.Predictor
 
 
@@ -97,14 +105,20 @@ def _video_frames(path: Path):
                 continue
             name = f"{path.stem}_{f.rank if f.rank is not None else next(count):05d}"
             yield name, (f.image if f.error is None else FrameError(f.error)), f.t_s
+
     return named()
 
 
 SEGMENTATIONS = ("auto", "colour", "grey")
 
 
-def choose_finder(p: Predictor, frames, segmentation: str = "auto", finger_colour=None,
-                  calibration: dict | None = None):
+def choose_finder(
+    p: Predictor,
+    frames,
+    segmentation: str = "auto",
+    finger_colour=None,
+    calibration: dict | None = None,
+):
     """How the finger is found in ``frames`` (:mod:`finray.recording.finder`), set as
     ``p.finder``; returns the frames to predict (the first ones read here put back).
     ``finger_colour`` (a name, a JSON range or a saved segmentation file): that colour;
@@ -135,8 +149,10 @@ def choose_finder(p: Predictor, frames, segmentation: str = "auto", finger_colou
     images = [f for _, f, _ in head if not isinstance(f, FrameError)]
     finder = learn_finder(images, p.finder)
     if segmentation == "colour" and finder.mode != "colour":
-        raise InputError("no finger colour could be learned: nothing coloured in the first "
-                         f"{len(images)} frames (give --finger-colour)")
+        raise InputError(
+            "no finger colour could be learned: nothing coloured in the first "
+            f"{len(images)} frames (give --finger-colour)"
+        )
     p.finder = finder
     rest = itertools.chain(head, it)
     if isinstance(frames, _Live):
@@ -156,17 +172,31 @@ def run_files(out_dir) -> list[Path]:
     out_dir = Path(out_dir)
     if not out_dir.is_dir():
         return []
-    return sorted([f for f in (out_dir / n for n in RUN_FILES) if f.is_file()]
-                  + [f for g in ("*_stress.exr", "*_stress.png", "*_annotated.png")
-                     for f in out_dir.glob(g)])
+    return sorted(
+        [f for f in (out_dir / n for n in RUN_FILES) if f.is_file()]
+        + [f for g in ("*_stress.exr", "*_stress.png", "*_annotated.png") for f in out_dir.glob(g)]
+    )
 
 
-def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = "auto",
-                  force_only: bool = False, on_frame=None, on_skip=None,
-                  device: str = "auto", calibration: dict | None = None,
-                  overwrite: bool = False, annotate: bool = False, maps: bool = True,
-                  on_annotated=None, segmentation: str = "auto", finger_colour=None,
-                  on_note=None) -> dict:
+def predict_files(
+    model_path,
+    source,
+    out_dir,
+    threads: int = 1,
+    backend: str = "auto",
+    force_only: bool = False,
+    on_frame=None,
+    on_skip=None,
+    device: str = "auto",
+    calibration: dict | None = None,
+    overwrite: bool = False,
+    annotate: bool = False,
+    maps: bool = True,
+    on_annotated=None,
+    segmentation: str = "auto",
+    finger_colour=None,
+    on_note=None,
+) -> dict:
     """Predict every frame of ``source`` (image, folder of images, video, or a live source:
     :func:`finray.media.is_live`, read until it ends or Ctrl-C) into
     ``out_dir``: ``forces.csv`` (``frame,fx_N``; also ``fy_N`` for a model that predicts
@@ -212,17 +242,36 @@ def predict_files(model_path, source, out_dir, threads: int = 1, backend: str = 
     out_dir = Path(out_dir)
     old = run_files(out_dir)
     if old and not overwrite:
-        raise InputError(f"{out_dir} holds another run's results ({len(old)} files: "
-                         f"{', '.join(f.name for f in old[:2])}{', ...' if len(old) > 2 else ''}); "
-                         "give --overwrite to replace them, or another --out")
+        raise InputError(
+            f"{out_dir} holds another run's results ({len(old)} files: "
+            f"{', '.join(f.name for f in old[:2])}{', ...' if len(old) > 2 else ''}); "
+            "give --overwrite to replace them, or another --out"
+        )
     if annotate and force_only:
         raise InputError("annotating draws the stress map: leave out force-only")
     frames = read_frames(source)  # checks a file source before the model loads
     live = isinstance(frames, _Live)
-    one_image = not live and Path(source).is_file() and Path(source).suffix.lower() not in VIDEO_SUFFIXES
+    one_image = (
+        not live and Path(source).is_file() and Path(source).suffix.lower() not in VIDEO_SUFFIXES
+    )
     video = live or (Path(source).is_file() and Path(source).suffix.lower() in VIDEO_SUFFIXES)
-    run = _Run(frames, source, out_dir, one_image, video, force_only, on_frame, on_skip,
-               calibration, annotate, maps, on_annotated, segmentation, finger_colour, on_note)
+    run = _Run(
+        frames,
+        source,
+        out_dir,
+        one_image,
+        video,
+        force_only,
+        on_frame,
+        on_skip,
+        calibration,
+        annotate,
+        maps,
+        on_annotated,
+        segmentation,
+        finger_colour,
+        on_note,
+    )
     try:
         return _predict_files(run, model_path, old, threads, backend, device)
     finally:
@@ -262,10 +311,10 @@ def _predict_files(run: _Run, model_path, old: list, threads, backend, device) -
         import matplotlib  # noqa: F401 - the loop's imports, done before the stream runs
 
         from .render import imageio  # noqa: F401
+
         p.warm_up()
         run.frames.open()
-    run.frames = choose_finder(p, run.frames, run.segmentation, run.finger_colour,
-                               run.calibration)
+    run.frames = choose_finder(p, run.frames, run.segmentation, run.finger_colour, run.calibration)
     if run.on_note is not None:
         for line in [f"finger found by {p.finder.describe()}", *p.notes]:
             run.on_note(line)
@@ -307,11 +356,14 @@ def _predict_into(p, run: _Run) -> dict:
     if run.annotate and run.video:
         from .media import VideoWriter, video_info
 
-        rate = frames.frames.rate_hz if isinstance(frames, _Live) else video_info(run.source).rate_hz
+        rate = (
+            frames.frames.rate_hz if isinstance(frames, _Live) else video_info(run.source).rate_hz
+        )
         # x264's fastest preset, no frame held back: the encoder shares the live loop's
         # core; chroma by point sampling (docs/studies/realtime.md)
-        writer = VideoWriter(out_dir / "annotated.mp4", rate or 30.0, tune="zerolatency",
-                             interpolation="POINT")
+        writer = VideoWriter(
+            out_dir / "annotated.mp4", rate or 30.0, tune="zerolatency", interpolation="POINT"
+        )
         written.append(writer.path)
     try:
         out = _predict_loop(p, run, writer)
@@ -331,8 +383,13 @@ def _predict_into(p, run: _Run) -> dict:
 def _predict_loop(p, run: _Run, writer) -> dict:
     """Rows into ``run.part``, stress maps (and annotated frames) into ``run.out_dir``
     (their paths appended to ``run.written``), annotated video frames to ``writer``."""
-    frames, out_dir, written, calibration, video = (run.frames, run.out_dir, run.written,
-                                                     run.calibration, run.video)
+    frames, out_dir, written, calibration, video = (
+        run.frames,
+        run.out_dir,
+        run.written,
+        run.calibration,
+        run.video,
+    )
     import matplotlib
 
     matplotlib.use("Agg")
@@ -380,34 +437,65 @@ def _predict_loop(p, run: _Run, writer) -> dict:
                 if not run.force_only and run.maps:
                     stem = Path(name).stem
                     written += [out_dir / f"{stem}_stress.exr", out_dir / f"{stem}_stress.png"]
-                    write_exr(written[-2], {"stress": stress.astype(np.float32)},
-                              {"source": str(name), "force_N": force,
-                               "stress_transform": "log10(1 + von_mises_MPa / stress_ref_MPa)",
-                               "stress_ref_MPa": p.stress_ref_MPa})
+                    write_exr(
+                        written[-2],
+                        {"stress": stress.astype(np.float32)},
+                        {
+                            "source": str(name),
+                            "force_N": force,
+                            "stress_transform": "log10(1 + von_mises_MPa / stress_ref_MPa)",
+                            "stress_ref_MPa": p.stress_ref_MPa,
+                        },
+                    )
                     s = np.clip(stress / max(float(stress.max()), 1e-6), 0, 1)
                     write_png(written[-1], (cm.inferno(s)[..., :3] * 255).astype(np.uint8))
-                row = {"frame": name, **({"t_s": t_s} if video else {}),
-                       **{n: float(v) for n, v in zip(p.force_names, fvec)},
-                       **({"contact_mm": contact} if p.has_contact else {})}
+                row = {
+                    "frame": name,
+                    **({"t_s": t_s} if video else {}),
+                    **{n: float(v) for n, v in zip(p.force_names, fvec)},
+                    **({"contact_mm": contact} if p.has_contact else {}),
+                }
                 flags = p.check(mask, confidence, x, row, box)
                 row["valid"] = "+".join(flags) or "ok"
                 if calibration is not None:
                     from .sim2real.calibration import predictive, spread
 
                     members = p.run_members(x)[0]
-                    band = predictive(calibration, [members.mean()], spread(members[:, None]),
-                                      calibration.get("level", 0.9), seed=len(rows))
-                    row.update(force_N=float(band["median"][0]), lo_N=float(band["lo"][0]),
-                               hi_N=float(band["hi"][0]), level=band["level"])
+                    band = predictive(
+                        calibration,
+                        [members.mean()],
+                        spread(members[:, None]),
+                        calibration.get("level", 0.9),
+                        seed=len(rows),
+                    )
+                    row.update(
+                        force_N=float(band["median"][0]),
+                        lo_N=float(band["lo"][0]),
+                        hi_N=float(band["hi"][0]),
+                        level=band["level"],
+                    )
                 if run.annotate:
                     from .annotate import annotate_frame
 
-                    cal = {k: row[k] for k in ("force_N", "lo_N", "hi_N", "level")} if calibration else None
+                    cal = (
+                        {k: row[k] for k in ("force_N", "lo_N", "hi_N", "level")}
+                        if calibration
+                        else None
+                    )
                     label = name + (f"  t = {t_s:.3f} s" if t_s is not None else "")
-                    img = annotate_frame(frame, mask, box, stress, row, cal, label,
-                                         crop_y_mm=p.crop_y_mm,
-                                         contact_min_force_N=p.contact_min_force_N,
-                                         stress_ref_MPa=p.stress_ref_MPa, flags=flags)
+                    img = annotate_frame(
+                        frame,
+                        mask,
+                        box,
+                        stress,
+                        row,
+                        cal,
+                        label,
+                        crop_y_mm=p.crop_y_mm,
+                        contact_min_force_N=p.contact_min_force_N,
+                        stress_ref_MPa=p.stress_ref_MPa,
+                        flags=flags,
+                    )
                     if run.on_annotated is not None:
                         run.on_annotated(img)
                     if writer is not None:
@@ -416,9 +504,17 @@ def _predict_loop(p, run: _Run, writer) -> dict:
                         written.append(out_dir / f"{Path(name).stem}_annotated.png")
                         write_png(written[-1], img)
                 times = ["" if t_s is None else f"{t_s:.6f}"] if video else []
-                table.write(",".join([name, *times,
-                                      *(f"{row[n]:.6g}" for n in [*out_cols, *cal_cols]),
-                                      row["valid"]]) + "\n")
+                table.write(
+                    ",".join(
+                        [
+                            name,
+                            *times,
+                            *(f"{row[n]:.6g}" for n in [*out_cols, *cal_cols]),
+                            row["valid"],
+                        ]
+                    )
+                    + "\n"
+                )
                 table.flush()  # a long video's forces can be read while it runs
                 rows.append(row)
                 for skip in pending:
@@ -434,19 +530,33 @@ def _predict_loop(p, run: _Run, writer) -> dict:
         if not skipped:
             raise InputError(f"{run.source} has no frames")
         if no_finger == len(skipped):
-            raise InputError(f"the finger was found in none of the {no_finger} frames of "
-                             f"{run.source} ({p.finder.describe()}): give its colour "
-                             "(--finger-colour), or check the set-up (--check)")
+            raise InputError(
+                f"the finger was found in none of the {no_finger} frames of "
+                f"{run.source} ({p.finder.describe()}): give its colour "
+                "(--finger-colour), or check the set-up (--check)"
+            )
         raise InputError(f"no frame of {run.source} could be predicted ({len(skipped)} skipped)")
     from .validity import flag_counts
 
-    return {"rows": rows, "skipped": skipped, "interrupted": interrupted,
-            "flagged": flag_counts(rows)}
+    return {
+        "rows": rows,
+        "skipped": skipped,
+        "interrupted": interrupted,
+        "flagged": flag_counts(rows),
+    }
 
 
-def check_setup(model_path, source, out_dir, n_frames: int = 6, segmentation: str = "auto",
-                finger_colour=None, calibration: dict | None = None, backend: str = "auto",
-                device: str = "auto") -> dict:
+def check_setup(
+    model_path,
+    source,
+    out_dir,
+    n_frames: int = 6,
+    segmentation: str = "auto",
+    finger_colour=None,
+    calibration: dict | None = None,
+    backend: str = "auto",
+    device: str = "auto",
+) -> dict:
     """Check a set-up before trusting it: ``n_frames`` frames of ``source`` (spread over a
     file source; a live source's first ones) through the finger finder
     (:func:`choose_finder`) and the model, each with its mask's share of the frame, the
@@ -466,8 +576,14 @@ def check_setup(model_path, source, out_dir, n_frames: int = 6, segmentation: st
             frames.close()
     rows, thumbs = [], []
     for name, frame, _ in picked:
-        row = {"frame": name, "found": False, "mask_frac": 0.0, "confidence": 0.0,
-               "fx_N": float("nan"), "valid": "no_finger"}
+        row = {
+            "frame": name,
+            "found": False,
+            "mask_frac": 0.0,
+            "confidence": 0.0,
+            "fx_N": float("nan"),
+            "valid": "no_finger",
+        }
         mask = box = None
         if isinstance(frame, FrameError):
             row["valid"] = "unreadable"
@@ -479,17 +595,25 @@ def check_setup(model_path, source, out_dir, n_frames: int = 6, segmentation: st
                 f, c = p.run_force_contact(x)
                 out = {n: float(v) for n, v in zip(p.force_names, f[0])}
                 out |= {"contact_mm": float(c[0])} if p.has_contact else {}
-                row.update(found=True, mask_frac=float(mask.mean()), confidence=confidence,
-                           fx_N=out["fx_N"], valid="+".join(p.check(mask, confidence, x, out, box))
-                           or "ok")
+                row.update(
+                    found=True,
+                    mask_frac=float(mask.mean()),
+                    confidence=confidence,
+                    fx_N=out["fx_N"],
+                    valid="+".join(p.check(mask, confidence, x, out, box)) or "ok",
+                )
             thumbs.append((name, frame, mask, box, row["valid"]))
         rows.append(row)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     if thumbs:
         _check_figure(out_dir / "check.png", thumbs, p.finder.describe())
-    return {"finder": p.finder.describe(), "notes": list(p.notes), "frames": rows,
-            "ok": bool(rows) and all(r["valid"] == "ok" for r in rows)}
+    return {
+        "finder": p.finder.describe(),
+        "notes": list(p.notes),
+        "frames": rows,
+        "ok": bool(rows) and all(r["valid"] == "ok" for r in rows),
+    }
 
 
 def _pick(frames, n: int, source) -> list:
@@ -503,8 +627,11 @@ def _pick(frames, n: int, source) -> list:
 
         step = max(1, video_info(source).n_frames // max(n, 1))
     elif source is not None and Path(source).is_dir():
-        step = max(1, len([f for f in Path(source).iterdir()
-                           if f.suffix.lower() in IMAGE_SUFFIXES]) // max(n, 1))
+        step = max(
+            1,
+            len([f for f in Path(source).iterdir() if f.suffix.lower() in IMAGE_SUFFIXES])
+            // max(n, 1),
+        )
     return list(itertools.islice(itertools.islice(frames, 0, None, step), n))
 
 

@@ -26,6 +26,7 @@ height of the force-weighted centroid of the contact; :attr:`Predictor.has_conta
 says whether it does (else the height is NaN). It was trained on frames with ``|fx|``
 above :attr:`Predictor.contact_min_force_N`; below, it is a guess.
 """
+
 from __future__ import annotations
 
 import json
@@ -73,8 +74,15 @@ class Predictor:
     before they were saved gets the defaults, each with a line in :attr:`notes`.
     """
 
-    def __init__(self, model_path: str | Path, threads: int = 1, backend: str = "auto",
-                 device: str = "auto", roi_stride: int = 4, finder: FingerFinder | None = None):
+    def __init__(
+        self,
+        model_path: str | Path,
+        threads: int = 1,
+        backend: str = "auto",
+        device: str = "auto",
+        roi_stride: int = 4,
+        finder: FingerFinder | None = None,
+    ):
         model_path = Path(model_path)
         meta_path = Path(str(model_path) + ".json")
         if not model_path.is_file():
@@ -93,8 +101,9 @@ class Predictor:
         try:
             self.meta = json.loads(meta_path.read_text())
         except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise InputError(f"{meta_path} is not the model's JSON settings ({one_line(exc)})"
-                             ) from None
+            raise InputError(
+                f"{meta_path} is not the model's JSON settings ({one_line(exc)})"
+            ) from None
         self.size = (self.meta["height"], self.meta["width"])
         #: Names of the force outputs, in order (``fx_N`` first; exports before the force
         #: vector had ``fx_N`` only).
@@ -115,26 +124,30 @@ class Predictor:
         self.stress_ref_MPa = self.meta.get("stress_ref_MPa")
         if self.stress_ref_MPa is None:
             self.stress_ref_MPa = DEFAULT_STRESS_REF_MPA
-            self.notes.append(f"{meta_path.name} has no stress_ref_MPa (exported before it was "
-                              f"saved): the stress maps are read in log10(1 + sigma / 1 kPa)")
+            self.notes.append(
+                f"{meta_path.name} has no stress_ref_MPa (exported before it was "
+                f"saved): the stress maps are read in log10(1 + sigma / 1 kPa)"
+            )
         #: The training's ranges (:func:`finray.validity.training_ranges`), or None.
         self.trained = self.meta.get("trained")
         if self.trained is None:
-            self.notes.append(f"{meta_path.name} has no training ranges (exported before they "
-                              "were saved): frames are checked for the mask only, not for "
-                              "shape, force or contact height")
+            self.notes.append(
+                f"{meta_path.name} has no training ranges (exported before they "
+                "were saved): frames are checked for the mask only, not for "
+                "shape, force or contact height"
+            )
         self.limits = Limits()
         #: Heads of an adapted ensemble (:mod:`finray.sim2real.adapt`; 0: a single network).
         self.ensemble = int(self.meta.get("ensemble", 0))
         if self.ensemble and backend == "onnx":
-            raise InputError(f"{model_path} is a head ensemble: TorchScript only (backend "
-                             "torchscript or auto)")
+            raise InputError(
+                f"{model_path} is a head ensemble: TorchScript only (backend torchscript or auto)"
+            )
         onnx_full = model_path.with_suffix(".onnx")
         onnx_force = model_path.with_suffix(".force.onnx")
         cuda = self.device.type == "cuda"
         if backend == "auto":
-            have = (onnx_full.is_file() and onnx_force.is_file() and not cuda
-                    and not self.ensemble)
+            have = onnx_full.is_file() and onnx_force.is_file() and not cuda and not self.ensemble
             try:
                 import onnxruntime  # noqa: F401
             except ImportError:
@@ -151,7 +164,8 @@ class Predictor:
                 raise DeviceInputError(
                     "backend onnx on cuda needs ONNX Runtime's CUDAExecutionProvider (the "
                     "onnxruntime-gpu package); this one has "
-                    f"{', '.join(ort.get_available_providers())}: use backend torchscript")
+                    f"{', '.join(ort.get_available_providers())}: use backend torchscript"
+                )
             elif cuda:  # device auto: ONNX Runtime without CUDA runs on the CPU
                 self.device = torch.device("cpu")
             opts = ort.SessionOptions()
@@ -165,21 +179,25 @@ class Predictor:
                 self._full = ort.InferenceSession(str(onnx_full), opts, providers=providers)
                 self._force = ort.InferenceSession(str(onnx_force), opts, providers=providers)
             except Exception as exc:  # onnxruntime's own error types
-                raise InputError(f"cannot load the ONNX model {onnx_full} ({one_line(exc)})"
-                                 ) from None
+                raise InputError(
+                    f"cannot load the ONNX model {onnx_full} ({one_line(exc)})"
+                ) from None
         else:
             torch.set_num_threads(threads)
             try:
                 self.model = torch.jit.load(str(model_path), map_location=self.device).eval()
             except (RuntimeError, ValueError) as exc:
-                raise InputError(f"{model_path} is not a TorchScript model ({one_line(exc)})"
-                                 ) from None
+                raise InputError(
+                    f"{model_path} is not a TorchScript model ({one_line(exc)})"
+                ) from None
             self._has_force = hasattr(self.model, "force")  # exports before the force path
         #: Whether the model predicts the contact height (mm): its TorchScript has
         #: ``force_contact`` (an adapted ensemble has not), its ONNX files ``contact_mm``.
         if backend == "onnx":
-            self.has_contact = all("contact_mm" in [o.name for o in sess.get_outputs()]
-                                   for sess in (self._full, self._force))
+            self.has_contact = all(
+                "contact_mm" in [o.name for o in sess.get_outputs()]
+                for sess in (self._full, self._force)
+            )
         else:
             self.has_contact = hasattr(self.model, "force_contact")
         #: The smallest |fx| (N) the contact height was trained on.
@@ -189,8 +207,9 @@ class Predictor:
         """Training window in pixel edges ``(col0, row0, col1, row1)`` from the mask
         (:func:`~finray.dataset.imageops.base_anchored_box`)."""
         try:
-            return base_anchored_box(mask, self.base_width_mm, self.crop_x_mm, self.crop_y_mm,
-                                     base_band=self.base_band)
+            return base_anchored_box(
+                mask, self.base_width_mm, self.crop_x_mm, self.crop_y_mm, base_band=self.base_band
+            )
         except EmptyMaskError as exc:
             raise FrameError(str(exc)) from None
 
@@ -209,21 +228,36 @@ class Predictor:
         :class:`FrameError` where no finger is found."""
         mask, confidence = self.finder.find(frame)
         if mask is None:
-            raise FrameError("no finger found in the image (empty segmentation)"
-                             if self.finder.mode == "grey" else
-                             f"no finger found ({self.finder.describe()})")
+            raise FrameError(
+                "no finger found in the image (empty segmentation)"
+                if self.finder.mode == "grey"
+                else f"no finger found ({self.finder.describe()})"
+            )
         return mask, confidence
 
-    def check(self, mask: np.ndarray, confidence: float, x: np.ndarray,
-              outputs: dict[str, float], box=None) -> list[str]:
+    def check(
+        self,
+        mask: np.ndarray,
+        confidence: float,
+        x: np.ndarray,
+        outputs: dict[str, float],
+        box=None,
+    ) -> list[str]:
         """A frame's validity flags (:func:`finray.validity.check_frame`; empty: valid):
         its mask (H, W), the mask's confidence, the network input ``x`` (1, 1, h, w), the
         outputs by name (``fx_N``..., ``contact_mm``) and the window (``box``, else
         :meth:`crop_box`)."""
         box = self.crop_box(mask) if box is None else box
-        return check_frame(float(np.count_nonzero(mask)) / mask.size,
-                           window_outside(box, mask.shape), confidence, x,
-                           outputs, self.trained, self.contact_min_force_N, self.limits)
+        return check_frame(
+            float(np.count_nonzero(mask)) / mask.size,
+            window_outside(box, mask.shape),
+            confidence,
+            x,
+            outputs,
+            self.trained,
+            self.contact_min_force_N,
+            self.limits,
+        )
 
     def network_input(self, mask: np.ndarray, box=None) -> np.ndarray:
         """Network input (1, 1, H, W) float32 in [0, 1] from the mask: the 8-bit soft
@@ -266,8 +300,9 @@ class Predictor:
             return stress, force, np.full(len(force), np.nan, np.float32)
         x = np.ascontiguousarray(x, dtype=np.float32)
         if self.backend == "onnx":
-            stress, force, contact = self._full.run(["stress_log", "force_N", "contact_mm"],
-                                                    {"image": x})
+            stress, force, contact = self._full.run(
+                ["stress_log", "force_N", "contact_mm"], {"image": x}
+            )
             return stress, force, contact
         with torch.inference_mode():
             out = self.model.forward_contact(torch.from_numpy(x).to(self.device))

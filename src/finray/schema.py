@@ -5,6 +5,7 @@
 defaults from it with :func:`schema_default`, so that a default is written once: a
 class built without arguments is the class built from the schema's defaults.
 """
+
 from __future__ import annotations
 
 import copy

@@ -23,6 +23,7 @@ The training's side (:func:`training_ranges`) is saved with the model
 (``model.ts.json``'s ``trained``) by :func:`finray.train.export_torchscript`; a model
 exported before has none, and only the frame's own checks run (the first three).
 """
+
 from __future__ import annotations
 
 import math
@@ -35,7 +36,7 @@ FLAGS = {
     "fills_frame": "the mask covers most of the frame (the background taken for the finger?)",
     "off_frame": "the finger's window reaches beyond the frame (cut off by its edge?)",
     "low_confidence": "much of the finger's colour lies outside the finger (clutter of its "
-                      "colour in view?)",
+    "colour in view?)",
     "shape": "the silhouette is unlike the training's",
     "force_range": "the force is outside the training's range",
     "contact_range": "the contact height is outside the trained heights",
@@ -76,16 +77,21 @@ def _iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return inter / np.maximum(union, 1)
 
 
-def training_ranges(images, force_N: np.ndarray, force_names,
-                    contact_mm: np.ndarray | None = None,
-                    contact_min_force_N: float = 0.0, chunk: int = 4096) -> dict:
+def training_ranges(
+    images,
+    force_N: np.ndarray,
+    force_names,
+    contact_mm: np.ndarray | None = None,
+    contact_min_force_N: float = 0.0,
+    chunk: int = 4096,
+) -> dict:
     """What the checks compare a frame with, from the training frames: ``images`` (N, 1,
     H, W) in [0, 1], or a list of such arrays (both views where the training saw both;
     read ``chunk`` frames at a time), ``force_N`` (N, F) named ``force_names``,
     ``contact_mm`` (N,) the contact heights (NaN where none; frames with ``|fx|`` above
     ``contact_min_force_N`` count). JSON-ready."""
     parts = list(images) if isinstance(images, (list, tuple)) else [images]
-    chunks = [p[i:i + chunk] for p in parts for i in range(0, len(p), chunk)]
+    chunks = [p[i : i + chunk] for p in parts for i in range(0, len(p), chunk)]
     n = sum(len(c) for c in chunks)
     total = sum(silhouette_grid(c).sum(axis=0) for c in chunks)
     mean = total / n
@@ -95,10 +101,15 @@ def training_ranges(images, force_N: np.ndarray, force_names,
         fill = np.asarray(c, np.float32).reshape(len(c), -1).mean(axis=1)
         fill_lo, fill_hi = min(fill_lo, float(fill.min())), max(fill_hi, float(fill.max()))
     f = np.asarray(force_N, dtype=np.float64).reshape(len(force_N), -1)
-    out = {"n_frames": int(n), "fill": [fill_lo, fill_hi], "shape_iou_min": iou_min,
-           "silhouette": np.round(mean, 3).tolist(),
-           "force_N": {name: [float(f[:, k].min()), float(f[:, k].max())]
-                       for k, name in enumerate(force_names)}}
+    out = {
+        "n_frames": int(n),
+        "fill": [fill_lo, fill_hi],
+        "shape_iou_min": iou_min,
+        "silhouette": np.round(mean, 3).tolist(),
+        "force_N": {
+            name: [float(f[:, k].min()), float(f[:, k].max())] for k, name in enumerate(force_names)
+        },
+    }
     if contact_mm is not None:
         c = np.asarray(contact_mm, dtype=np.float64).reshape(-1)
         has = np.isfinite(c) & (np.abs(f[: len(c), 0]) > contact_min_force_N)
@@ -117,9 +128,16 @@ def window_outside(box, shape: tuple[int, int]) -> float:
     return 1.0 - inside / area if area > 0 else 1.0
 
 
-def check_frame(mask_frac: float, outside: float, confidence: float, x: np.ndarray,
-                forces: dict[str, float], trained: dict | None,
-                contact_min_force_N: float = 0.0, limits: Limits = Limits()) -> list[str]:
+def check_frame(
+    mask_frac: float,
+    outside: float,
+    confidence: float,
+    x: np.ndarray,
+    forces: dict[str, float],
+    trained: dict | None,
+    contact_min_force_N: float = 0.0,
+    limits: Limits = Limits(),
+) -> list[str]:
     """The flags (see the module's text) of one frame: ``mask_frac`` the mask's share of
     the frame, ``outside`` the window's share outside it (:func:`window_outside`),
     ``confidence`` the segmentation's (:class:`~finray.recording.finder.FingerFinder`),
@@ -140,8 +158,10 @@ def check_frame(mask_frac: float, outside: float, confidence: float, x: np.ndarr
     iou = float(_iou(grid >= 0.5, mean >= 0.5)[0])
     fill = float(np.mean(x))
     lo, hi = trained["fill"]
-    if (iou < trained["shape_iou_min"] - limits.shape_margin
-            or not lo - limits.fill_margin <= fill <= hi + limits.fill_margin):
+    if (
+        iou < trained["shape_iou_min"] - limits.shape_margin
+        or not lo - limits.fill_margin <= fill <= hi + limits.fill_margin
+    ):
         flags.append("shape")
     for name, (lo, hi) in trained.get("force_N", {}).items():
         v = forces.get(name)
@@ -150,9 +170,13 @@ def check_frame(mask_frac: float, outside: float, confidence: float, x: np.ndarr
             flags.append("force_range")
             break
     c, span = forces.get("contact_mm"), trained.get("contact_mm")
-    if (c is not None and span and math.isfinite(c)
-            and abs(forces.get("fx_N", 0.0)) > contact_min_force_N
-            and not span[0] - limits.contact_margin_mm <= c <= span[1] + limits.contact_margin_mm):
+    if (
+        c is not None
+        and span
+        and math.isfinite(c)
+        and abs(forces.get("fx_N", 0.0)) > contact_min_force_N
+        and not span[0] - limits.contact_margin_mm <= c <= span[1] + limits.contact_margin_mm
+    ):
         flags.append("contact_range")
     return flags
 

@@ -16,6 +16,7 @@ It does nothing else: it acts only in a ``snakemake`` process, only on words aft
 registers (``--logger finray-args``) writes Snakemake's messages to stderr unchanged;
 nothing selects it by default.
 """
+
 from __future__ import annotations
 
 import logging
@@ -49,14 +50,17 @@ def misread_configfile(argv: list[str]) -> str | None:
 
 def message(path: str) -> str:
     """The one line that refuses ``path``."""
-    return (f"finray: '{path}' was read as a config file: put targets before "
-            f"--configfile, or use --configfile=<file>")
+    return (
+        f"finray: '{path}' was read as a config file: put targets before "
+        f"--configfile, or use --configfile=<file>"
+    )
 
 
 def _is_snakemake(argv0: str) -> bool:
     base = os.path.basename(argv0)
     return base.startswith("snakemake") or argv0.replace(os.sep, "/").endswith(
-        "snakemake/__main__.py")
+        "snakemake/__main__.py"
+    )
 
 
 def _guard() -> None:

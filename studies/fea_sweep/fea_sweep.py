@@ -11,7 +11,12 @@ batch = int(wc.batch)
 if batch >= sweep["batches"]:
     raise SystemExit(f"fea sweep: batch {batch} is beyond the {sweep['batches']} batches")
 with log_to(snakemake.log[0]):
-    scenes = draw_scenes(sweep["count"], sweep["seed"], sweep,
-                         FingerParams.from_config(cfg["finger"]), cfg["mesh"]["size_mm"])
-    table = run_scenes(cfg, scenes[batch::sweep["batches"]])
+    scenes = draw_scenes(
+        sweep["count"],
+        sweep["seed"],
+        sweep,
+        FingerParams.from_config(cfg["finger"]),
+        cfg["mesh"]["size_mm"],
+    )
+    table = run_scenes(cfg, scenes[batch :: sweep["batches"]])
     table.to_csv(snakemake.output.table, index=False, float_format="%.6g")

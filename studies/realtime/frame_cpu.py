@@ -16,6 +16,7 @@ the render's look), with the validity checks. A
 model of the default network (input 64x32, 16 base channels), untrained: its cost is
 the trained one's.
 """
+
 import argparse
 import json
 import sys
@@ -34,10 +35,19 @@ from finray.model import FinRayNet, NetConfig  # noqa: E402
 from finray.predict import Predictor  # noqa: E402
 from finray.train import export_onnx, export_torchscript  # noqa: E402
 
-PREPROCESS = {"base_width_mm": 30.0, "crop_x_mm": [-5.0, 35.0], "crop_y_mm": [0.0, 80.0],
-              "base_band": 0.03,
-              "segment": {"threshold": "isodata", "foreground": "bright", "min_object_frac": 1e-3,
-                          "max_hole_frac": 2e-4, "keep_largest": True}}
+PREPROCESS = {
+    "base_width_mm": 30.0,
+    "crop_x_mm": [-5.0, 35.0],
+    "crop_y_mm": [0.0, 80.0],
+    "base_band": 0.03,
+    "segment": {
+        "threshold": "isodata",
+        "foreground": "bright",
+        "min_object_frac": 1e-3,
+        "max_hole_frac": 2e-4,
+        "keep_largest": True,
+    },
+}
 
 
 def frames_at(h, w, n=12, render_like=False):
@@ -71,8 +81,11 @@ def time_loop(p, frames, n, new):
             p.run_force_contact(x) if hasattr(p, "run_force_contact") else p.run_force(x)
         if k >= 10:
             cpu.append((time.thread_time() - c0) * 1e3)
-    return {"cpu_ms_median": float(np.median(cpu)), "cpu_ms_p90": float(np.percentile(cpu, 90)),
-            "n": n}
+    return {
+        "cpu_ms_median": float(np.median(cpu)),
+        "cpu_ms_p90": float(np.percentile(cpu, 90)),
+        "n": n,
+    }
 
 
 def main():

@@ -19,6 +19,7 @@ without ``trained``) is copied into OUT_DIR/model with the ranges of the run's t
 split (``dataset/manifest.csv``'s ``train`` shards, validation scenes included) and the
 shards' stress reference, so that every check runs.
 """
+
 import argparse
 import json
 import sys
@@ -34,11 +35,17 @@ from finray.predict import Predictor, predict_files
 def rig_takes(results: Path) -> dict[str, tuple[list[Path], Path]]:
     """rig -> (its take folders, its sim2real frames.csv)."""
     lab = results / "lab"
-    out = {"default": (sorted(p.parent for p in lab.glob("*/take.mp4")),
-                       results / "evaluate" / "sim2real" / "frames.csv")}
+    out = {
+        "default": (
+            sorted(p.parent for p in lab.glob("*/take.mp4")),
+            results / "evaluate" / "sim2real" / "frames.csv",
+        )
+    }
     for rig in sorted((lab / "rigs").glob("rig*")):
-        out[rig.name] = (sorted(p.parent for p in rig.glob("*/take.mp4")),
-                         results / "evaluate" / "sim2real" / "rigs" / rig.name / "frames.csv")
+        out[rig.name] = (
+            sorted(p.parent for p in rig.glob("*/take.mp4")),
+            results / "evaluate" / "sim2real" / "rigs" / rig.name / "frames.csv",
+        )
     return out
 
 
@@ -54,7 +61,9 @@ def with_ranges(model: Path, results: Path, out: Path) -> Path:
     if "trained" in meta:
         return model
     manifest = pd.read_csv(results / "dataset" / "manifest.csv", usecols=["shard", "split"])
-    shards = sorted(results.parent / s for s in manifest.loc[manifest["split"] == "train", "shard"].unique())
+    shards = sorted(
+        results.parent / s for s in manifest.loc[manifest["split"] == "train", "shard"].unique()
+    )
     size = (meta["height"], meta["width"])
     try:
         data = load_split(shards, size, camera=True)
@@ -62,17 +71,24 @@ def with_ranges(model: Path, results: Path, out: Path) -> Path:
     except (KeyError, ValueError):
         data = load_split(shards, size)
         seen = [data["images"]]
-    meta["trained"] = training_ranges(seen, data["force_N"][:, :1], ["fx_N"],
-                                      data["contact_mm"] if meta.get("contact") else None,
-                                      float(meta.get("contact_min_force_N") or 0.0))
+    meta["trained"] = training_ranges(
+        seen,
+        data["force_N"][:, :1],
+        ["fx_N"],
+        data["contact_mm"] if meta.get("contact") else None,
+        float(meta.get("contact_min_force_N") or 0.0),
+    )
     meta.setdefault("stress_ref_MPa", shard_stress_ref(shards))
     out.mkdir(parents=True, exist_ok=True)
     for f in model.parent.glob(model.stem + ".*"):
         if f.suffix in (".ts", ".onnx"):
             shutil.copy(f, out / f.name)
     (out / (model.name + ".json")).write_text(json.dumps(meta, indent=1))
-    print(f"{model}: no training ranges; {out / model.name} has those of {len(shards)} "
-          f"training shards ({meta['trained']['n_frames']} frames)", flush=True)
+    print(
+        f"{model}: no training ranges; {out / model.name} has those of {len(shards)} "
+        f"training shards ({meta['trained']['n_frames']} frames)",
+        flush=True,
+    )
     return out / model.name
 
 
@@ -84,8 +100,12 @@ def same_inputs(model: Path, take: Path, pred_dir: Path, every: int = 10) -> dic
     from finray.media import video_frames
     from finray.recording.finder import finder_from_spec
 
-    p = Predictor(model, threads=1, backend="torchscript",
-                  finder=finder_from_spec(str(pred_dir / "segmentation.json")))
+    p = Predictor(
+        model,
+        threads=1,
+        backend="torchscript",
+        finder=finder_from_spec(str(pred_dir / "segmentation.json")),
+    )
     key = f"input_{p.size[0]}x{p.size[1]}"
     with np.load(take.parent / "ingest" / take.name / "shard.npz") as f:
         if key not in f.files:
@@ -98,8 +118,13 @@ def same_inputs(model: Path, take: Path, pred_dir: Path, every: int = 10) -> dic
         mask, _ = p.find(fr.image)
         x = np.rint(p.network_input(mask)[0, 0] * 255).astype(int)
         diffs.append(int(np.abs(x - shard[fr.index].astype(int)).max()))
-    return {"frames_compared": len(diffs), "input_max_diff_255": max(diffs, default=0),
-            "input_identical_frames_pct": 100 * float(np.mean([d == 0 for d in diffs])) if diffs else None}
+    return {
+        "frames_compared": len(diffs),
+        "input_max_diff_255": max(diffs, default=0),
+        "input_identical_frames_pct": 100 * float(np.mean([d == 0 for d in diffs]))
+        if diffs
+        else None,
+    }
 
 
 def main() -> int:
@@ -128,15 +153,18 @@ def main() -> int:
             pred["frame"] = pred["frame"].str.rsplit("_", n=1).str[-1].astype(int)
             ingest = take.parent / "ingest" / take.name / "frames.csv"
             labels = pd.read_csv(ingest)[["frame", "force_N", "status"]]
-            t = pred.merge(labels, on="frame", how="left").assign(rig=rig, take=take.name,
-                                                                    finder=res["finder"])
+            t = pred.merge(labels, on="frame", how="left").assign(
+                rig=rig, take=take.name, finder=res["finder"]
+            )
             if sim is not None:
                 # sim-to-real names a take <object>_lab_h<h>_p<pitch>_<take folder>
                 named = (sim["take"] == take.name) | sim["take"].str.endswith("_" + take.name)
                 s = sim[named][["frame", "pred_N", "net_mean_N"]]
-                t = t.merge(s.rename(columns={"pred_N": "sim2real_N",
-                                              "net_mean_N": "sim2real_net_N"}),
-                            on="frame", how="left")
+                t = t.merge(
+                    s.rename(columns={"pred_N": "sim2real_N", "net_mean_N": "sim2real_net_N"}),
+                    on="frame",
+                    how="left",
+                )
             per_rig.append(t)
             same = same_inputs(model, take, out)
             inputs.append(same)
@@ -144,12 +172,17 @@ def main() -> int:
         table = pd.concat(per_rig, ignore_index=True)
         rows.append(table)
         both = table.dropna(subset=["force_N"])
-        r = {"takes": len(takes), "frames": int(len(table)),
-             "flagged": int((table["valid"] != "ok").sum()),
-             "finders": sorted(set(table["finder"])),
-             "predict_vs_sensor": force_metrics(both["force_N"], both["fx_N"]),
-             "input_max_diff_255": max((i.get("input_max_diff_255", 0) for i in inputs), default=None),
-             "inputs": inputs}
+        r = {
+            "takes": len(takes),
+            "frames": int(len(table)),
+            "flagged": int((table["valid"] != "ok").sum()),
+            "finders": sorted(set(table["finder"])),
+            "predict_vs_sensor": force_metrics(both["force_N"], both["fx_N"]),
+            "input_max_diff_255": max(
+                (i.get("input_max_diff_255", 0) for i in inputs), default=None
+            ),
+            "inputs": inputs,
+        }
         if "sim2real_N" in both:
             same = both.dropna(subset=["sim2real_N"])
             r["same_frames"] = int(len(same))
@@ -157,25 +190,40 @@ def main() -> int:
             r["sim2real_vs_sensor"] = force_metrics(same["force_N"], same["sim2real_N"])
             r["sim2real_net_vs_sensor"] = force_metrics(same["force_N"], same["sim2real_net_N"])
             r["predict_vs_sim2real_net_rmse_N"] = float(
-                np.sqrt(np.mean((same["fx_N"] - same["sim2real_net_N"]) ** 2)))
+                np.sqrt(np.mean((same["fx_N"] - same["sim2real_net_N"]) ** 2))
+            )
         # a constant read while the sensor moves: the prediction's spread against the sensor's
         spread = both.groupby("take").agg(pred_sd=("fx_N", "std"), sensor_sd=("force_N", "std"))
         r["constant_takes"] = sorted(spread.index[spread["pred_sd"] < 0.05 * spread["sensor_sd"]])
         summary["rigs"][rig] = r
-        print(rig, json.dumps({k: (v["nrmse_pct"] if isinstance(v, dict) and "nrmse_pct" in v else v)
-                               for k, v in r.items()}), flush=True)
+        print(
+            rig,
+            json.dumps(
+                {
+                    k: (v["nrmse_pct"] if isinstance(v, dict) and "nrmse_pct" in v else v)
+                    for k, v in r.items()
+                }
+            ),
+            flush=True,
+        )
     args.out.mkdir(parents=True, exist_ok=True)
-    pd.concat(rows, ignore_index=True).to_csv(args.out / "frames.csv", index=False,
-                                              float_format="%.6g")
+    pd.concat(rows, ignore_index=True).to_csv(
+        args.out / "frames.csv", index=False, float_format="%.6g"
+    )
     (args.out / "summary.json").write_text(json.dumps(summary, indent=1))
-    lines = ["| rig | takes | frames | flagged | predict Fx NRMSE (%) | sim2real no-context NRMSE (%) "
-             "| its heads' mean, NRMSE (%) | constant takes |", "|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| rig | takes | frames | flagged | predict Fx NRMSE (%) | sim2real no-context NRMSE (%) "
+        "| its heads' mean, NRMSE (%) | constant takes |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for rig, r in summary["rigs"].items():
         p = r.get("predict_vs_sensor_same_frames", r["predict_vs_sensor"])["nrmse_pct"]
         s = r.get("sim2real_vs_sensor", {}).get("nrmse_pct", float("nan"))
         n = r.get("sim2real_net_vs_sensor", {}).get("nrmse_pct", float("nan"))
-        lines.append(f"| {rig} | {r['takes']} | {r['frames']} | {r['flagged']} | {p:.1f} | {s:.1f} "
-                     f"| {n:.1f} | {len(r['constant_takes'])} |")
+        lines.append(
+            f"| {rig} | {r['takes']} | {r['frames']} | {r['flagged']} | {p:.1f} | {s:.1f} "
+            f"| {n:.1f} | {len(r['constant_takes'])} |"
+        )
     (args.out / "summary.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     return 0

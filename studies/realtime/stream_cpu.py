@@ -11,6 +11,7 @@ The stream: 10 s of the synthetic orange finger of tests/recording_synth.py over
 grey background, bent 0-5 mm, at 640x480 and 1280x720; an untrained network of the
 default size (its cost is a trained one's).
 """
+
 import json
 import sys
 from pathlib import Path
@@ -25,8 +26,14 @@ from finray.model import FinRayNet, NetConfig  # noqa: E402
 from finray.train import export_onnx, export_torchscript  # noqa: E402
 from frame_cpu import PREPROCESS, frames_at  # noqa: E402  (this folder: the same synthetic finger)
 
-KEYS = ("fps", "cpu_ms_per_frame", "cpu_ms_per_frame_run", "dropped_steady", "predicted",
-        "received")
+KEYS = (
+    "fps",
+    "cpu_ms_per_frame",
+    "cpu_ms_per_frame_run",
+    "dropped_steady",
+    "predicted",
+    "received",
+)
 
 
 def main() -> None:

@@ -7,6 +7,7 @@ The same inputs as the workflow's ``summary`` rule (workflow/rules/paper.smk). T
 scene table is rebuilt from the scenes' own ``summary.json`` files, so that a run whose
 ``fea_scenes.csv`` predates a new column still gives every key.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -34,19 +35,30 @@ def main() -> None:
         scenes = Path(tmp) / "fea_scenes.csv"
         scene_table(sorted(r.glob("fea/*/*/h*/summary.json")), scenes)
         histories = {p.parent.name: p for p in sorted(r.glob("train/*/history.json"))}
-        s = build_summary(r / "evaluate", EXPERIMENTS, r / "evaluate" / "baseline" / "fit.json",
-                          r / "evaluate" / "speed" / "speed.json",
-                          # the FEA cost study's table where it was built (STUDY_NODES)
-                          p if (p := r / "benchmarks" / "fea_pareto.csv").exists() else None,
-                          histories,
-                          cfg["evaluate"]["usable_nrmse_pct"], config=cfg,
-                          fea_scenes_csv=scenes, manifest_csv=r / "dataset" / "manifest.csv")
+        s = build_summary(
+            r / "evaluate",
+            EXPERIMENTS,
+            r / "evaluate" / "baseline" / "fit.json",
+            r / "evaluate" / "speed" / "speed.json",
+            # the FEA cost study's table where it was built (STUDY_NODES)
+            p if (p := r / "benchmarks" / "fea_pareto.csv").exists() else None,
+            histories,
+            cfg["evaluate"]["usable_nrmse_pct"],
+            config=cfg,
+            fea_scenes_csv=scenes,
+            manifest_csv=r / "dataset" / "manifest.csv",
+        )
     # the emulated lab takes, with the set-up the summary rule passes (lab.smk, paper.smk)
-    s["lab"] = lab_summary(r / "lab" / "qa.json", r / "lab" / "qa.csv",
-                           {k: cfg["lab"][k] for k in ("as_built", "motion", "camera", "sensor")})
+    s["lab"] = lab_summary(
+        r / "lab" / "qa.json",
+        r / "lab" / "qa.csv",
+        {k: cfg["lab"][k] for k in ("as_built", "motion", "camera", "sensor")},
+    )
     s["sim2real"] = json.loads((r / "evaluate" / "sim2real" / "summary.json").read_text())
     if cfg["lab"]["rigs"]["count"]:  # sim-to-real on the drawn emulated rigs (rigs.smk)
-        s["sim2real_rigs"] = json.loads((r / "evaluate" / "sim2real" / "rigs" / "summary.json").read_text())
+        s["sim2real_rigs"] = json.loads(
+            (r / "evaluate" / "sim2real" / "rigs" / "summary.json").read_text()
+        )
     a.out.write_text(json.dumps(s, indent=1) + "\n")
     print(f"wrote {a.out} ({a.out.stat().st_size} bytes)")
 

@@ -7,5 +7,10 @@ with log_to(snakemake.log[0]):
     for path in snakemake.input.objects:
         obj = TriMesh.load(path)
         objects.setdefault(obj.meta["name"], []).append(obj)
-    gallery(TriMesh.load(snakemake.input.finger), objects, snakemake.output.pdf,
-            snakemake.output.png, snakemake.params.splits)
+    gallery(
+        TriMesh.load(snakemake.input.finger),
+        objects,
+        snakemake.output.pdf,
+        snakemake.output.png,
+        snakemake.params.splits,
+    )

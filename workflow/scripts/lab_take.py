@@ -5,6 +5,13 @@ from finray.logs import log_to
 
 wc, p = snakemake.wildcards, snakemake.params
 with log_to(snakemake.log[0]):
-    emulate_take(snakemake.input.result, Path(snakemake.output.take).parent, p.lab,
-                 object_name=wc.object, height_mm=float(wc.height), extrusion_mm=p.extrusion_mm,
-                 seed=p.seed, log=lambda m: print(m, flush=True))
+    emulate_take(
+        snakemake.input.result,
+        Path(snakemake.output.take).parent,
+        p.lab,
+        object_name=wc.object,
+        height_mm=float(wc.height),
+        extrusion_mm=p.extrusion_mm,
+        seed=p.seed,
+        log=lambda m: print(m, flush=True),
+    )

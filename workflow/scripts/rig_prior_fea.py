@@ -4,11 +4,22 @@ from finray.fea.scene import rigid_object_cfg, scene_job
 
 wc, p = snakemake.wildcards, snakemake.params
 # a training scene's steel object: rigid
-failed = scene_job(rigid_object_cfg(p.fea, p.finger, p.finger_material), snakemake.input.finger,
-                   snakemake.input.object, "rigid", Path(snakemake.output.result).parent,
-                   {"scene": f"rig_prior_{wc.variant}_{wc.object}_h{wc.height}",
-                    "object": wc.object, "material": "rigid", "height_mm": float(wc.height),
-                    "split": "rig_prior"},
-                   snakemake.log[0], vtu=False, failure_report=p.failure_report)
+failed = scene_job(
+    rigid_object_cfg(p.fea, p.finger, p.finger_material),
+    snakemake.input.finger,
+    snakemake.input.object,
+    "rigid",
+    Path(snakemake.output.result).parent,
+    {
+        "scene": f"rig_prior_{wc.variant}_{wc.object}_h{wc.height}",
+        "object": wc.object,
+        "material": "rigid",
+        "height_mm": float(wc.height),
+        "split": "rig_prior",
+    },
+    snakemake.log[0],
+    vtu=False,
+    failure_report=p.failure_report,
+)
 if failed:
     raise SystemExit(failed)

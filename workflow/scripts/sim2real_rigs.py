@@ -10,4 +10,8 @@ with log_to(snakemake.log[0]):
     default = getattr(inp, "default", None)
     summaries = {"default": json.loads(Path(default).read_text())} if default else {}
     summaries |= {Path(p).parent.name: json.loads(Path(p).read_text()) for p in inp.rigs}
-    print(json.dumps(write_rigs(summaries, snakemake.params.rigs, snakemake.output)["by_context"], indent=1))
+    print(
+        json.dumps(
+            write_rigs(summaries, snakemake.params.rigs, snakemake.output)["by_context"], indent=1
+        )
+    )

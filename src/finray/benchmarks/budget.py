@@ -11,6 +11,7 @@ seed, and runs every experiment and sim-to-real on each (a spread variant
 - :func:`pareto_figure` -- error against CPU minutes, one panel per experiment
 - :func:`write_budget` -- ``training_budget.{json,csv,md,png}``
 """
+
 from __future__ import annotations
 
 import json
@@ -48,8 +49,9 @@ def with_worst(figures: dict[str, float]) -> dict[str, float]:
     return figures | worst
 
 
-def budget_table(figures: dict[str, dict[str, dict[str, float]]],
-                 cpu_s: dict[str, dict[str, dict[str, float]]]) -> pd.DataFrame:
+def budget_table(
+    figures: dict[str, dict[str, dict[str, float]]], cpu_s: dict[str, dict[str, dict[str, float]]]
+) -> pd.DataFrame:
     """``figures``: point -> variant (seed) -> headline figures
     (:func:`finray.evaluate.spread.headline_figures`); ``cpu_s``: point -> variant ->
     model -> training job CPU (s). Rows (point, figure) with ``mean``, ``min``, ``max``,
@@ -66,10 +68,16 @@ def budget_table(figures: dict[str, dict[str, dict[str, float]]],
         vals = df.to_numpy(dtype=float)
         for name, row in zip(df.index, vals):
             ok = row[np.isfinite(row)]
-            rows.append({"point": point, "figure": name,
-                         "mean": ok.mean() if len(ok) else np.nan,
-                         "min": ok.min() if len(ok) else np.nan,
-                         "max": ok.max() if len(ok) else np.nan, "n": len(ok)})
+            rows.append(
+                {
+                    "point": point,
+                    "figure": name,
+                    "mean": ok.mean() if len(ok) else np.nan,
+                    "min": ok.min() if len(ok) else np.nan,
+                    "max": ok.max() if len(ok) else np.nan,
+                    "n": len(ok),
+                }
+            )
     return pd.DataFrame(rows).set_index(["point", "figure"]).sort_index()
 
 
@@ -82,8 +90,12 @@ def pareto_figure(table: pd.DataFrame, path) -> None:
     import matplotlib.pyplot as plt
 
     points = list(dict.fromkeys(table.index.get_level_values("point")))
-    cost = {p: table.loc[(p, "train | all models | CPU min"), "mean"]
-            if (p, "train | all models | CPU min") in table.index else np.nan for p in points}
+    cost = {
+        p: table.loc[(p, "train | all models | CPU min"), "mean"]
+        if (p, "train | all models | CPU min") in table.index
+        else np.nan
+        for p in points
+    }
     fig, axes = plt.subplots(2, 3, figsize=(12, 6.5), sharex=True)
     for ax, (title, pattern) in zip(axes.flat, PANELS):
         names = sorted({f for f in table.index.get_level_values("figure") if re.match(pattern, f)})
@@ -98,11 +110,14 @@ def pareto_figure(table: pd.DataFrame, path) -> None:
             x, y = np.asarray(xs)[order], np.asarray(ys)[order]
             err = np.array([np.asarray(lo)[order], np.asarray(hi)[order]])
             label = " | ".join(s for s in name.split(" | ")[1:-1] if s != "worst")
-            ax.errorbar(x, y, yerr=err, marker="o", ms=4, capsize=3, color=f"C{j % 10}", label=label)
+            ax.errorbar(
+                x, y, yerr=err, marker="o", ms=4, capsize=3, color=f"C{j % 10}", label=label
+            )
         for p in points:
             if np.isfinite(cost[p]):
-                ax.annotate(p, (cost[p], ax.get_ylim()[1]), fontsize=6, ha="center", va="top",
-                            color="0.4")
+                ax.annotate(
+                    p, (cost[p], ax.get_ylim()[1]), fontsize=6, ha="center", va="top", color="0.4"
+                )
         ax.set_title(title, fontsize=9)
         ax.set_ylabel("force NRMSE (% of the largest force)", fontsize=7)
         ax.tick_params(labelsize=7)
@@ -111,8 +126,11 @@ def pareto_figure(table: pd.DataFrame, path) -> None:
             ax.legend(fontsize=6)
     for ax in axes[-1]:
         ax.set_xlabel("training CPU time, all models (min; mean over seeds)", fontsize=7)
-    fig.suptitle("Training budget: error against CPU time (mean over seeds, bars the range; "
-                 "sim-to-real on the EMULATED rig)", fontsize=9)
+    fig.suptitle(
+        "Training budget: error against CPU time (mean over seeds, bars the range; "
+        "sim-to-real on the EMULATED rig)",
+        fontsize=9,
+    )
     fig.tight_layout()
     fig.savefig(path, dpi=150)
     plt.close(fig)
@@ -121,10 +139,14 @@ def pareto_figure(table: pd.DataFrame, path) -> None:
 def _markdown(table: pd.DataFrame, cpu_name: str) -> str:
     points = list(dict.fromkeys(table.index.get_level_values("point")))
     names = sorted(set(table.index.get_level_values("figure")))
-    lines = [f"Training CPU from the Snakemake benchmark files ({cpu_name}); every other "
-             "figure is the mean over seeds, [min, max] after it. Sim-to-real is on the "
-             "EMULATED lab rig.", "",
-             "| figure | " + " | ".join(points) + " |", "|---" + "|--:" * len(points) + "|"]
+    lines = [
+        f"Training CPU from the Snakemake benchmark files ({cpu_name}); every other "
+        "figure is the mean over seeds, [min, max] after it. Sim-to-real is on the "
+        "EMULATED lab rig.",
+        "",
+        "| figure | " + " | ".join(points) + " |",
+        "|---" + "|--:" * len(points) + "|",
+    ]
     for name in names:
         cells = []
         for p in points:
@@ -132,8 +154,11 @@ def _markdown(table: pd.DataFrame, cpu_name: str) -> str:
                 cells.append("–")
                 continue
             r = table.loc[(p, name)]
-            cells.append(f"{r['mean']:.4g}" if r["n"] < 2 or r["min"] == r["max"]
-                         else f"{r['mean']:.4g} [{r['min']:.4g}, {r['max']:.4g}]")
+            cells.append(
+                f"{r['mean']:.4g}"
+                if r["n"] < 2 or r["min"] == r["max"]
+                else f"{r['mean']:.4g} [{r['min']:.4g}, {r['max']:.4g}]"
+            )
         lines.append(f"| {name.replace('|', chr(92) + '|')} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
@@ -146,8 +171,9 @@ def write_budget(figures, cpu_s, settings: dict, out: dict, cpu_name: str = "") 
     Path(out["table"]).write_text(_markdown(table, cpu_name))
     js = {"cpu": cpu_name, "points": settings, "figures": {}}
     for (p, name), r in table.iterrows():
-        js["figures"].setdefault(name, {})[p] = {c: (float(r[c]) if np.isfinite(r[c]) else None)
-                                                 for c in ("mean", "min", "max")} | {"n": int(r["n"])}
+        js["figures"].setdefault(name, {})[p] = {
+            c: (float(r[c]) if np.isfinite(r[c]) else None) for c in ("mean", "min", "max")
+        } | {"n": int(r["n"])}
     Path(out["json"]).write_text(json.dumps(js, indent=1))
     pareto_figure(table, out["figure"])
     return table

@@ -22,6 +22,7 @@ The network is the one of ``--model`` (a ``model.pt`` checkpoint) or, without it
 freshly initialised one of the config's size (64 x 32, base 16, two forces): its
 weights do not change its cost. Timings, not correctness: run on a quiet machine.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -45,35 +46,69 @@ def synthetic_frames(n: int, size: tuple[int, int], n_forces: int = 2, seed: int
     ``stress`` (n, 1, H, W) log-stress, ``force_N`` (n, n_forces), float32."""
     rng = np.random.default_rng(seed)
     h, w = size
-    return {"images": rng.random((n, 1, h, w), dtype=np.float32),
-            "stress": rng.normal(1.0, 0.5, (n, 1, h, w)).astype(np.float32),
-            "force_N": rng.normal(0.0, 1.0, (n, n_forces)).astype(np.float32)}
+    return {
+        "images": rng.random((n, 1, h, w), dtype=np.float32),
+        "stress": rng.normal(1.0, 0.5, (n, 1, h, w)).astype(np.float32),
+        "force_N": rng.normal(0.0, 1.0, (n, n_forces)).astype(np.float32),
+    }
 
 
-def time_epoch(net_cfg, device: str = "auto", frames: int = 1024, batch_size: int = 16,
-               lr: float = 1e-4, threads: int = 1, full_frames: int = FULL_TRAIN_FRAMES,
-               log=None) -> dict:
+def time_epoch(
+    net_cfg,
+    device: str = "auto",
+    frames: int = 1024,
+    batch_size: int = 16,
+    lr: float = 1e-4,
+    threads: int = 1,
+    full_frames: int = FULL_TRAIN_FRAMES,
+    log=None,
+) -> dict:
     """One training epoch on synthetic frames (:func:`synthetic_frames`) with the plain
     model's augmentation: wall seconds of the epoch, the median step (ms, wall and host
     CPU) and the epoch of ``full_frames`` frames estimated from the step (s)."""
     from ..train import AugmentConfig, TrainAugment, TrainConfig, train
 
     data = synthetic_frames(frames, (net_cfg.height, net_cfg.width), net_cfg.n_forces)
-    cfg = TrainConfig(epochs=1, batch_size=batch_size, lr=lr, threads=threads, device=device,
-                      progress=False, log_every_s=3600.0, contact_weight=0.0)
+    cfg = TrainConfig(
+        epochs=1,
+        batch_size=batch_size,
+        lr=lr,
+        threads=threads,
+        device=device,
+        progress=False,
+        log_every_s=3600.0,
+        contact_weight=0.0,
+    )
     lines: list[str] = []
-    _, hist = train(data["images"], data["stress"], data["force_N"], None, net_cfg, cfg,
-                    TrainAugment(AugmentConfig()), log=log or lines.append)
-    return {"device": hist.device, "precision": hist.precision,
-            "precision_reason": hist.precision_reason, "frames": frames,
-            "batch_size": batch_size, "lr": lr, "threads": threads,
-            "epoch_s": hist.epoch_time_s[0], "step_ms": hist.step_ms,
-            "step_cpu_ms": hist.step_cpu_ms, "full_frames": full_frames,
-            "full_epoch_estimate_s": hist.step_ms * (full_frames // batch_size) / 1e3}
+    _, hist = train(
+        data["images"],
+        data["stress"],
+        data["force_N"],
+        None,
+        net_cfg,
+        cfg,
+        TrainAugment(AugmentConfig()),
+        log=log or lines.append,
+    )
+    return {
+        "device": hist.device,
+        "precision": hist.precision,
+        "precision_reason": hist.precision_reason,
+        "frames": frames,
+        "batch_size": batch_size,
+        "lr": lr,
+        "threads": threads,
+        "epoch_s": hist.epoch_time_s[0],
+        "step_ms": hist.step_ms,
+        "step_cpu_ms": hist.step_cpu_ms,
+        "full_frames": full_frames,
+        "full_epoch_estimate_s": hist.step_ms * (full_frames // batch_size) / 1e3,
+    }
 
 
-def time_inference(model, device: str = "auto", n_calls: int = 200, repeats: int = 3,
-                   threads: int = 1) -> dict:
+def time_inference(
+    model, device: str = "auto", n_calls: int = 200, repeats: int = 3, threads: int = 1
+) -> dict:
     """Median latency (ms) of the network at batch 1 through :class:`Predictor` on
     ``device`` (exported to a temporary folder as training exports it): ``force_ms``
     (encoder and force head), ``full_ms`` (with the stress decoder), wall and the
@@ -88,8 +123,12 @@ def time_inference(model, device: str = "auto", n_calls: int = 200, repeats: int
         export_torchscript(model, path)
         export_onnx(model, path.with_suffix(".onnx"))
         p = Predictor(path, threads=threads, device=device)
-        out = {"backend": p.backend, "device": str(p.device), "threads": threads,
-               "n_calls": n_calls * repeats}
+        out = {
+            "backend": p.backend,
+            "device": str(p.device),
+            "threads": threads,
+            "n_calls": n_calls * repeats,
+        }
         for key, fn in (("force", p.run_force), ("full", p.run)):
             t = time_calls(lambda k: fn(x), n_calls, repeats, warmup=20, cpu="thread")
             out[f"{key}_ms"] = t.wall_s * 1e3
@@ -98,10 +137,19 @@ def time_inference(model, device: str = "auto", n_calls: int = 200, repeats: int
     return out
 
 
-def run(out: str | Path, model_path: str | Path | None = None, device: str = "auto",
-        frames: int = 1024, batch_size: int = 16, lr: float = 1e-4, calls: int = 200,
-        repeats: int = 3, threads: int = 1, full_frames: int = FULL_TRAIN_FRAMES,
-        log=print) -> dict:
+def run(
+    out: str | Path,
+    model_path: str | Path | None = None,
+    device: str = "auto",
+    frames: int = 1024,
+    batch_size: int = 16,
+    lr: float = 1e-4,
+    calls: int = 200,
+    repeats: int = 3,
+    threads: int = 1,
+    full_frames: int = FULL_TRAIN_FRAMES,
+    log=print,
+) -> dict:
     """Time an epoch and the batch-1 latency (:func:`time_epoch`, :func:`time_inference`)
     and write them, with the device's name, to ``out`` (JSON)."""
     import torch
@@ -114,39 +162,59 @@ def run(out: str | Path, model_path: str | Path | None = None, device: str = "au
     if model_path is not None:
         model, _ = load_checkpoint(model_path)
     else:
-        model = FinRayNet(NetConfig(in_channels=1, base_channels=16, height=64, width=32,
-                                    n_forces=2))
+        model = FinRayNet(
+            NetConfig(in_channels=1, base_channels=16, height=64, width=32, n_forces=2)
+        )
     torch.set_num_threads(threads)
     load_before = os.getloadavg()
     log(f"device: {device_name(dev)}; training one epoch of {frames} synthetic frames")
     train_t = time_epoch(model.cfg, device, frames, batch_size, lr, threads, full_frames)
-    log(f"epoch {train_t['epoch_s']:.1f} s, step {train_t['step_ms']:.1f} ms "
-        f"({train_t['precision']}); full epoch ~{train_t['full_epoch_estimate_s']:.0f} s")
+    log(
+        f"epoch {train_t['epoch_s']:.1f} s, step {train_t['step_ms']:.1f} ms "
+        f"({train_t['precision']}); full epoch ~{train_t['full_epoch_estimate_s']:.0f} s"
+    )
     infer_t = time_inference(model, device, calls, repeats, threads)
-    log(f"batch 1 ({infer_t['backend']}): force {infer_t['force_ms']:.3f} ms, "
-        f"full {infer_t['full_ms']:.3f} ms")
-    result = {"device": str(dev), "device_name": device_name(dev), "device_setting": device,
-              "torch": torch.__version__, "cuda": torch.version.cuda,
-              "model": str(model_path) if model_path else None,
-              "model_note": ("checkpoint" if model_path else
-                             "freshly initialised (no --model): the cost does not depend on the weights"),
-              "net": model.config_dict(),
-              "data": "synthetic frames at the network's input size (random images, "
-                      "log-stress maps and forces)",
-              "cpu_count": os.cpu_count(), "load_average_before": list(load_before),
-              "load_average_after": list(os.getloadavg()),
-              "train": train_t, "inference": infer_t}
+    log(
+        f"batch 1 ({infer_t['backend']}): force {infer_t['force_ms']:.3f} ms, "
+        f"full {infer_t['full_ms']:.3f} ms"
+    )
+    result = {
+        "device": str(dev),
+        "device_name": device_name(dev),
+        "device_setting": device,
+        "torch": torch.__version__,
+        "cuda": torch.version.cuda,
+        "model": str(model_path) if model_path else None,
+        "model_note": (
+            "checkpoint"
+            if model_path
+            else "freshly initialised (no --model): the cost does not depend on the weights"
+        ),
+        "net": model.config_dict(),
+        "data": "synthetic frames at the network's input size (random images, "
+        "log-stress maps and forces)",
+        "cpu_count": os.cpu_count(),
+        "load_average_before": list(load_before),
+        "load_average_after": list(os.getloadavg()),
+        "train": train_t,
+        "inference": infer_t,
+    }
     Path(out).parent.mkdir(parents=True, exist_ok=True)
     Path(out).write_text(json.dumps(result, indent=1))
     return result
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m finray.benchmarks.device",
-                                 description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(
+        prog="python -m finray.benchmarks.device", description=__doc__.split("\n\n")[0]
+    )
     ap.add_argument("--out", type=Path, required=True, help="JSON file to write")
-    ap.add_argument("--model", type=Path, default=None,
-                    help="model.pt checkpoint (default: a freshly initialised network)")
+    ap.add_argument(
+        "--model",
+        type=Path,
+        default=None,
+        help="model.pt checkpoint (default: a freshly initialised network)",
+    )
     ap.add_argument("--device", choices=["auto", "cpu", "cuda"], default="auto")
     ap.add_argument("--frames", type=int, default=1024, help="synthetic training frames (1024)")
     ap.add_argument("--batch-size", type=int, default=16, help="the config's (16)")
@@ -154,12 +222,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--calls", type=int, default=200, help="timed batch-1 calls per repeat (200)")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--threads", type=int, default=1, help="intra-op CPU threads (1)")
-    ap.add_argument("--full-frames", type=int, default=FULL_TRAIN_FRAMES,
-                    help=f"frames of a real epoch, for the estimate ({FULL_TRAIN_FRAMES})")
+    ap.add_argument(
+        "--full-frames",
+        type=int,
+        default=FULL_TRAIN_FRAMES,
+        help=f"frames of a real epoch, for the estimate ({FULL_TRAIN_FRAMES})",
+    )
     args = ap.parse_args(argv)
     if args.frames < 2 * args.batch_size:
-        print(f"finray.benchmarks.device: --frames must be at least two batches "
-              f"({2 * args.batch_size})", file=sys.stderr)
+        print(
+            f"finray.benchmarks.device: --frames must be at least two batches "
+            f"({2 * args.batch_size})",
+            file=sys.stderr,
+        )
         return 2
     if args.model is not None and not args.model.is_file():
         print(f"finray.benchmarks.device: no model checkpoint at {args.model}", file=sys.stderr)
@@ -167,8 +242,18 @@ def main(argv: list[str] | None = None) -> int:
     from ..precision import DeviceError
 
     try:
-        run(args.out, args.model, args.device, args.frames, args.batch_size, args.lr,
-            args.calls, args.repeats, args.threads, args.full_frames)
+        run(
+            args.out,
+            args.model,
+            args.device,
+            args.frames,
+            args.batch_size,
+            args.lr,
+            args.calls,
+            args.repeats,
+            args.threads,
+            args.full_frames,
+        )
     except DeviceError as exc:
         print(f"finray.benchmarks.device: {exc}", file=sys.stderr)
         return 2

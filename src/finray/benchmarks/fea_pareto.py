@@ -6,6 +6,7 @@ reference (Richardson extrapolation over the mesh sizes).
 
 Units: lengths mm, forces N on the 20 mm finger, times s (wall clock, one thread).
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -20,8 +21,9 @@ from .timing import Stopwatch
 __all__ = ["run_time_vs_error", "richardson", "converged_estimate", "write_pareto"]
 
 
-def _variants(cfg: dict, mesh_p2, mesh_p1, steps, dhats, object_sizes=(), arc_chords=(),
-              previous=None):
+def _variants(
+    cfg: dict, mesh_p2, mesh_p1, steps, dhats, object_sizes=(), arc_chords=(), previous=None
+):
     """(label, factor, overrides) one factor at a time; the default once."""
     d_size, d_order = cfg["mesh"]["size_mm"], cfg["mesh"]["order"]
     d_step, d_dhat = cfg["fea"]["max_step_mm"], cfg["fea"]["dhat_mm"]
@@ -95,8 +97,11 @@ def converged_estimate(df: pd.DataFrame, d_size: float, d_chord: float) -> dict:
     ``order`` (observed mesh order, NaN when no power law), ``sizes_mm`` (the three
     meshes) and ``geometry_N`` (the chord correction).
     """
-    p2 = df[df["factor"].isin(["default", "mesh", "reference"]) & (df["order"] == 2)
-            & np.isclose(df["arc_chord_mm"], d_chord)].sort_values("mesh_size_mm")
+    p2 = df[
+        df["factor"].isin(["default", "mesh", "reference"])
+        & (df["order"] == 2)
+        & np.isclose(df["arc_chord_mm"], d_chord)
+    ].sort_values("mesh_size_mm")
     fine = p2.head(3)
     if len(fine) == 3:
         fx_mesh, order = richardson(fine["mesh_size_mm"], fine["fx_10mm_N"])
@@ -108,16 +113,33 @@ def converged_estimate(df: pd.DataFrame, d_size: float, d_chord: float) -> dict:
         c = ch.sort_values("arc_chord_mm").iloc[0]
         f0 = float(df.loc[df["factor"] == "default", "fx_10mm_N"].iloc[0])
         geo = (c["fx_10mm_N"] - f0) * d_chord**2 / (d_chord**2 - c["arc_chord_mm"] ** 2)
-    return {"fx_N": fx_mesh + geo, "fx_mesh_N": fx_mesh, "order": order,
-            "sizes_mm": fine["mesh_size_mm"].tolist(), "geometry_N": float(geo)}
+    return {
+        "fx_N": fx_mesh + geo,
+        "fx_mesh_N": fx_mesh,
+        "order": order,
+        "sizes_mm": fine["mesh_size_mm"].tolist(),
+        "geometry_N": float(geo),
+    }
 
 
-def run_time_vs_error(cfg: dict, out_csv, out_png, out_md=None, *, height_mm: float = 30.0,
-                      push_mm: float = 10.0, reference_size_mm: float = 0.25,
-                      mesh_p2=(1.5, 0.75, 0.5, 0.35), mesh_p1=(0.5, 0.35),
-                      steps=(1.0, 0.5, 0.25), dhats=(0.01, 0.02, 0.04),
-                      object_sizes=(0.25,), arc_chords=(0.25, 0.05),
-                      previous: dict | None = PREVIOUS_DEFAULT, log=print) -> pd.DataFrame:
+def run_time_vs_error(
+    cfg: dict,
+    out_csv,
+    out_png,
+    out_md=None,
+    *,
+    height_mm: float = 30.0,
+    push_mm: float = 10.0,
+    reference_size_mm: float = 0.25,
+    mesh_p2=(1.5, 0.75, 0.5, 0.35),
+    mesh_p1=(0.5, 0.35),
+    steps=(1.0, 0.5, 0.25),
+    dhats=(0.01, 0.02, 0.04),
+    object_sizes=(0.25,),
+    arc_chords=(0.25, 0.05),
+    previous: dict | None = PREVIOUS_DEFAULT,
+    log=print,
+) -> pd.DataFrame:
     """Wall and CPU time, Newton iterations and Fx at ``push_mm`` of the discretisation
     variants of the steel Ø20 mm circle scene, error relative to the converged
     estimate (:func:`converged_estimate`).
@@ -141,40 +163,81 @@ def run_time_vs_error(cfg: dict, out_csv, out_png, out_md=None, *, height_mm: fl
         obj_size = overrides.pop("_object_size_mm", None)
         c = with_overrides(base, overrides)
         frame = max(c["fea"]["frame_step_mm"], c["fea"]["max_step_mm"])
-        r = run_case(c, CIRCLE_D20, "steel", height_mm, "circle_d20", cache, frame_step_mm=frame,
-                     object_size_mm=obj_size)
+        r = run_case(
+            c,
+            CIRCLE_D20,
+            "steel",
+            height_mm,
+            "circle_d20",
+            cache,
+            frame_step_mm=frame,
+            object_size_mm=obj_size,
+        )
         res = r["result"]
-        row = {"variant": label, "factor": factor, "mesh_size_mm": c["mesh"]["size_mm"],
-               "order": c["mesh"]["order"], "arc_chord_mm": c["mesh"]["arc_chord_mm"],
-               "max_step_mm": c["fea"]["max_step_mm"], "dhat_mm": c["fea"]["dhat_mm"],
-               "object_size_mm": obj_size or c["mesh"]["size_mm"], "n_nodes": r["n_nodes"],
-               "wall_time_s": round(r["wall_time_s"], 3), "cpu_time_s": round(r["cpu_time_s"], 3),
-               "mesh_time_s": round(r["mesh_time_s"], 3),
-               "newton_iterations": int(res.newton_iterations.sum()),
-               "load_steps": int(res.load_steps[-1]), "fx_10mm_N": fx_at(res, push_mm),
-               "min_gap_mm": min_gap(res)}
-        log(f"  {label:<18s} {row['wall_time_s']:7.2f} s wall {row['cpu_time_s']:7.2f} s CPU  "
+        row = {
+            "variant": label,
+            "factor": factor,
+            "mesh_size_mm": c["mesh"]["size_mm"],
+            "order": c["mesh"]["order"],
+            "arc_chord_mm": c["mesh"]["arc_chord_mm"],
+            "max_step_mm": c["fea"]["max_step_mm"],
+            "dhat_mm": c["fea"]["dhat_mm"],
+            "object_size_mm": obj_size or c["mesh"]["size_mm"],
+            "n_nodes": r["n_nodes"],
+            "wall_time_s": round(r["wall_time_s"], 3),
+            "cpu_time_s": round(r["cpu_time_s"], 3),
+            "mesh_time_s": round(r["mesh_time_s"], 3),
+            "newton_iterations": int(res.newton_iterations.sum()),
+            "load_steps": int(res.load_steps[-1]),
+            "fx_10mm_N": fx_at(res, push_mm),
+            "min_gap_mm": min_gap(res),
+        }
+        log(
+            f"  {label:<18s} {row['wall_time_s']:7.2f} s wall {row['cpu_time_s']:7.2f} s CPU  "
             f"{row['newton_iterations']:4d} it  "
-            f"Fx {row['fx_10mm_N']:.5f} N")
+            f"Fx {row['fx_10mm_N']:.5f} N"
+        )
         return row
 
     log(f"reference: P2 mesh {reference_size_mm} mm")
-    ref = one(f"reference {reference_size_mm:g} P2", "reference",
-              {"mesh.size_mm": reference_size_mm, "mesh.order": 2})
-    for label, factor, overrides in _variants(base, mesh_p2, mesh_p1, steps, dhats, object_sizes,
-                                              arc_chords, previous):
+    ref = one(
+        f"reference {reference_size_mm:g} P2",
+        "reference",
+        {"mesh.size_mm": reference_size_mm, "mesh.order": 2},
+    )
+    for label, factor, overrides in _variants(
+        base, mesh_p2, mesh_p1, steps, dhats, object_sizes, arc_chords, previous
+    ):
         rows.append(one(label, factor, overrides))
     rows.append(ref)
     total = clock.wall_s
-    df = write_pareto(pd.DataFrame(rows), base, out_csv, out_png, out_md, height_mm=height_mm,
-                      push_mm=push_mm, reference_size_mm=reference_size_mm, total_s=total)
+    df = write_pareto(
+        pd.DataFrame(rows),
+        base,
+        out_csv,
+        out_png,
+        out_md,
+        height_mm=height_mm,
+        push_mm=push_mm,
+        reference_size_mm=reference_size_mm,
+        total_s=total,
+    )
     log(f"study wall time {total:.1f} s")
     return df
 
 
-def write_pareto(df: pd.DataFrame, cfg: dict, out_csv, out_png, out_md=None, *,
-                 height_mm: float = 30.0, push_mm: float = 10.0,
-                 reference_size_mm: float = 0.25, total_s: float = float("nan")) -> pd.DataFrame:
+def write_pareto(
+    df: pd.DataFrame,
+    cfg: dict,
+    out_csv,
+    out_png,
+    out_md=None,
+    *,
+    height_mm: float = 30.0,
+    push_mm: float = 10.0,
+    reference_size_mm: float = 0.25,
+    total_s: float = float("nan"),
+) -> pd.DataFrame:
     """Errors against the converged estimate, Pareto front (CPU time vs |error|), and the
     CSV, figure and Markdown of :func:`run_time_vs_error` from its raw rows ``df``."""
     df = df.drop(columns=["rel_error_pct", "is_default", "pareto"], errors="ignore").copy()
@@ -198,18 +261,25 @@ def _pareto_text(df, cfg, conv, height_mm, push_mm, reference_size_mm, total) ->
     """The Markdown summary of :func:`run_time_vs_error`."""
     d = df.set_index("variant")
     d_size, d_chord = cfg["mesh"]["size_mm"], cfg["mesh"]["arc_chord_mm"]
-    f_def, f_ref = d.loc["default", "fx_10mm_N"], df.loc[df["factor"] == "reference",
-                                                         "fx_10mm_N"].iloc[0]
+    f_def, f_ref = (
+        d.loc["default", "fx_10mm_N"],
+        df.loc[df["factor"] == "reference", "fx_10mm_N"].iloc[0],
+    )
     refine = d_size / reference_size_mm
-    order = "no power law" if not np.isfinite(conv["order"]) else f"observed order {conv['order']:.2f}"
+    order = (
+        "no power law" if not np.isfinite(conv["order"]) else f"observed order {conv['order']:.2f}"
+    )
     sizes = ", ".join(f"{s:g}" for s in conv["sizes_mm"])
     # discretisations of the finger at the default load step, dhat and object facets
     disc = df[df["factor"].isin(["default", "mesh", "arc chord", "previous default"])]
     ok = disc[disc["rel_error_pct"].abs() <= 1.0].sort_values("cpu_time_s")
-    pick = (f"the cheapest finger discretisation within 1 % of the converged value (half the "
-            f"2 % requirement, for the other objects and heights) is `{ok['variant'].iloc[0]}` "
-            f"({ok['cpu_time_s'].iloc[0]:.1f} s CPU, {ok['rel_error_pct'].iloc[0]:+.2f} %)"
-            if len(ok) else "no finger discretisation of the study is within 1 %")
+    pick = (
+        f"the cheapest finger discretisation within 1 % of the converged value (half the "
+        f"2 % requirement, for the other objects and heights) is `{ok['variant'].iloc[0]}` "
+        f"({ok['cpu_time_s'].iloc[0]:.1f} s CPU, {ok['rel_error_pct'].iloc[0]:+.2f} %)"
+        if len(ok)
+        else "no finger discretisation of the study is within 1 %"
+    )
     lines = [
         "# FEA cost against accuracy\n",
         f"Steel circle Ø20 mm at contact height {height_mm:g} mm, {push_mm:g} mm push; one "
@@ -249,12 +319,22 @@ def _pareto_text(df, cfg, conv, height_mm, push_mm, reference_size_mm, total) ->
     ]
     if "previous default" in d.index:
         pv = d.loc["previous default"]
-        lines.append(f"The previous default ({pv['mesh_size_mm']:g} mm, chords "
-                     f"{pv['arc_chord_mm']:g} mm) took {pv['cpu_time_s']:.1f} s CPU and was "
-                     f"{pv['rel_error_pct']:+.2f} % off; the default takes "
-                     f"{d.loc['default', 'cpu_time_s']:.1f} s CPU.\n")
-    cols = ["variant", "n_nodes", "wall_time_s", "cpu_time_s", "newton_iterations",
-            "fx_10mm_N", "rel_error_pct", "pareto"]
+        lines.append(
+            f"The previous default ({pv['mesh_size_mm']:g} mm, chords "
+            f"{pv['arc_chord_mm']:g} mm) took {pv['cpu_time_s']:.1f} s CPU and was "
+            f"{pv['rel_error_pct']:+.2f} % off; the default takes "
+            f"{d.loc['default', 'cpu_time_s']:.1f} s CPU.\n"
+        )
+    cols = [
+        "variant",
+        "n_nodes",
+        "wall_time_s",
+        "cpu_time_s",
+        "newton_iterations",
+        "fx_10mm_N",
+        "rel_error_pct",
+        "pareto",
+    ]
     return "\n".join(lines) + "\n" + markdown_table(df[cols]) + "\n"
 
 
@@ -266,53 +346,108 @@ def _pareto_figure(df: pd.DataFrame, out_png, conv: dict, height_mm, push_mm) ->
 
     d = df.copy()
     d["abs_err"] = d["rel_error_pct"].abs().clip(lower=1e-3)  # log axis: 0 -> floor
-    colors = {"default": "k", "mesh": "tab:blue", "load step": "tab:orange", "dhat": "tab:green",
-              "object facets": "tab:purple", "arc chord": "tab:brown", "reference": "gray",
-              "previous default": "tab:red"}
+    colors = {
+        "default": "k",
+        "mesh": "tab:blue",
+        "load step": "tab:orange",
+        "dhat": "tab:green",
+        "object facets": "tab:purple",
+        "arc chord": "tab:brown",
+        "reference": "gray",
+        "previous default": "tab:red",
+    }
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(10.4, 4.6), width_ratios=[1.6, 1])
     t = "cpu_time_s"
     for factor, g in d[~d["is_default"]].groupby("factor"):
-        ax.scatter(g[t], g["abs_err"], c=colors.get(factor, "gray"), s=30,
-                   label=factor, zorder=3)
+        ax.scatter(g[t], g["abs_err"], c=colors.get(factor, "gray"), s=30, label=factor, zorder=3)
     de = d[d["is_default"]]
     ax.scatter(de[t], de["abs_err"], c="k", s=30, zorder=4)
-    ax.scatter(de[t], de["abs_err"], s=180, facecolors="none", edgecolors="red",
-               linewidths=2, zorder=4, label="default (config)")
+    ax.scatter(
+        de[t],
+        de["abs_err"],
+        s=180,
+        facecolors="none",
+        edgecolors="red",
+        linewidths=2,
+        zorder=4,
+        label="default (config)",
+    )
     f = d[d["pareto"]].sort_values(t)
-    ax.step(f[t], f["abs_err"], where="post", color="red", lw=1, alpha=0.6,
-            zorder=2, label="Pareto front")
+    ax.step(
+        f[t],
+        f["abs_err"],
+        where="post",
+        color="red",
+        lw=1,
+        alpha=0.6,
+        zorder=2,
+        label="Pareto front",
+    )
     for _, r in d.iterrows():
         below = r["factor"] in ("object facets", "dhat")  # keep clear of the default's label
-        ax.annotate(r["variant"], (r[t], r["abs_err"]), textcoords="offset points",
-                    xytext=(4, -9 if below else 3), fontsize=7)
+        ax.annotate(
+            r["variant"],
+            (r[t], r["abs_err"]),
+            textcoords="offset points",
+            xytext=(4, -9 if below else 3),
+            fontsize=7,
+        )
     ax.axhline(2.0, color="gray", ls="--", lw=1)
     ax.text(d[t].min(), 2.0, " 2 % requirement", fontsize=7, color="gray", va="bottom")
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("CPU time of the solve (s, one thread)")
     ax.set_ylabel(f"|error of Fx at {push_mm:g} mm| vs converged (%)")
-    ax.set_title(f"FEA cost vs accuracy: steel Ø20 mm at {height_mm:g} mm "
-                 f"(converged Fx = {conv['fx_N']:.4f} N)", fontsize=9)
+    ax.set_title(
+        f"FEA cost vs accuracy: steel Ø20 mm at {height_mm:g} mm "
+        f"(converged Fx = {conv['fx_N']:.4f} N)",
+        fontsize=9,
+    )
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7, loc="upper right")
     # mesh convergence: Fx against the element size, P2 at the default fillet chord
     dd = d[d["is_default"]].iloc[0]
-    p2 = d[d["factor"].isin(["default", "mesh", "reference"]) & (d["order"] == 2)
-           & np.isclose(d["arc_chord_mm"], dd["arc_chord_mm"])].sort_values("mesh_size_mm")
+    p2 = d[
+        d["factor"].isin(["default", "mesh", "reference"])
+        & (d["order"] == 2)
+        & np.isclose(d["arc_chord_mm"], dd["arc_chord_mm"])
+    ].sort_values("mesh_size_mm")
     fc = conv["fx_N"]
     ax2.axhspan(0.98 * fc, 1.02 * fc, color="tab:green", alpha=0.12, label="converged ± 2 %")
     ax2.axhline(fc, color="tab:green", lw=1)
-    ax2.axhline(conv["fx_mesh_N"], color="gray", ls=":", lw=1,
-                label=f"mesh limit at {dd['arc_chord_mm']:g} mm chords")
-    ax2.plot(p2["mesh_size_mm"], p2["fx_10mm_N"], "o-", c="tab:blue",
-             label=f"P2, {dd['arc_chord_mm']:g} mm chords")
-    ax2.plot(dd["mesh_size_mm"], dd["fx_10mm_N"], "o", ms=13, mfc="none", mec="red", mew=2,
-             label="default")
+    ax2.axhline(
+        conv["fx_mesh_N"],
+        color="gray",
+        ls=":",
+        lw=1,
+        label=f"mesh limit at {dd['arc_chord_mm']:g} mm chords",
+    )
+    ax2.plot(
+        p2["mesh_size_mm"],
+        p2["fx_10mm_N"],
+        "o-",
+        c="tab:blue",
+        label=f"P2, {dd['arc_chord_mm']:g} mm chords",
+    )
+    ax2.plot(
+        dd["mesh_size_mm"],
+        dd["fx_10mm_N"],
+        "o",
+        ms=13,
+        mfc="none",
+        mec="red",
+        mew=2,
+        label="default",
+    )
     for _, r in d[d["factor"].isin(["arc chord", "previous default"])].iterrows():
         ax2.plot(r["mesh_size_mm"], r["fx_10mm_N"], "s", c=colors[r["factor"]], ms=5)
-        ax2.annotate(r["variant"] if r["factor"] == "previous default" else
-                     f"chord {r['arc_chord_mm']:g}", (r["mesh_size_mm"], r["fx_10mm_N"]),
-                     textcoords="offset points", xytext=(4, 3), fontsize=7)
+        ax2.annotate(
+            r["variant"] if r["factor"] == "previous default" else f"chord {r['arc_chord_mm']:g}",
+            (r["mesh_size_mm"], r["fx_10mm_N"]),
+            textcoords="offset points",
+            xytext=(4, 3),
+            fontsize=7,
+        )
     ax2.set_xscale("log")
     ticks = sorted(set(p2["mesh_size_mm"]) | set(d["mesh_size_mm"]))
     ax2.set_xticks(ticks, [f"{v:g}" for v in ticks])

@@ -6,6 +6,7 @@ records whether each converges or stops with the expected error (type and messag
 
 Units: lengths mm, forces N on the 20 mm finger, times s (wall clock, one thread).
 """
+
 from __future__ import annotations
 
 import re
@@ -35,8 +36,9 @@ class Refusal:
         return isinstance(exc, self.error) and re.search(self.match, str(exc)) is not None
 
     def __str__(self) -> str:
-        return (("converge or " if self.or_converge else "")
-                + f"refuse: {self.error.__name__} /{self.match}/")
+        return (
+            "converge or " if self.or_converge else ""
+        ) + f"refuse: {self.error.__name__} /{self.match}/"
 
 
 #: case -> (config overrides, scene keywords of :func:`run_case`, expected outcome):
@@ -46,33 +48,78 @@ STABILITY_CASES: dict[str, tuple[dict, dict, object]] = {
     "sharp_corners_no_fillet": ({"finger.fillet_radius_mm": 0.0}, {}, "converge"),
     "push_15mm": ({"fea.push_mm": 15.0}, {}, "converge"),
     "finger_nu_0.499": ({"materials.@finger.poisson_ratio": 0.499}, {}, "converge"),
-    "circle_d5_tip_h70": ({}, {"spec": {"type": "circle", "diameter_mm": 5.0},
-                              "height_mm": 70.0, "name": "circle_d5"}, "converge"),
+    "circle_d5_tip_h70": (
+        {},
+        {"spec": {"type": "circle", "diameter_mm": 5.0}, "height_mm": 70.0, "name": "circle_d5"},
+        "converge",
+    ),
     # the whole face: just above the clamped base (the push ends at fea.force_cap_N,
     # its frames kept: these three failed at 200-1000 N before the cap) and at the tip
-    "circle_d10_base_h5.2": ({}, {"spec": {"type": "circle", "diameter_mm": 10.0},
-                                 "height_mm": 5.2, "name": "circle_d10"}, "converge"),
-    "square_s14_base_h8.7": ({}, {"spec": {"type": "square", "side_mm": 14.0, "fillet_mm": 0.5},
-                                 "height_mm": 8.7, "name": "square_s14"}, "converge"),
-    "ellipse_16x9_base_h8.3": ({}, {"spec": {"type": "ellipse", "width_mm": 16.0, "height_mm": 9.0,
-                                             "angle_deg": 30.0},
-                                    "height_mm": 8.3, "name": "ellipse_16x9"}, "converge"),
-    "neoprene_ring_base_h8": ({}, {"spec": {"type": "ring", "diameter_mm": 15.0, "wall_mm": 2.0},
-                                   "material": "neoprene", "height_mm": 8.0, "name": "ring_d15"},
-                              "converge"),
-    "square_s10_a45_tip_h74": ({}, {"spec": {"type": "square", "side_mm": 10.0, "angle_deg": 45.0,
-                                             "fillet_mm": 0.5},
-                                    "height_mm": 74.0, "name": "square_s10_a45"}, "converge"),
-    "neoprene_ring_h20": ({}, {"spec": {"type": "ring", "diameter_mm": 15.0, "wall_mm": 2.0},
-                              "material": "neoprene", "height_mm": 20.0, "name": "ring_d15"},
-                          "converge"),
+    "circle_d10_base_h5.2": (
+        {},
+        {"spec": {"type": "circle", "diameter_mm": 10.0}, "height_mm": 5.2, "name": "circle_d10"},
+        "converge",
+    ),
+    "square_s14_base_h8.7": (
+        {},
+        {
+            "spec": {"type": "square", "side_mm": 14.0, "fillet_mm": 0.5},
+            "height_mm": 8.7,
+            "name": "square_s14",
+        },
+        "converge",
+    ),
+    "ellipse_16x9_base_h8.3": (
+        {},
+        {
+            "spec": {"type": "ellipse", "width_mm": 16.0, "height_mm": 9.0, "angle_deg": 30.0},
+            "height_mm": 8.3,
+            "name": "ellipse_16x9",
+        },
+        "converge",
+    ),
+    "neoprene_ring_base_h8": (
+        {},
+        {
+            "spec": {"type": "ring", "diameter_mm": 15.0, "wall_mm": 2.0},
+            "material": "neoprene",
+            "height_mm": 8.0,
+            "name": "ring_d15",
+        },
+        "converge",
+    ),
+    "square_s10_a45_tip_h74": (
+        {},
+        {
+            "spec": {"type": "square", "side_mm": 10.0, "angle_deg": 45.0, "fillet_mm": 0.5},
+            "height_mm": 74.0,
+            "name": "square_s10_a45",
+        },
+        "converge",
+    ),
+    "neoprene_ring_h20": (
+        {},
+        {
+            "spec": {"type": "ring", "diameter_mm": 15.0, "wall_mm": 2.0},
+            "material": "neoprene",
+            "height_mm": 20.0,
+            "name": "ring_d15",
+        },
+        "converge",
+    ),
     "friction_0": ({"fea.friction": 0.0}, {}, "converge"),
     "friction_1": ({"fea.friction": 1.0}, {}, "converge"),
     "gap_0.001mm": ({"placement.gap_mm": 0.001}, {}, "converge"),
-    "gap_0_touching": ({}, {"gap_mm": 1e-9},
-                       Refusal(SimulationError, r"load step \d+|intersects", or_converge=True)),
-    "overlap_0.2mm": ({}, {"shift_mm": 0.3},  # 0.1 mm gap - 0.3 mm shift
-                      Refusal(SimulationError, "intersects the finger in the initial state")),
+    "gap_0_touching": (
+        {},
+        {"gap_mm": 1e-9},
+        Refusal(SimulationError, r"load step \d+|intersects", or_converge=True),
+    ),
+    "overlap_0.2mm": (
+        {},
+        {"shift_mm": 0.3},  # 0.1 mm gap - 0.3 mm shift
+        Refusal(SimulationError, "intersects the finger in the initial state"),
+    ),
     "mesh_2.0mm": ({"mesh.size_mm": 2.0}, {}, "converge"),
     "mesh_0.3mm": ({"mesh.size_mm": 0.3}, {}, "converge"),
 }
@@ -91,8 +138,16 @@ def stability_cases(coarse_mm: float = 2.0, fine_mm: float = 0.3) -> dict:
     return cases
 
 
-def stability_suite(cfg: dict, out_csv, out_md=None, cases: dict | None = None, *,
-                    mesh_size_mm: float = 0.75, log=print, run=None) -> pd.DataFrame:
+def stability_suite(
+    cfg: dict,
+    out_csv,
+    out_md=None,
+    cases: dict | None = None,
+    *,
+    mesh_size_mm: float = 0.75,
+    log=print,
+    run=None,
+) -> pd.DataFrame:
     """Run the hard scenes of :data:`STABILITY_CASES` (steel Ø20 mm circle at 30 mm,
     mesh ``mesh_size_mm``, unless a case says otherwise); one row each.
 
@@ -112,35 +167,54 @@ def stability_suite(cfg: dict, out_csv, out_md=None, cases: dict | None = None, 
     rows = []
     clock = Stopwatch()  # the whole suite
     for case, (overrides, scene, expected) in cases.items():
-        row = {"case": case, "converged": False, "stop_message": "", "failed_step": None,
-               "wall_time_s": np.nan, "newton_iterations": None, "fx_10mm_N": np.nan,
-               "min_gap_mm": np.nan, "any_nan": False, "line_search_failures": None,
-               "gradient_fallbacks": None, "residual_max_rel": np.nan,
-               "equilibrium_max_rel_error": np.nan, "stop": "", "push_reached_mm": np.nan,
-               "max_force_N": np.nan, "expected": str(expected),
-               "unexpected_error": False}
+        row = {
+            "case": case,
+            "converged": False,
+            "stop_message": "",
+            "failed_step": None,
+            "wall_time_s": np.nan,
+            "newton_iterations": None,
+            "fx_10mm_N": np.nan,
+            "min_gap_mm": np.nan,
+            "any_nan": False,
+            "line_search_failures": None,
+            "gradient_fallbacks": None,
+            "residual_max_rel": np.nan,
+            "equilibrium_max_rel_error": np.nan,
+            "stop": "",
+            "push_reached_mm": np.nan,
+            "max_force_N": np.nan,
+            "expected": str(expected),
+            "unexpected_error": False,
+        }
         case_clock = Stopwatch()
         exc = None
         try:
             c = with_overrides(base, _resolve(overrides, base))
             r = run(c, cache=cache, **scene)
             res = r["result"]
-            row.update(converged=True, wall_time_s=round(r["wall_time_s"], 3),
-                       newton_iterations=int(res.newton_iterations.sum()),
-                       fx_10mm_N=fx_at(res, 10.0), min_gap_mm=min_gap(res),
-                       any_nan=any_nan(res),
-                       line_search_failures=res.meta["line_search_failures"],
-                       gradient_fallbacks=res.meta["gradient_fallbacks"],
-                       stop=res.meta["stop"]["reason"],
-                       push_reached_mm=round(res.meta["stop"]["push_reached_mm"], 4),
-                       max_force_N=float(np.hypot(*res.force_N.T).max()),
-                       residual_max_rel=res.meta["residual_max_rel"],
-                       equilibrium_max_rel_error=float(
-                           res.equilibrium_rel_error[1:].max(initial=0.0)))
+            row.update(
+                converged=True,
+                wall_time_s=round(r["wall_time_s"], 3),
+                newton_iterations=int(res.newton_iterations.sum()),
+                fx_10mm_N=fx_at(res, 10.0),
+                min_gap_mm=min_gap(res),
+                any_nan=any_nan(res),
+                line_search_failures=res.meta["line_search_failures"],
+                gradient_fallbacks=res.meta["gradient_fallbacks"],
+                stop=res.meta["stop"]["reason"],
+                push_reached_mm=round(res.meta["stop"]["push_reached_mm"], 4),
+                max_force_N=float(np.hypot(*res.force_N.T).max()),
+                residual_max_rel=res.meta["residual_max_rel"],
+                equilibrium_max_rel_error=float(res.equilibrium_rel_error[1:].max(initial=0.0)),
+            )
         except SimulationError as e:
             exc = e
-            row.update(stop_message=f"scene {case}: load step {e.step}: {e} [cause: {e.cause}]",
-                       failed_step=e.step, any_nan="non-finite" in f"{e} {e.cause}")
+            row.update(
+                stop_message=f"scene {case}: load step {e.step}: {e} [cause: {e.cause}]",
+                failed_step=e.step,
+                any_nan="non-finite" in f"{e} {e.cause}",
+            )
         except Exception as e:
             exc = e
             row.update(stop_message=f"scene {case}: {type(e).__name__}: {e}")
@@ -155,11 +229,14 @@ def stability_suite(cfg: dict, out_csv, out_md=None, cases: dict | None = None, 
             row["ok"] = bool(good_run)
             row["unexpected_error"] = exc is not None and not isinstance(exc, SimulationError)
         else:
-            raise ValueError(f"stability case {case}: expected must be 'converge' or a "
-                             f"Refusal, not {expected!r}")
-        log(f"  {case:<24s} conv={row['converged']!s:5s} ok={row['ok']!s:5s} "
+            raise ValueError(
+                f"stability case {case}: expected must be 'converge' or a Refusal, not {expected!r}"
+            )
+        log(
+            f"  {case:<24s} conv={row['converged']!s:5s} ok={row['ok']!s:5s} "
             f"{row['wall_time_s']:6.1f} s  Fx={row['fx_10mm_N']:.4f}  gap={row['min_gap_mm']:.2e}"
-            + (f"  {row['stop_message']}" if row["stop_message"] else ""))
+            + (f"  {row['stop_message']}" if row["stop_message"] else "")
+        )
         rows.append(row)
     total = clock.wall_s
     log(f"suite wall time {total:.1f} s")
@@ -180,11 +257,14 @@ def stability_suite(cfg: dict, out_csv, out_md=None, cases: dict | None = None, 
         + markdown_table(df.drop(columns=["stop_message"]))
         + "\n\nStop messages:\n\n"
         + "".join(f"- `{r.case}`: {r.stop_message}\n" for r in df.itertuples() if r.stop_message)
-        + ("" if (df["stop_message"] != "").any() else "- none\n"))
+        + ("" if (df["stop_message"] != "").any() else "- none\n")
+    )
     bad = df[df["unexpected_error"]]
     if len(bad):
         raise StabilityFailure(
             "stability suite: unexpected error in "
-            + "; ".join(f"{r.case} (expected {r.expected}): {r.stop_message}"
-                        for r in bad.itertuples()))
+            + "; ".join(
+                f"{r.case} (expected {r.expected}): {r.stop_message}" for r in bad.itertuples()
+            )
+        )
     return df

@@ -11,6 +11,7 @@ band and the largest force per band.
 
 Units: lengths mm, forces N on the extruded finger, times s (CPU: the process's).
 """
+
 from __future__ import annotations
 
 import json
@@ -43,14 +44,25 @@ def lowest_height_mm(spec: dict, size_mm: float) -> float:
 
 def _spec(kind: str, rng: np.random.Generator, r: dict) -> dict:
     if kind == "circle":
-        return {"type": "circle", "diameter_mm": round(float(rng.uniform(*r["circle_diameter_mm"])), 3)}
+        return {
+            "type": "circle",
+            "diameter_mm": round(float(rng.uniform(*r["circle_diameter_mm"])), 3),
+        }
     if kind == "square":
-        return {"type": "square", "side_mm": round(float(rng.uniform(*r["square_side_mm"])), 3),
-                "angle_deg": round(float(rng.uniform(0.0, 90.0)), 2), "fillet_mm": 0.5}
+        return {
+            "type": "square",
+            "side_mm": round(float(rng.uniform(*r["square_side_mm"])), 3),
+            "angle_deg": round(float(rng.uniform(0.0, 90.0)), 2),
+            "fillet_mm": 0.5,
+        }
     if kind == "ellipse":
         w, h = rng.uniform(*r["ellipse_axis_mm"], size=2)
-        return {"type": "ellipse", "width_mm": round(float(w), 3), "height_mm": round(float(h), 3),
-                "angle_deg": round(float(rng.uniform(0.0, 180.0)), 2)}
+        return {
+            "type": "ellipse",
+            "width_mm": round(float(w), 3),
+            "height_mm": round(float(h), 3),
+            "angle_deg": round(float(rng.uniform(0.0, 180.0)), 2),
+        }
     if kind == "polygon":  # star-shaped about the reference point, hence simple
         n = int(rng.integers(3, 8))
         # one vertex in each of n equal sectors, 20 % of a sector apart at least
@@ -61,8 +73,9 @@ def _spec(kind: str, rng: np.random.Generator, r: dict) -> dict:
     raise ValueError(f"unknown sweep shape {kind!r}: one of {', '.join(KINDS)}")
 
 
-def draw_scenes(count: int, seed: int, ranges: dict, finger: FingerParams,
-                size_mm: float) -> list[dict]:
+def draw_scenes(
+    count: int, seed: int, ranges: dict, finger: FingerParams, size_mm: float
+) -> list[dict]:
     """``count`` scenes ``{"scene", "kind", "spec", "height_mm", "height_min_mm"}``.
 
     ``ranges``: ``circle_diameter_mm``, ``square_side_mm``, ``ellipse_axis_mm``,
@@ -82,12 +95,21 @@ def draw_scenes(count: int, seed: int, ranges: dict, finger: FingerParams,
         spec = _spec(kind, rng, ranges)
         lo = lowest_height_mm(spec, size_mm)
         if lo >= top:
-            raise ValueError(f"sweep scene {i}: a {kind} reaching {lo:.1f} mm below its "
-                             f"reference does not fit below height_max_mm {top} mm")
+            raise ValueError(
+                f"sweep scene {i}: a {kind} reaching {lo:.1f} mm below its "
+                f"reference does not fit below height_max_mm {top} mm"
+            )
         # just above the lowest height: place_object refuses an object below y = 0
         h = float(rng.uniform(lo + 1e-3, top))
-        scenes.append({"scene": f"s{i:04d}", "kind": kind, "spec": spec,
-                       "height_mm": round(h, 4), "height_min_mm": round(lo, 4)})
+        scenes.append(
+            {
+                "scene": f"s{i:04d}",
+                "kind": kind,
+                "spec": spec,
+                "height_mm": round(h, 4),
+                "height_min_mm": round(lo, 4),
+            }
+        )
     return scenes
 
 
@@ -104,32 +126,57 @@ def run_scenes(cfg: dict, scenes: list[dict], material: str = "steel", log=print
     rows = []
     for sc in scenes:
         row = {k: sc[k] for k in ("scene", "kind", "height_mm", "height_min_mm")}
-        row.update(spec=json.dumps(sc["spec"]), outcome="failed", cause="", message="",
-                   push_reached_mm=np.nan, n_frames=0, max_force_N=np.nan, max_fx_N=np.nan,
-                   newton_iterations=0, load_steps=0)
+        row.update(
+            spec=json.dumps(sc["spec"]),
+            outcome="failed",
+            cause="",
+            message="",
+            push_reached_mm=np.nan,
+            n_frames=0,
+            max_force_N=np.nan,
+            max_fx_N=np.nan,
+            newton_iterations=0,
+            load_steps=0,
+        )
         with Stopwatch() as t:
             try:
-                obj = object_geometry(sc["scene"], sc["spec"], fp, sc["height_mm"], m["size_mm"],
-                                      not cfg["materials"][material]["rigid"],
-                                      cfg["placement"]["gap_mm"], m["min_angle_deg"])
-                res = simulate(finger, scene_object(obj, material, cfg), law,
-                               simulation_options(cfg))
+                obj = object_geometry(
+                    sc["scene"],
+                    sc["spec"],
+                    fp,
+                    sc["height_mm"],
+                    m["size_mm"],
+                    not cfg["materials"][material]["rigid"],
+                    cfg["placement"]["gap_mm"],
+                    m["min_angle_deg"],
+                )
+                res = simulate(
+                    finger, scene_object(obj, material, cfg), law, simulation_options(cfg)
+                )
                 f = -res.force_N
-                row.update(outcome=res.meta["stop"]["reason"],
-                           push_reached_mm=res.meta["stop"]["push_reached_mm"],
-                           n_frames=len(f), max_force_N=float(np.hypot(*f.T).max()),
-                           max_fx_N=float(f[:, 0].max()),
-                           newton_iterations=int(res.newton_iterations.sum()),
-                           load_steps=int(res.load_steps[-1]))
+                row.update(
+                    outcome=res.meta["stop"]["reason"],
+                    push_reached_mm=res.meta["stop"]["push_reached_mm"],
+                    n_frames=len(f),
+                    max_force_N=float(np.hypot(*f.T).max()),
+                    max_fx_N=float(f[:, 0].max()),
+                    newton_iterations=int(res.newton_iterations.sum()),
+                    load_steps=int(res.load_steps[-1]),
+                )
             except SimulationError as e:
                 part = e.partial or {}
                 fp_ = np.asarray(part.get("force_N", np.zeros((0, 2))))
-                row.update(cause=e.cause or "", message=str(e).splitlines()[0],
-                           n_frames=len(fp_),
-                           max_force_N=float(np.hypot(*fp_.T).max()) if len(fp_) else np.nan)
+                row.update(
+                    cause=e.cause or "",
+                    message=str(e).splitlines()[0],
+                    n_frames=len(fp_),
+                    max_force_N=float(np.hypot(*fp_.T).max()) if len(fp_) else np.nan,
+                )
         row.update(cpu_s=round(t.cpu_s, 3), wall_s=round(t.wall_s, 3))
-        log(f"{row['scene']} {row['kind']:<7s} h={row['height_mm']:6.2f} {row['outcome']:<9s} "
-            f"{row['cpu_s']:6.1f} s CPU  |F|max={row['max_force_N']:.1f} N {row['message']}")
+        log(
+            f"{row['scene']} {row['kind']:<7s} h={row['height_mm']:6.2f} {row['outcome']:<9s} "
+            f"{row['cpu_s']:6.1f} s CPU  |F|max={row['max_force_N']:.1f} N {row['message']}"
+        )
         rows.append(row)
     return pd.DataFrame(rows)
 
@@ -143,17 +190,20 @@ def sweep_summary(df: pd.DataFrame, force_cap_N: float, machine: str = "") -> st
     q = df["cpu_s"].quantile([0.25, 0.5, 0.75])
     band = (df["height_mm"] // BAND_MM * BAND_MM).astype(int)
     bands = df.assign(band=band.map(lambda b: f"{b}-{b + int(BAND_MM)}")).groupby(
-        "band", sort=False)
-    per_band = pd.DataFrame({
-        "scenes": bands.size(),
-        "complete": bands["outcome"].apply(lambda s: int((s == "complete").sum())),
-        "force_cap": bands["outcome"].apply(lambda s: int((s == "force_cap").sum())),
-        "failed": bands["outcome"].apply(lambda s: int((s == "failed").sum())),
-        "cpu_median_s": bands["cpu_s"].median(),
-        "cpu_max_s": bands["cpu_s"].max(),
-        "max_force_N": bands["max_force_N"].max(),
-        "push_reached_min_mm": bands["push_reached_mm"].min(),
-    }).reset_index()
+        "band", sort=False
+    )
+    per_band = pd.DataFrame(
+        {
+            "scenes": bands.size(),
+            "complete": bands["outcome"].apply(lambda s: int((s == "complete").sum())),
+            "force_cap": bands["outcome"].apply(lambda s: int((s == "force_cap").sum())),
+            "failed": bands["outcome"].apply(lambda s: int((s == "failed").sum())),
+            "cpu_median_s": bands["cpu_s"].median(),
+            "cpu_max_s": bands["cpu_s"].max(),
+            "max_force_N": bands["max_force_N"].max(),
+            "push_reached_min_mm": bands["push_reached_mm"].min(),
+        }
+    ).reset_index()
     per_band["_k"] = per_band["band"].map(lambda s: int(s.split("-")[0]))
     per_band = per_band.sort_values("_k").drop(columns="_k")
     failed = df[df["outcome"] == "failed"]
@@ -172,13 +222,16 @@ def sweep_summary(df: pd.DataFrame, force_cap_N: float, machine: str = "") -> st
         markdown_table(per_band) + "\n",
         "## Failures\n",
     ]
-    lines += [f"- `{r.scene}` ({r.kind}, h {r.height_mm:.2f} mm, {r.spec}): [{r.cause}] {r.message}"
-              for r in failed.itertuples()] or ["- none"]
+    lines += [
+        f"- `{r.scene}` ({r.kind}, h {r.height_mm:.2f} mm, {r.spec}): [{r.cause}] {r.message}"
+        for r in failed.itertuples()
+    ] or ["- none"]
     return "\n".join(lines) + "\n"
 
 
-def write_summary(tables, out_md, force_cap_N: float, machine: str = "",
-                  out_csv=None) -> pd.DataFrame:
+def write_summary(
+    tables, out_md, force_cap_N: float, machine: str = "", out_csv=None
+) -> pd.DataFrame:
     """Concatenate the batches' CSV ``tables``, write the summary (and the joined CSV)."""
     df = pd.concat([pd.read_csv(t, keep_default_na=True) for t in tables], ignore_index=True)
     df["cause"] = df["cause"].fillna("")

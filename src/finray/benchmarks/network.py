@@ -16,6 +16,7 @@ force RMSE is within ``tolerance`` of the best of them; the summary also says wh
 the configured default (``train.input_size`` x ``train.base_channels``) is that
 variant and on the front.
 """
+
 from __future__ import annotations
 
 import tempfile
@@ -27,11 +28,29 @@ import numpy as np
 from .pareto import pareto_front
 from .timing import Stopwatch, time_calls
 
-COLUMNS = ["input", "height", "width", "base_channels", "parameters", "n_train", "n_val",
-           "epochs", "train_s_per_epoch", "train_ms_per_frame", "train_cpu_s_per_epoch",
-           "infer_force_ms", "infer_full_ms", "infer_force_cpu_ms", "infer_full_cpu_ms",
-           "val_force_rmse_N", "val_force_nrmse", "val_stress_mse",
-           "pareto", "chosen", "configured"]
+COLUMNS = [
+    "input",
+    "height",
+    "width",
+    "base_channels",
+    "parameters",
+    "n_train",
+    "n_val",
+    "epochs",
+    "train_s_per_epoch",
+    "train_ms_per_frame",
+    "train_cpu_s_per_epoch",
+    "infer_force_ms",
+    "infer_full_ms",
+    "infer_force_cpu_ms",
+    "infer_full_cpu_ms",
+    "val_force_rmse_N",
+    "val_force_nrmse",
+    "val_stress_mse",
+    "pareto",
+    "chosen",
+    "configured",
+]
 
 
 @dataclass(frozen=True)
@@ -65,15 +84,17 @@ def network_latency(model, n_calls: int = 200, repeats: int = 3) -> dict:
         export_onnx(model, path)
         for key, f in (("force", force_onnx_path(path)), ("full", path)):
             sess = ort.InferenceSession(str(f), opts, providers=["CPUExecutionProvider"])
-            t = time_calls(lambda k: sess.run(None, {"image": x}), n_calls, repeats, warmup=20,
-                           cpu="thread")
+            t = time_calls(
+                lambda k: sess.run(None, {"image": x}), n_calls, repeats, warmup=20, cpu="thread"
+            )
             out[key] = t.wall_s * 1e3
             out[f"{key}_cpu"] = t.cpu_s * 1e3
     return out
 
 
-def choose_default(cost: np.ndarray, error: np.ndarray, tolerance: float,
-                   budget: float = np.inf) -> int:
+def choose_default(
+    cost: np.ndarray, error: np.ndarray, tolerance: float, budget: float = np.inf
+) -> int:
     """Index of the cheapest variant whose error is at most ``(1 + tolerance)`` x the
     best error among the variants that cost at most ``budget`` (all of them if none
     does)."""
@@ -85,12 +106,28 @@ def choose_default(cost: np.ndarray, error: np.ndarray, tolerance: float,
     return int(ok[np.argmin(cost[ok])])
 
 
-def run_time_vs_error(shards, out_csv, out_png, out_md, sizes, bases, configured,
-                      epochs: int = 3, every: int = 6, tolerance: float = 0.1,
-                      budget_ms: float = 1.0,
-                      latency_calls: int = 200, val_fraction: float = 0.1, batch_size: int = 16,
-                      lr: float = 1e-4, seed: int = 0, bf16: bool | str = "auto",
-                      channels_last: bool = True, schedule: dict | None = None, log=print):
+def run_time_vs_error(
+    shards,
+    out_csv,
+    out_png,
+    out_md,
+    sizes,
+    bases,
+    configured,
+    epochs: int = 3,
+    every: int = 6,
+    tolerance: float = 0.1,
+    budget_ms: float = 1.0,
+    latency_calls: int = 200,
+    val_fraction: float = 0.1,
+    batch_size: int = 16,
+    lr: float = 1e-4,
+    seed: int = 0,
+    bf16: bool | str = "auto",
+    channels_last: bool = True,
+    schedule: dict | None = None,
+    log=print,
+):
     """Train and time every ``sizes x bases`` variant; write the table (CSV), the
     Pareto figure (PNG) and a summary (Markdown); returns the table (DataFrame).
 
@@ -108,10 +145,19 @@ def run_time_vs_error(shards, out_csv, out_png, out_md, sizes, bases, configured
     rows = []
     # a CPU cost study (one thread, as its latencies): on the CPU whatever the machine has
     # the networks without the contact head (contact_weight 0), as measured before it
-    cfg = TrainConfig(epochs=epochs, batch_size=batch_size, lr=lr, seed=seed, threads=1,
-                      bf16=bf16, device="cpu", channels_last=channels_last, progress=False,
-                      contact_weight=0.0,
-                      **(schedule or {}))
+    cfg = TrainConfig(
+        epochs=epochs,
+        batch_size=batch_size,
+        lr=lr,
+        seed=seed,
+        threads=1,
+        bf16=bf16,
+        device="cpu",
+        channels_last=channels_last,
+        progress=False,
+        contact_weight=0.0,
+        **(schedule or {}),
+    )
     for h, w in sizes:
         data = load_split(shards, (h, w), every)
         val_ids = validation_scenes(data["scene_id"], val_fraction, seed)
@@ -126,40 +172,66 @@ def run_time_vs_error(shards, out_csv, out_png, out_md, sizes, bases, configured
             net = NetConfig(in_channels=1, base_channels=base, height=h, width=w)
             # the kept epoch, the schedule and batch-norm as in the real training
             with Stopwatch(cpu="thread") as clock:
-                model, hist = train(tr["images"], tr["stress"], tr["fx_N"],
-                                    (va["images"], va["stress"], va["fx_N"]), net, cfg, log=log)
+                model, hist = train(
+                    tr["images"],
+                    tr["stress"],
+                    tr["fx_N"],
+                    (va["images"], va["stress"], va["fx_N"]),
+                    net,
+                    cfg,
+                    log=log,
+                )
             cpu_seconds = clock.cpu_s  # with the validation passes
             seconds = hist.wall_time_s[-1]  # the loop, before the last validation pass
-            ev = evaluate(model, torch.as_tensor(va["images"]), torch.as_tensor(va["stress"]),
-                          torch.as_tensor(va["fx_N"]), cfg)
+            ev = evaluate(
+                model,
+                torch.as_tensor(va["images"]),
+                torch.as_tensor(va["stress"]),
+                torch.as_tensor(va["fx_N"]),
+                cfg,
+            )
             f_range = float(va["fx_N"].max() - va["fx_N"].min())
             lat = network_latency(model, latency_calls)
-            rows.append({"input": f"{h}x{w}", "height": h, "width": w, "base_channels": base,
-                         "parameters": count_parameters(model), "n_train": len(tr["images"]),
-                         "n_val": len(va["images"]), "epochs": epochs,
-                         "train_s_per_epoch": seconds / epochs,
-                         "train_ms_per_frame": 1e3 * seconds / (epochs * len(tr["images"])),
-                         "train_cpu_s_per_epoch": cpu_seconds / epochs,
-                         "infer_force_ms": lat["force"], "infer_full_ms": lat["full"],
-                         "infer_force_cpu_ms": lat["force_cpu"], "infer_full_cpu_ms": lat["full_cpu"],
-                         "val_force_rmse_N": ev["force_rmse_N"],
-                         "val_force_nrmse": ev["force_rmse_N"] / max(f_range, 1e-12),
-                         "val_stress_mse": ev["stress_mse"]})
+            rows.append(
+                {
+                    "input": f"{h}x{w}",
+                    "height": h,
+                    "width": w,
+                    "base_channels": base,
+                    "parameters": count_parameters(model),
+                    "n_train": len(tr["images"]),
+                    "n_val": len(va["images"]),
+                    "epochs": epochs,
+                    "train_s_per_epoch": seconds / epochs,
+                    "train_ms_per_frame": 1e3 * seconds / (epochs * len(tr["images"])),
+                    "train_cpu_s_per_epoch": cpu_seconds / epochs,
+                    "infer_force_ms": lat["force"],
+                    "infer_full_ms": lat["full"],
+                    "infer_force_cpu_ms": lat["force_cpu"],
+                    "infer_full_cpu_ms": lat["full_cpu"],
+                    "val_force_rmse_N": ev["force_rmse_N"],
+                    "val_force_nrmse": ev["force_rmse_N"] / max(f_range, 1e-12),
+                    "val_stress_mse": ev["stress_mse"],
+                }
+            )
             log(f"{v.label}: {rows[-1]}")
-    return finish_table(pd.DataFrame(rows), out_csv, out_png, out_md, configured, tolerance,
-                        budget_ms)
+    return finish_table(
+        pd.DataFrame(rows), out_csv, out_png, out_md, configured, tolerance, budget_ms
+    )
 
 
-def finish_table(table, out_csv, out_png, out_md, configured, tolerance: float = 0.1,
-                 budget_ms: float = 1.0):
+def finish_table(
+    table, out_csv, out_png, out_md, configured, tolerance: float = 0.1, budget_ms: float = 1.0
+):
     """Mark the Pareto front, the chosen and the configured variants of the measured
     ``table``; write the CSV, the figure and the summary; return the table."""
     cost, err = table["infer_force_cpu_ms"].to_numpy(), table["val_force_rmse_N"].to_numpy()
     table["pareto"] = pareto_front(cost, err)
     chosen = choose_default(cost, err, tolerance, budget_ms)
     table["chosen"] = np.arange(len(table)) == chosen
-    table["configured"] = [(r.height, r.width, r.base_channels) == tuple(configured)
-                           for r in table.itertuples()]
+    table["configured"] = [
+        (r.height, r.width, r.base_channels) == tuple(configured) for r in table.itertuples()
+    ]
     table = table[COLUMNS]
     table.to_csv(out_csv, index=False, float_format="%.6g")
     pareto_figure(table, out_png, budget_ms)
@@ -176,27 +248,48 @@ def pareto_figure(table, path, budget_ms: float | None = None) -> None:
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(1, 2, figsize=(9, 3.6))
-    for a, col, title in ((ax[0], "infer_force_cpu_ms", "force only"),
-                          (ax[1], "infer_full_cpu_ms", "force + stress map")):
+    for a, col, title in (
+        (ax[0], "infer_force_cpu_ms", "force only"),
+        (ax[1], "infer_full_cpu_ms", "force + stress map"),
+    ):
         a.plot(table[col], table["val_force_rmse_N"], "o", color="0.5")
         front = table[table["pareto"]].sort_values(col)
-        a.plot(front[col], front["val_force_rmse_N"], "-", color="C0", label="Pareto front (force path)")
+        a.plot(
+            front[col],
+            front["val_force_rmse_N"],
+            "-",
+            color="C0",
+            label="Pareto front (force path)",
+        )
         for r in table.itertuples():
-            a.annotate(f"{r.input} b{r.base_channels}", (getattr(r, col), r.val_force_rmse_N),
-                       fontsize=7, xytext=(4, 3), textcoords="offset points")
+            a.annotate(
+                f"{r.input} b{r.base_channels}",
+                (getattr(r, col), r.val_force_rmse_N),
+                fontsize=7,
+                xytext=(4, 3),
+                textcoords="offset points",
+            )
         ch = table[table["chosen"]]
         a.plot(ch[col], ch["val_force_rmse_N"], "*", ms=14, color="C3", label="chosen")
         cf = table[table["configured"]]
-        a.plot(cf[col], cf["val_force_rmse_N"], "s", ms=10, mfc="none", color="k",
-               label="configured default")
+        a.plot(
+            cf[col],
+            cf["val_force_rmse_N"],
+            "s",
+            ms=10,
+            mfc="none",
+            color="k",
+            label="configured default",
+        )
         a.set_xlabel(f"network CPU time per frame, {title} (ms)")
         a.set_ylabel("validation force RMSE (N)")
         a.set_xlim(0, None)
     if budget_ms is not None and np.isfinite(budget_ms):
         ax[0].axvline(budget_ms, color="C2", ls="--", lw=1, label="latency budget")
     ax[0].legend(fontsize=7)
-    fig.suptitle("input size x width: batch 1, one thread, ONNX Runtime; held-out scenes",
-                 fontsize=9)
+    fig.suptitle(
+        "input size x width: batch 1, one thread, ONNX Runtime; held-out scenes", fontsize=9
+    )
     fig.tight_layout()
     fig.savefig(path, dpi=130)
     plt.close(fig)
@@ -239,15 +332,23 @@ def summary_markdown(table, tolerance: float, configured, budget_ms: float = np.
         same = bool(c["chosen"])
         lines.append(
             f"Configured default (train.input_size {h}x{w}, base_channels {b}): "
-            + ("the chosen variant." if same else
-               f"force RMSE {c['val_force_rmse_N']:.4g} N at {c['infer_force_cpu_ms']:.3g} ms CPU, "
-               f"{'on' if c['pareto'] else 'off'} the Pareto front; the study would choose "
-               f"{ch['input']} base {int(ch['base_channels'])}."))
+            + (
+                "the chosen variant."
+                if same
+                else f"force RMSE {c['val_force_rmse_N']:.4g} N at {c['infer_force_cpu_ms']:.3g} ms CPU, "
+                f"{'on' if c['pareto'] else 'off'} the Pareto front; the study would choose "
+                f"{ch['input']} base {int(ch['base_channels'])}."
+            )
+        )
     else:
         lines.append(f"Configured default ({h}x{w}, base {b}) is not among the variants.")
-    lines += ["", "Pareto front (force path): "
-              + ", ".join(f"{r.input} b{r.base_channels}" for r in table.itertuples() if r.pareto)
-              + ".", ""]
+    lines += [
+        "",
+        "Pareto front (force path): "
+        + ", ".join(f"{r.input} b{r.base_channels}" for r in table.itertuples() if r.pareto)
+        + ".",
+        "",
+    ]
     return "\n".join(lines)
 
 
@@ -267,16 +368,26 @@ def train_time_table(models, histories, benchmarks):
         epochs = len(h["epoch"])
         meta_path = Path(hist_path).parent / "model.ts.json"
         meta = json.loads(meta_path.read_text()) if meta_path.is_file() else {}
-        row = {"model": name, "input": f"{meta.get('height')}x{meta.get('width')}",
-               "base_channels": meta.get("base_channels"), "epochs": epochs, "n_train": h.get("n_train"),
-               "n_val": h.get("n_val"), "train_loop_s": h.get("train_seconds"),
-               "s_per_epoch": h.get("train_seconds", float("nan")) / max(epochs, 1),
-               "job_wall_s": float(b["s"]), "job_cpu_s": float(b["cpu_time"]),
-               "max_rss_MB": float(b["max_rss"]),
-               "precision": h.get("precision", ""), "step_ms": h.get("step_ms"),
-               "step_cpu_ms": h.get("step_cpu_ms"),
-               "cpu": h.get("cpu", ""),
-               "best_val_force_rmse_N": min(h["val_force_rmse_N"]) if h.get("val_force_rmse_N") else None}
+        row = {
+            "model": name,
+            "input": f"{meta.get('height')}x{meta.get('width')}",
+            "base_channels": meta.get("base_channels"),
+            "epochs": epochs,
+            "n_train": h.get("n_train"),
+            "n_val": h.get("n_val"),
+            "train_loop_s": h.get("train_seconds"),
+            "s_per_epoch": h.get("train_seconds", float("nan")) / max(epochs, 1),
+            "job_wall_s": float(b["s"]),
+            "job_cpu_s": float(b["cpu_time"]),
+            "max_rss_MB": float(b["max_rss"]),
+            "precision": h.get("precision", ""),
+            "step_ms": h.get("step_ms"),
+            "step_cpu_ms": h.get("step_cpu_ms"),
+            "cpu": h.get("cpu", ""),
+            "best_val_force_rmse_N": min(h["val_force_rmse_N"])
+            if h.get("val_force_rmse_N")
+            else None,
+        }
         row["ms_per_frame"] = 1e3 * row["s_per_epoch"] / max(row["n_train"] or 1, 1)
         rows.append(row)
     return pd.DataFrame(rows)

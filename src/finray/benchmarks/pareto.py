@@ -1,4 +1,5 @@
 """The Pareto front of a cost/error study (lower is better on both axes)."""
+
 from __future__ import annotations
 
 import numpy as np

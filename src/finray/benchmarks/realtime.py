@@ -12,6 +12,7 @@ server sent it. Frames that came while the loop was busy, beyond the reader's tw
 dropped by it (:class:`finray.media.LiveFrames`) and counted. Timings, not correctness:
 run on a quiet machine (the Snakemake rule takes both cores).
 """
+
 from __future__ import annotations
 
 import functools
@@ -30,8 +31,9 @@ from ..predictor import Predictor
 PAPER_LATENCY_MS = 8.0
 
 
-def latency(predictor: Predictor, frames: list[np.ndarray], n_frames: int = 200,
-            repeats: int = 3) -> dict:
+def latency(
+    predictor: Predictor, frames: list[np.ndarray], n_frames: int = 200, repeats: int = 3
+) -> dict:
     """Per-frame latency (ms) at batch 1 of ``predictor`` from raw images: medians over
     ``repeats`` x ``n_frames`` calls (frames cycled), end to end (``force``: force only;
     ``full``: force and stress map) and per stage (segmentation, crop + resample,
@@ -71,25 +73,36 @@ def latency(predictor: Predictor, frames: list[np.ndarray], n_frames: int = 200,
             for j, key in enumerate(names):
                 wall[key].append((t[j + 1] - t[j]) * 1e3)
                 cpu[key].append((c[j + 1] - c[j]) * 1e3)
-    out = {"backend": predictor.backend, "device": str(predictor.device),
-           "input_size": list(predictor.size),
-           "base_channels": predictor.meta.get("base_channels"),
-           "roi_stride": predictor.roi_stride,
-           "frame_shape": list(np.asarray(frames[0]).shape), "n_calls": repeats * n_frames,
-           "n_distinct_frames": min(len(frames), n_frames)}
+    out = {
+        "backend": predictor.backend,
+        "device": str(predictor.device),
+        "input_size": list(predictor.size),
+        "base_channels": predictor.meta.get("base_channels"),
+        "roi_stride": predictor.roi_stride,
+        "frame_shape": list(np.asarray(frames[0]).shape),
+        "n_calls": repeats * n_frames,
+        "n_distinct_frames": min(len(frames), n_frames),
+    }
     for key in names:
         out[f"{key}_ms"] = float(np.median(wall[key]))
         out[f"{key}_p90_ms"] = float(np.percentile(wall[key], 90))
         out[f"{key}_cpu_ms"] = float(np.median(cpu[key]))
-    out["median_of_repeats_force_ms"] = [float(np.median(wall["force"][r * n_frames:(r + 1) * n_frames]))
-                                         for r in range(repeats)]
+    out["median_of_repeats_force_ms"] = [
+        float(np.median(wall["force"][r * n_frames : (r + 1) * n_frames])) for r in range(repeats)
+    ]
     out["paper_ms"] = PAPER_LATENCY_MS
     out["paper_note"] = "the paper's inference time per image, on a GPU"
     return out
 
 
-def latency_report(model_path: str | Path, images, n_frames: int = 200, repeats: int = 3,
-                   backends=("onnx", "torchscript"), device: str = "cpu") -> dict:
+def latency_report(
+    model_path: str | Path,
+    images,
+    n_frames: int = 200,
+    repeats: int = 3,
+    backends=("onnx", "torchscript"),
+    device: str = "cpu",
+) -> dict:
     """Latency (ms) per frame at batch 1 on one thread of the exported model on raw
     camera images (paths; up to ``n_frames`` distinct ones, evenly picked), per
     backend (:func:`latency`); the first backend's figures at the top level, the
@@ -101,17 +114,28 @@ def latency_report(model_path: str | Path, images, n_frames: int = 200, repeats:
     images = list(images)
     if not images:
         raise ValueError("no images to time")
-    pick = np.unique(np.linspace(0, len(images) - 1, min(n_frames, len(images))).round().astype(int))
+    pick = np.unique(
+        np.linspace(0, len(images) - 1, min(n_frames, len(images))).round().astype(int)
+    )
     frames = [iio.imread(images[k]) for k in pick]
     load_before = os.getloadavg()
-    runs = {b: latency(Predictor(model_path, threads=1, backend=b, device=device), frames,
-                       n_frames, repeats)
-            for b in backends}
+    runs = {
+        b: latency(
+            Predictor(model_path, threads=1, backend=b, device=device), frames, n_frames, repeats
+        )
+        for b in backends
+    }
     out = dict(runs[backends[0]])
-    out.update({"model": str(model_path), "cpu_count": os.cpu_count(),
-                "load_average_before": list(load_before),
-                "load_average_after": list(os.getloadavg()),
-                "target_ms": 2.0, "by_backend": runs})
+    out.update(
+        {
+            "model": str(model_path),
+            "cpu_count": os.cpu_count(),
+            "load_average_before": list(load_before),
+            "load_average_after": list(os.getloadavg()),
+            "target_ms": 2.0,
+            "by_backend": runs,
+        }
+    )
     return out
 
 
@@ -126,12 +150,17 @@ def fit_frame(rgb: np.ndarray, size_hw: tuple[int, int]) -> np.ndarray:
     else:
         ch, cw = H, round(H * w / h)
     r0, c0 = (H - ch) // 2, (W - cw) // 2
-    crop = Image.fromarray(np.ascontiguousarray(rgb[r0:r0 + ch, c0:c0 + cw, :3]))
+    crop = Image.fromarray(np.ascontiguousarray(rgb[r0 : r0 + ch, c0 : c0 + cw, :3]))
     return np.asarray(crop.resize((w, h), Image.Resampling.BOX))
 
 
-def write_stream_video(frames: list[np.ndarray], path: str | Path, size_hw: tuple[int, int],
-                       n_frames: int, fps: float = 30.0) -> Path:
+def write_stream_video(
+    frames: list[np.ndarray],
+    path: str | Path,
+    size_hw: tuple[int, int],
+    n_frames: int,
+    fps: float = 30.0,
+) -> Path:
     """``n_frames`` frames (``frames`` cycled forth and back, each fitted to ``size_hw``
     by :func:`fit_frame`) as an MPEG-TS file at ``fps``: H.264 without B-frames (a
     camera's live stream) where the FFmpeg build has it, else MPEG-2."""
@@ -145,8 +174,11 @@ def write_stream_video(frames: list[np.ndarray], path: str | Path, size_hw: tupl
     path = Path(path)
     with av.open(str(path), "w", format="mpegts") as c:
         h264 = "libx264" in av.codecs_available
-        s = c.add_stream("libx264" if h264 else "mpeg2video", rate=Fraction(fps).limit_denominator(1001),
-                         options={"bf": "0", "tune": "zerolatency", "preset": "veryfast"} if h264 else {})
+        s = c.add_stream(
+            "libx264" if h264 else "mpeg2video",
+            rate=Fraction(fps).limit_denominator(1001),
+            options={"bf": "0", "tune": "zerolatency", "preset": "veryfast"} if h264 else {},
+        )
         s.height, s.width = size_hw
         s.pix_fmt = "yuv420p"
         for k in range(n_frames):
@@ -224,9 +256,14 @@ def _pin(core: int | None):
     return lambda: os.sched_setaffinity(0, {core})
 
 
-def stream_benchmark(model_path: str | Path, video: str | Path, out_dir: str | Path,
-                     mode: str = "force", cores: tuple[int, int] | None = (0, 1),
-                     timeout_s: float = 300.0) -> dict:
+def stream_benchmark(
+    model_path: str | Path,
+    video: str | Path,
+    out_dir: str | Path,
+    mode: str = "force",
+    cores: tuple[int, int] | None = (0, 1),
+    timeout_s: float = 300.0,
+) -> dict:
     """``finray predict`` on ``video`` served as a live TCP stream (see the module
     docstring), ``mode``: ``"force"`` (``--force-only``), ``"annotate"`` (``--annotate
     --no-maps``: the stress overlay drawn and the annotated video encoded) or ``"read"``
@@ -247,18 +284,42 @@ def stream_benchmark(model_path: str | Path, video: str | Path, out_dir: str | P
         raise ValueError(f"mode must be one of {MODES}, not {mode!r}")
     info = video_info(video)
     port = _free_port()
-    server = subprocess.Popen([sys.executable, "-c", SERVE, str(video), str(port)],
-                              stdout=subprocess.PIPE, text=True, preexec_fn=_pin(cores and cores[1]))
+    server = subprocess.Popen(
+        [sys.executable, "-c", SERVE, str(video), str(port)],
+        stdout=subprocess.PIPE,
+        text=True,
+        preexec_fn=_pin(cores and cores[1]),
+    )
     url = f"tcp://127.0.0.1:{port}"
-    args = [sys.executable, "-c", READ_ONLY, url] if mode == "read" else \
-        [sys.executable, "-m", "finray.cli", "predict", "--model", str(model_path), url,
-         "--out", str(out_dir), "--overwrite", "--backend", "onnx",
-         *(["--annotate", "--no-maps"] if mode == "annotate" else ["--force-only"])]
+    args = (
+        [sys.executable, "-c", READ_ONLY, url]
+        if mode == "read"
+        else [
+            sys.executable,
+            "-m",
+            "finray.cli",
+            "predict",
+            "--model",
+            str(model_path),
+            url,
+            "--out",
+            str(out_dir),
+            "--overwrite",
+            "--backend",
+            "onnx",
+            *(["--annotate", "--no-maps"] if mode == "annotate" else ["--force-only"]),
+        ]
+    )
     arrivals, t_s, cpu_at, cpu_total, err, rc = [], [], [], None, "", None
     try:
         for _ in range(200):  # until the server listens
-            proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                    preexec_fn=_pin(cores and cores[0]))
+            proc = subprocess.Popen(
+                args,
+                stdout=subprocess.PIPE,
+                stderr=subprocess.PIPE,
+                text=True,
+                preexec_fn=_pin(cores and cores[0]),
+            )
             for line in proc.stdout:
                 now = time.perf_counter()
                 parts = line.split("\t")
@@ -280,30 +341,39 @@ def stream_benchmark(model_path: str | Path, video: str | Path, out_dir: str | P
     t = np.asarray(t_s)
     steady = np.flatnonzero((t >= t[0] + WARMUP_S) & (t <= t[-1] - END_S)) if len(t) else t
     if rc != 0 or len(steady) < 3:
-        raise RuntimeError(f"finray predict on the stream failed (exit code {rc}, "
-                           f"{len(arrivals)} frames): {err.strip()[-500:]}")
+        raise RuntimeError(
+            f"finray predict on the stream failed (exit code {rc}, "
+            f"{len(arrivals)} frames): {err.strip()[-500:]}"
+        )
     summary = err.strip().splitlines()[-1]
     received = int(summary.split(" received (")[0].rsplit(" ", 1)[1])
     dropped = int(summary.split(" received (")[1].split()[0])
     lat = (np.asarray(arrivals) - (sent["t0"] + t - sent["pts0"])) * 1e3
     s0, s1 = steady[0], steady[-1]
-    gaps = np.rint(np.diff(t[s0:s1 + 1]) * info.rate_hz).astype(int) - 1
+    gaps = np.rint(np.diff(t[s0 : s1 + 1]) * info.rate_hz).astype(int) - 1
     span = arrivals[s1] - arrivals[s0]
     n = s1 - s0
-    out = {"video": str(video), "frames_sent": info.n_frames, "rate_hz": info.rate_hz,
-           "mode": mode, "received": received, "predicted": len(arrivals),
-           "dropped": dropped, "dropped_steady": int(gaps.clip(0).sum()),
-           "fps": n / span if span > 0 else float("nan"),
-           "latency_p50_ms": float(np.percentile(lat[steady], 50)),
-           "latency_p99_ms": float(np.percentile(lat[steady], 99)),
-           "latency_max_ms": float(lat[steady].max()),
-           "first_frame_latency_ms": float(lat[0]),
-           # the steady state's frames, as the other figures; and from the first frame to
-           # the end of the process, which adds the run's closing work (the annotated
-           # video's last packets, the force-against-time figure) spread over the frames
-           "cpu_ms_per_frame": (cpu_at[s1] - cpu_at[s0]) / n * 1e3,
-           "cpu_ms_per_frame_run": (cpu_total - cpu_at[0]) / (len(arrivals) - 1) * 1e3,
-           "pinned_cores": list(cores) if cores else None}
+    out = {
+        "video": str(video),
+        "frames_sent": info.n_frames,
+        "rate_hz": info.rate_hz,
+        "mode": mode,
+        "received": received,
+        "predicted": len(arrivals),
+        "dropped": dropped,
+        "dropped_steady": int(gaps.clip(0).sum()),
+        "fps": n / span if span > 0 else float("nan"),
+        "latency_p50_ms": float(np.percentile(lat[steady], 50)),
+        "latency_p99_ms": float(np.percentile(lat[steady], 99)),
+        "latency_max_ms": float(lat[steady].max()),
+        "first_frame_latency_ms": float(lat[0]),
+        # the steady state's frames, as the other figures; and from the first frame to
+        # the end of the process, which adds the run's closing work (the annotated
+        # video's last packets, the force-against-time figure) spread over the frames
+        "cpu_ms_per_frame": (cpu_at[s1] - cpu_at[s0]) / n * 1e3,
+        "cpu_ms_per_frame_run": (cpu_total - cpu_at[0]) / (len(arrivals) - 1) * 1e3,
+        "pinned_cores": list(cores) if cores else None,
+    }
     out["keeps_up"] = bool(out["dropped_steady"] == 0 and out["fps"] >= 0.97 * info.rate_hz)
     return out
 
@@ -339,13 +409,21 @@ def stream_force_error(forces_csv: str | Path, video: str | Path, truth_N) -> di
     rows = pd.read_csv(forces_csv)
     k = np.abs(rows["t_s"].to_numpy()[:, None] - stamps[None, :]).argmin(axis=1)
     err = rows["fx_N"].to_numpy() - truth[order[k % len(order)]]
-    rmse = float(np.sqrt(np.mean(err ** 2)))
+    rmse = float(np.sqrt(np.mean(err**2)))
     return {"force_rmse_N": rmse, "force_nrmse_pct": 100 * rmse / float(np.abs(truth).max())}
 
 
-def realtime_report(model_path: str | Path, images, work_dir: str | Path,
-                    sizes=((480, 640), (720, 1280)), seconds: float = 20.0, fps: float = 30.0,
-                    modes=MODES, cores: tuple[int, int] | None = (0, 1), forces_N=None) -> dict:
+def realtime_report(
+    model_path: str | Path,
+    images,
+    work_dir: str | Path,
+    sizes=((480, 640), (720, 1280)),
+    seconds: float = 20.0,
+    fps: float = 30.0,
+    modes=MODES,
+    cores: tuple[int, int] | None = (0, 1),
+    forces_N=None,
+) -> dict:
     """:func:`stream_benchmark` at each frame size (H, W) and mode, on a stream of
     ``seconds`` at ``fps`` made of ``images`` (paths, cycled forth and back): the figures
     per run, the machine (CPU, cores) and whether each run kept up; with ``forces_N``
@@ -362,47 +440,72 @@ def realtime_report(model_path: str | Path, images, work_dir: str | Path,
         raise ValueError("no images for the stream")
     runs = []
     for h, w in sizes:
-        video = write_stream_video(frames, work / f"stream_{w}x{h}.ts", (h, w), int(seconds * fps), fps)
+        video = write_stream_video(
+            frames, work / f"stream_{w}x{h}.ts", (h, w), int(seconds * fps), fps
+        )
         for mode in modes:
             r = stream_benchmark(model_path, video, work / f"out_{w}x{h}_{mode}", mode, cores)
             r["size"] = f"{w}x{h}"
             if forces_N is not None and mode != "read":
-                r.update(stream_force_error(work / f"out_{w}x{h}_{mode}" / "forces.csv", video, forces_N))
-            print(f"{w}x{h} {mode}: {r['fps']:.1f} fps, latency p50 {r['latency_p50_ms']:.1f} ms, "
-                  f"p99 {r['latency_p99_ms']:.1f} ms, {r['dropped_steady']} dropped, "
-                  f"{r['cpu_ms_per_frame']:.1f} ms CPU per frame", flush=True)
+                r.update(
+                    stream_force_error(work / f"out_{w}x{h}_{mode}" / "forces.csv", video, forces_N)
+                )
+            print(
+                f"{w}x{h} {mode}: {r['fps']:.1f} fps, latency p50 {r['latency_p50_ms']:.1f} ms, "
+                f"p99 {r['latency_p99_ms']:.1f} ms, {r['dropped_steady']} dropped, "
+                f"{r['cpu_ms_per_frame']:.1f} ms CPU per frame",
+                flush=True,
+            )
             runs.append(r)
-    return {"model": str(model_path), "cpu": cpu_name(), "cpu_count": os.cpu_count(),
-            "load_average": list(os.getloadavg()), "rate_hz": fps, "seconds": seconds,
-            "warmup_s": WARMUP_S, "end_s": END_S, "runs": runs}
+    return {
+        "model": str(model_path),
+        "cpu": cpu_name(),
+        "cpu_count": os.cpu_count(),
+        "load_average": list(os.getloadavg()),
+        "rate_hz": fps,
+        "seconds": seconds,
+        "warmup_s": WARMUP_S,
+        "end_s": END_S,
+        "runs": runs,
+    }
 
 
 def realtime_table(report: dict) -> str:
     """The report as a Markdown table, with what it measured."""
     import pandas as pd
 
-    cols = {"size": "stream", "mode": "mode", "fps": "fps", "latency_p50_ms": "latency p50 (ms)",
-            "latency_p99_ms": "p99 (ms)", "dropped_steady": "dropped", "dropped": "dropped (all)",
-            "received": "received",
-            "cpu_ms_per_frame": "CPU per frame (ms)",
-            "cpu_ms_per_frame_run": "CPU per frame, to the end (ms)", "keeps_up": "keeps up",
-            "force_nrmse_pct": "force NRMSE (%)"}
+    cols = {
+        "size": "stream",
+        "mode": "mode",
+        "fps": "fps",
+        "latency_p50_ms": "latency p50 (ms)",
+        "latency_p99_ms": "p99 (ms)",
+        "dropped_steady": "dropped",
+        "dropped": "dropped (all)",
+        "received": "received",
+        "cpu_ms_per_frame": "CPU per frame (ms)",
+        "cpu_ms_per_frame_run": "CPU per frame, to the end (ms)",
+        "keeps_up": "keeps up",
+        "force_nrmse_pct": "force NRMSE (%)",
+    }
     df = pd.DataFrame(report["runs"])
     df = df[[c for c in cols if c in df]].rename(columns=cols)
-    head = (f"# `finray predict` on a live {report['rate_hz']:g} FPS stream\n\n"
-            f"{report['cpu']}, the predicting process pinned to one core, the server to the "
-            f"other. Each stream {report['seconds']:g} s of pyvista renders of a held-out "
-            f"shape (H.264 over TCP, MPEG-TS); figures from {report['warmup_s']:g} s after "
-            f"the first predicted frame to {report['end_s']:g} s before the last (the "
-            "stream's end delivers its last frames at once); `dropped` counts those in that "
-            "window, `dropped (all)` every frame dropped. Latency: from the moment the "
-            "server sent a frame to its row on stdout; mode `read` is the reader alone "
-            "(the stream's own delay: MPEG-TS completes a frame only when the next one "
-            "starts), `force` is `--force-only`, `annotate` is `--annotate --no-maps` (the "
-            "overlay drawn and the annotated video encoded). Dropped: frames that came "
-            "while the loop was busy. CPU per frame: the predicting process's threads over the "
-            "steady state's frames; `to the end`: from the first predicted frame to the "
-            "process's end, which adds the run's closing work (the annotated video's last "
-            "packets, the force-against-time figure) spread over the frames. Force NRMSE: the predicted force of each row "
-            "against the FEA's for the frame it read, in % of the largest force.\n\n")
+    head = (
+        f"# `finray predict` on a live {report['rate_hz']:g} FPS stream\n\n"
+        f"{report['cpu']}, the predicting process pinned to one core, the server to the "
+        f"other. Each stream {report['seconds']:g} s of pyvista renders of a held-out "
+        f"shape (H.264 over TCP, MPEG-TS); figures from {report['warmup_s']:g} s after "
+        f"the first predicted frame to {report['end_s']:g} s before the last (the "
+        "stream's end delivers its last frames at once); `dropped` counts those in that "
+        "window, `dropped (all)` every frame dropped. Latency: from the moment the "
+        "server sent a frame to its row on stdout; mode `read` is the reader alone "
+        "(the stream's own delay: MPEG-TS completes a frame only when the next one "
+        "starts), `force` is `--force-only`, `annotate` is `--annotate --no-maps` (the "
+        "overlay drawn and the annotated video encoded). Dropped: frames that came "
+        "while the loop was busy. CPU per frame: the predicting process's threads over the "
+        "steady state's frames; `to the end`: from the first predicted frame to the "
+        "process's end, which adds the run's closing work (the annotated video's last "
+        "packets, the force-against-time figure) spread over the frames. Force NRMSE: the predicted force of each row "
+        "against the FEA's for the frame it read, in % of the largest force.\n\n"
+    )
     return head + df.to_markdown(index=False, floatfmt=".1f") + "\n"

@@ -1,5 +1,6 @@
 """Throughput of the render paths and of the whole per-frame pipeline (called by the
 workflow into results/benchmarks/)."""
+
 from __future__ import annotations
 
 import os
@@ -21,9 +22,16 @@ def _timed(fn, n: int) -> tuple[float, float]:
     return t.wall_s * 1e3, t.cpu_s * 1e3
 
 
-def benchmark(result_npz: str | Path, *, params: RenderParams | None = None,
-              dataset_params=None, n_frames: int = 20, pitch_deg: float = 15.0,
-              extrusion_mm: float = 20.0, pyvista: bool = True) -> dict:
+def benchmark(
+    result_npz: str | Path,
+    *,
+    params: RenderParams | None = None,
+    dataset_params=None,
+    n_frames: int = 20,
+    pitch_deg: float = 15.0,
+    extrusion_mm: float = 20.0,
+    pyvista: bool = True,
+) -> dict:
     """Milliseconds per frame (median over the frames) and frames per second per core of each render path and
     of the whole per-frame pipeline of the workflow.
 
@@ -49,9 +57,12 @@ def benchmark(result_npz: str | Path, *, params: RenderParams | None = None,
     res = load_fea_result(result_npz)
     nf = res.n_frames
     out: dict = {
-        "n_frames_timed": n_frames, "image_px": [params.height, params.width],
-        "supersample": params.supersample, "px_per_mm": params.px_per_mm,
-        "n_nodes": int(len(res.points)), "n_triangles": int(len(res.triangles)),
+        "n_frames_timed": n_frames,
+        "image_px": [params.height, params.width],
+        "supersample": params.supersample,
+        "px_per_mm": params.px_per_mm,
+        "n_nodes": int(len(res.points)),
+        "n_triangles": int(len(res.triangles)),
         "dataset_sizes": [list(s) for s in dparams.sizes],
     }
 
@@ -59,8 +70,7 @@ def benchmark(result_npz: str | Path, *, params: RenderParams | None = None,
         out[f"{name}_ms"], out[f"{name}_cpu_ms"] = wall_cpu
 
     rast = Rasterizer(res.mesh, params)
-    prep = FramePreparer(params.shape, params.box_px(dparams.crop_x_mm, dparams.crop_y_mm),
-                         dparams)
+    prep = FramePreparer(params.shape, params.box_px(dparams.crop_x_mm, dparams.crop_y_mm), dparams)
 
     def raster_frame(k):
         k %= nf
@@ -69,6 +79,7 @@ def benchmark(result_npz: str | Path, *, params: RenderParams | None = None,
 
     put("raster", _timed(raster_frame, n_frames))
     with tempfile.TemporaryDirectory() as tmp:
+
         def raster_io(k):
             rgb, maps = raster_frame(k)
             write_png(Path(tmp) / "i.png", rgb)
@@ -83,12 +94,14 @@ def benchmark(result_npz: str | Path, *, params: RenderParams | None = None,
             pvr = PyVistaRenderer(res.mesh, params, extrusion_mm=extrusion_mm, pitch_deg=0.0)
         out["pyvista_init_s"] = t.wall_s
         try:
-            put("pyvista_front", _timed(lambda k: pvr.render(res.deformed_points(k % nf)),
-                                        n_frames))
+            put(
+                "pyvista_front", _timed(lambda k: pvr.render(res.deformed_points(k % nf)), n_frames)
+            )
             pvr.set_pitch(pitch_deg)
             out["pyvista_pitch_deg"] = pitch_deg
-            put("pyvista_pitch", _timed(lambda k: pvr.render(res.deformed_points(k % nf)),
-                                        n_frames))
+            put(
+                "pyvista_pitch", _timed(lambda k: pvr.render(res.deformed_points(k % nf)), n_frames)
+            )
 
             def pyvista_pipeline(k):
                 _, maps = raster_frame(k)

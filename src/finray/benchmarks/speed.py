@@ -2,6 +2,7 @@
 time per stage and the studies' times from Snakemake's benchmark files (``benchmark:``
 of each rule: ``results/benchmarks/<stage>/`` for the pipeline, ``.../studies/`` for the
 studies), and the DAG's wall time."""
+
 from __future__ import annotations
 
 import json
@@ -19,9 +20,13 @@ def fea_seconds(fea_scenes_csv) -> dict[str, dict]:
     out = {}
     for mat, g in df.groupby("material", sort=True):
         t = g["wall_time_s"]
-        out[str(mat)] = {"median": float(t.median()), "mean": float(t.mean()),
-                         "max": float(t.max()), "n": int(len(t)),
-                         "newton_iterations_median": float(g["newton_iterations"].median())}
+        out[str(mat)] = {
+            "median": float(t.median()),
+            "mean": float(t.mean()),
+            "max": float(t.max()),
+            "n": int(len(t)),
+            "newton_iterations_median": float(g["newton_iterations"].median()),
+        }
     return out
 
 
@@ -48,7 +53,8 @@ DAG_SPAN_COVERS = (
     "job's inputs): job end = the mtime of its Snakemake benchmark file, start = end - "
     "its wall seconds. Jobs without a benchmark file (figures, manifest, reports) are "
     "not counted; after a partial rerun the span reaches back to the oldest job whose "
-    "result was kept.")
+    "result was kept."
+)
 
 
 def _jobs(files) -> pd.DataFrame:
@@ -60,14 +66,25 @@ def _jobs(files) -> pd.DataFrame:
         t = pd.read_csv(f, sep="\t")
         end = Path(f).stat().st_mtime
         s = float(t["s"].sum())
-        rows.append({"file": str(f), "s": s, "cpu_time": float(t["cpu_time"].sum()),
-                     "end": end, "start": end - s})
+        rows.append(
+            {
+                "file": str(f),
+                "s": s,
+                "cpu_time": float(t["cpu_time"].sum()),
+                "end": end,
+                "start": end - s,
+            }
+        )
     return pd.DataFrame(rows, columns=["file", "s", "cpu_time", "end", "start"])
 
 
 def _totals(jobs: pd.DataFrame) -> dict:
-    return {"jobs": int(len(jobs)), "wall_s": float(jobs["s"].sum()),
-            "cpu_s": float(jobs["cpu_time"].sum()), "longest_job_s": float(jobs["s"].max())}
+    return {
+        "jobs": int(len(jobs)),
+        "wall_s": float(jobs["s"].sum()),
+        "cpu_s": float(jobs["cpu_time"].sum()),
+        "longest_job_s": float(jobs["s"].max()),
+    }
 
 
 def _stage_dirs(benchmark_dir) -> list[Path]:
@@ -98,8 +115,9 @@ def stage_times(benchmark_dir) -> dict[str, dict]:
 def study_times(benchmark_dir) -> dict[str, dict]:
     """Per study (``benchmark_dir/studies/<name>.tsv``): wall s, CPU s (one job each)."""
     files = sorted((Path(benchmark_dir) / STUDIES).glob("*.tsv"))
-    return {Path(r.file).stem: {"wall_s": r.s, "cpu_s": r.cpu_time}
-            for r in _jobs(files).itertuples()}
+    return {
+        Path(r.file).stem: {"wall_s": r.s, "cpu_s": r.cpu_time} for r in _jobs(files).itertuples()
+    }
 
 
 def dag_span(benchmark_dir) -> dict:
@@ -119,10 +137,16 @@ def dag_span(benchmark_dir) -> dict:
     def span(j):
         return float(j["end"].max() - j["start"].min()) if len(j) else float("nan")
 
-    return {"wall_s": span(every), "pipeline_wall_s": span(pipe), "jobs": int(len(every)),
-            "job_s": float(every["s"].sum()), "job_cpu_s": float(every["cpu_time"].sum()),
-            "idle_core_s": idle_core_s(every, DAG_CORES), "cores": DAG_CORES,
-            "covers": DAG_SPAN_COVERS}
+    return {
+        "wall_s": span(every),
+        "pipeline_wall_s": span(pipe),
+        "jobs": int(len(every)),
+        "job_s": float(every["s"].sum()),
+        "job_cpu_s": float(every["cpu_time"].sum()),
+        "idle_core_s": idle_core_s(every, DAG_CORES),
+        "cores": DAG_CORES,
+        "covers": DAG_SPAN_COVERS,
+    }
 
 
 #: The cores of the README's main command (``snakemake --cores 2``): the idle core-time
@@ -146,16 +170,21 @@ def idle_core_s(jobs: pd.DataFrame, cores: int = DAG_CORES) -> float:
 def speed_summary(fea_scenes_csv, latency_json, benchmark_dir) -> dict:
     lat = json.loads(Path(latency_json).read_text())
     scenes = pd.read_csv(fea_scenes_csv)
-    return {"fea_seconds_per_scene": fea_seconds(fea_scenes_csv),
-            "fea_scenes": {"n": int(len(scenes)), "converged": int(scenes["converged"].sum()),
-                           "min_gap_mm": float(scenes["min_gap_mm"].min())},
-            "network_ms_per_frame": float(lat["full_ms"]),  # force and stress map
-            "network_force_only_ms_per_frame": float(lat["force_ms"]),
-            "network_latency": lat,
-            "paper_network_ms_per_frame": paper_value("network_ms_per_frame_gpu"),
-            "stages": stage_times(benchmark_dir),  # the pipeline only
-            "studies": study_times(benchmark_dir),
-            "dag": dag_span(benchmark_dir)}
+    return {
+        "fea_seconds_per_scene": fea_seconds(fea_scenes_csv),
+        "fea_scenes": {
+            "n": int(len(scenes)),
+            "converged": int(scenes["converged"].sum()),
+            "min_gap_mm": float(scenes["min_gap_mm"].min()),
+        },
+        "network_ms_per_frame": float(lat["full_ms"]),  # force and stress map
+        "network_force_only_ms_per_frame": float(lat["force_ms"]),
+        "network_latency": lat,
+        "paper_network_ms_per_frame": paper_value("network_ms_per_frame_gpu"),
+        "stages": stage_times(benchmark_dir),  # the pipeline only
+        "studies": study_times(benchmark_dir),
+        "dag": dag_span(benchmark_dir),
+    }
 
 
 def speed_table(speed: dict) -> str:
@@ -163,22 +192,36 @@ def speed_table(speed: dict) -> str:
     wall time."""
     rows = ["| what | time | note |", "|---|--:|---|"]
     for mat, v in speed["fea_seconds_per_scene"].items():
-        rows.append(f"| FEA, {mat} object | {v['median']:.1f} s/scene (median of {v['n']}) | "
-                    "the whole push, one thread |")
-    rows.append(f"| CNN, raw frame to force and stress map | {speed['network_ms_per_frame']:.2f} ms/frame | "
-                "batch 1, one CPU thread, incl. segmentation and crop (median) |")
-    rows.append(f"| CNN, raw frame to force only | {speed['network_force_only_ms_per_frame']:.2f} ms/frame | "
-                "the control-loop path: no stress decoder |")
-    rows.append(f"| CNN in the paper | {speed['paper_network_ms_per_frame']:.0f} ms/frame | on a GPU, as the paper states it |")
+        rows.append(
+            f"| FEA, {mat} object | {v['median']:.1f} s/scene (median of {v['n']}) | "
+            "the whole push, one thread |"
+        )
+    rows.append(
+        f"| CNN, raw frame to force and stress map | {speed['network_ms_per_frame']:.2f} ms/frame | "
+        "batch 1, one CPU thread, incl. segmentation and crop (median) |"
+    )
+    rows.append(
+        f"| CNN, raw frame to force only | {speed['network_force_only_ms_per_frame']:.2f} ms/frame | "
+        "the control-loop path: no stress decoder |"
+    )
+    rows.append(
+        f"| CNN in the paper | {speed['paper_network_ms_per_frame']:.0f} ms/frame | on a GPU, as the paper states it |"
+    )
     for name, v in speed["studies"].items():
-        rows.append(f"| study: {name} | {v['wall_s'] / 60:.1f} min | one job, not a pipeline stage |")
+        rows.append(
+            f"| study: {name} | {v['wall_s'] / 60:.1f} min | one job, not a pipeline stage |"
+        )
     dag = speed["dag"]
     if np.isfinite(dag["wall_s"]):
-        rows.append(f"| whole DAG, wall | {dag['wall_s'] / 60:.1f} min | {dag['jobs']} benchmarked "
-                    f"jobs, {dag['job_s'] / 60:.1f} min of job time; pipeline stages alone "
-                    f"{dag['pipeline_wall_s'] / 60:.1f} min |")
+        rows.append(
+            f"| whole DAG, wall | {dag['wall_s'] / 60:.1f} min | {dag['jobs']} benchmarked "
+            f"jobs, {dag['job_s'] / 60:.1f} min of job time; pipeline stages alone "
+            f"{dag['pipeline_wall_s'] / 60:.1f} min |"
+        )
         if np.isfinite(dag.get("idle_core_s") or np.nan):
-            rows.append(f"| idle core-time | {dag['idle_core_s'] / 60:.1f} min | of {dag['cores']} "
-                        f"cores over the DAG's wall time ({100 * dag['idle_core_s'] / (dag['cores'] * dag['wall_s']):.0f} %); "
-                        f"{dag['job_cpu_s'] / 60:.1f} min of job CPU time |")
+            rows.append(
+                f"| idle core-time | {dag['idle_core_s'] / 60:.1f} min | of {dag['cores']} "
+                f"cores over the DAG's wall time ({100 * dag['idle_core_s'] / (dag['cores'] * dag['wall_s']):.0f} %); "
+                f"{dag['job_cpu_s'] / 60:.1f} min of job CPU time |"
+            )
     return "\n".join(rows)

@@ -5,6 +5,7 @@ helper threads, e.g. Mesa's rasteriser) or the calling thread's (``cpu="thread"`
 a one-thread runtime such as ONNX Runtime with ``intra_op_num_threads=1`` computes in
 it, and on a machine shared with other jobs it is less inflated than the wall time).
 """
+
 from __future__ import annotations
 
 import time
@@ -57,8 +58,9 @@ class CallTimes:
     p90_wall_s: float = float("nan")
 
 
-def time_calls(fn, n_calls: int = 1, repeats: int = 1, warmup: int = 1,
-               cpu: str = "process") -> CallTimes:
+def time_calls(
+    fn, n_calls: int = 1, repeats: int = 1, warmup: int = 1, cpu: str = "process"
+) -> CallTimes:
     """Time ``fn(k)`` for ``k = 0 .. n_calls - 1``, ``repeats`` times, each call on its
     own, after ``warmup`` untimed calls ``fn(0)`` (first-call costs: JIT, allocators).
     ``k`` lets the callable cycle through inputs (frames)."""
@@ -71,5 +73,11 @@ def time_calls(fn, n_calls: int = 1, repeats: int = 1, warmup: int = 1,
         t, c = time.perf_counter(), clock()
         fn(i % max(int(n_calls), 1))
         wall[i], cpu_s[i] = time.perf_counter() - t, clock() - c
-    return CallTimes(float(np.median(wall)), float(np.median(cpu_s)), float(wall.mean()),
-                     float(cpu_s.mean()), n, float(np.percentile(wall, 90)))
+    return CallTimes(
+        float(np.median(wall)),
+        float(np.median(cpu_s)),
+        float(wall.mean()),
+        float(cpu_s.mean()),
+        n,
+        float(np.percentile(wall, 90)),
+    )

@@ -12,12 +12,29 @@ Public API:
 - :func:`pitch_object`, :func:`scene_splits` -- the splits
 - :func:`example_figure` -- the paper-style figure
 """
-from .augment import (NOISE_LEVELS, OCCLUSION_LEVELS, AugmentParams, apply_augment, augment_seed,
-                      disc_diameters, sample_augment)
+
+from .augment import (
+    NOISE_LEVELS,
+    OCCLUSION_LEVELS,
+    AugmentParams,
+    apply_augment,
+    augment_seed,
+    disc_diameters,
+    sample_augment,
+)
 from .imageops import area_resample, segment, to_gray
 from .params import DatasetParams, scene_id, size_key
-from .shards import (FRAME_COLUMNS, MANIFEST_COLUMNS, FramePreparer, build_shard, load_frames,
-                     load_shard, prepare_frame, render_shard, write_manifest)
+from .shards import (
+    FRAME_COLUMNS,
+    MANIFEST_COLUMNS,
+    FramePreparer,
+    build_shard,
+    load_frames,
+    load_shard,
+    prepare_frame,
+    render_shard,
+    write_manifest,
+)
 from .splits import SPLITS, pitch_object, scene_splits
 
 
@@ -30,11 +47,32 @@ def __getattr__(name: str):
         return example_figure
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
+
 __all__ = [
-    "FRAME_COLUMNS", "MANIFEST_COLUMNS", "NOISE_LEVELS", "OCCLUSION_LEVELS", "SPLITS",
-    "AugmentParams", "DatasetParams", "FramePreparer", "apply_augment", "area_resample",
-    "augment_seed", "build_shard",
-    "disc_diameters", "example_figure", "load_frames", "load_shard", "pitch_object", "prepare_frame",
-    "render_shard", "sample_augment", "scene_id", "scene_splits", "segment", "size_key", "to_gray",
+    "FRAME_COLUMNS",
+    "MANIFEST_COLUMNS",
+    "NOISE_LEVELS",
+    "OCCLUSION_LEVELS",
+    "SPLITS",
+    "AugmentParams",
+    "DatasetParams",
+    "FramePreparer",
+    "apply_augment",
+    "area_resample",
+    "augment_seed",
+    "build_shard",
+    "disc_diameters",
+    "example_figure",
+    "load_frames",
+    "load_shard",
+    "pitch_object",
+    "prepare_frame",
+    "render_shard",
+    "sample_augment",
+    "scene_id",
+    "scene_splits",
+    "segment",
+    "size_key",
+    "to_gray",
     "write_manifest",
 ]

@@ -17,6 +17,7 @@ centre lies within ``d / 2`` of the disc's centre, which makes the disc exactly
 ``d`` pixels wide and tall. Occluded pixels take ``occluder_value`` (0: the
 occluder looks like background after segmentation).
 """
+
 from __future__ import annotations
 
 import math
@@ -42,8 +43,9 @@ def occlusion_levels(levels: dict) -> dict[str, tuple[float, float]]:
 NOISE_LEVELS: dict[str, float] = schema_default("dataset.noise_levels", noise_levels)
 #: Occluding disc diameter as a fraction of the image width, [min, max], per level
 #: (the schema's).
-OCCLUSION_LEVELS: dict[str, tuple[float, float]] = schema_default("dataset.occlusion_levels",
-                                                                  occlusion_levels)
+OCCLUSION_LEVELS: dict[str, tuple[float, float]] = schema_default(
+    "dataset.occlusion_levels", occlusion_levels
+)
 
 
 @dataclass(frozen=True)
@@ -72,17 +74,31 @@ class AugmentParams:
 
     def to_dict(self) -> dict:
         """JSON-serialisable form (for logs and manifests)."""
-        return {"shape": list(self.shape), "noise_level": self.noise_level,
-                "density": self.density, "salt": self.salt.tolist(), "pepper": self.pepper.tolist(),
-                "occlusion_level": self.occlusion_level, "disc_diameter_px": self.disc_diameter_px,
-                "disc_centre_px": list(self.disc_centre_px), "seed": self.seed}
+        return {
+            "shape": list(self.shape),
+            "noise_level": self.noise_level,
+            "density": self.density,
+            "salt": self.salt.tolist(),
+            "pepper": self.pepper.tolist(),
+            "occlusion_level": self.occlusion_level,
+            "disc_diameter_px": self.disc_diameter_px,
+            "disc_centre_px": list(self.disc_centre_px),
+            "seed": self.seed,
+        }
 
     @classmethod
     def from_dict(cls, d: dict) -> "AugmentParams":
-        return cls(shape=tuple(d["shape"]), noise_level=d["noise_level"], density=d["density"],
-                   salt=np.asarray(d["salt"], np.int64), pepper=np.asarray(d["pepper"], np.int64),
-                   occlusion_level=d["occlusion_level"], disc_diameter_px=int(d["disc_diameter_px"]),
-                   disc_centre_px=tuple(d["disc_centre_px"]), seed=d.get("seed"))
+        return cls(
+            shape=tuple(d["shape"]),
+            noise_level=d["noise_level"],
+            density=d["density"],
+            salt=np.asarray(d["salt"], np.int64),
+            pepper=np.asarray(d["pepper"], np.int64),
+            occlusion_level=d["occlusion_level"],
+            disc_diameter_px=int(d["disc_diameter_px"]),
+            disc_centre_px=tuple(d["disc_centre_px"]),
+            seed=d.get("seed"),
+        )
 
 
 def augment_seed(base_seed: int, *keys) -> int:
@@ -109,10 +125,14 @@ def disc_diameters(width: int, height: int, frac_range: tuple[float, float]) -> 
     return np.arange(d_lo, d_hi + 1)
 
 
-def sample_augment(seed: int | np.random.Generator, shape: tuple[int, int],
-                   noise: str = "none", occlusion: str = "none",
-                   noise_levels: dict[str, float] | None = None,
-                   occlusion_levels: dict[str, tuple[float, float]] | None = None) -> AugmentParams:
+def sample_augment(
+    seed: int | np.random.Generator,
+    shape: tuple[int, int],
+    noise: str = "none",
+    occlusion: str = "none",
+    noise_levels: dict[str, float] | None = None,
+    occlusion_levels: dict[str, tuple[float, float]] | None = None,
+) -> AugmentParams:
     """Draw the parameters of one corruption of an (H, W) image (no image needed)."""
     noise_levels = NOISE_LEVELS if noise_levels is None else noise_levels
     occlusion_levels = OCCLUSION_LEVELS if occlusion_levels is None else occlusion_levels
@@ -134,14 +154,21 @@ def sample_augment(seed: int | np.random.Generator, shape: tuple[int, int],
     hit = rng.permutation(h * w)[:n_hit].astype(np.int64)
     n_pepper = n_hit // 2
     return AugmentParams(
-        shape=(h, w), noise_level=noise, density=density, salt=np.sort(hit[n_pepper:]),
+        shape=(h, w),
+        noise_level=noise,
+        density=density,
+        salt=np.sort(hit[n_pepper:]),
         pepper=np.sort(hit[:n_pepper]),
-        occlusion_level=occlusion, disc_diameter_px=d,
+        occlusion_level=occlusion,
+        disc_diameter_px=d,
         disc_centre_px=(r0 + 0.5 * (d - 1), c0 + 0.5 * (d - 1)),
-        seed=None if isinstance(seed, np.random.Generator) else int(seed))
+        seed=None if isinstance(seed, np.random.Generator) else int(seed),
+    )
 
 
-def apply_augment(image: np.ndarray, params: AugmentParams, occluder_value: float = 0.0) -> np.ndarray:
+def apply_augment(
+    image: np.ndarray, params: AugmentParams, occluder_value: float = 0.0
+) -> np.ndarray:
     """Apply a corruption to an (H, W) or (H, W, C) image (a copy is returned).
 
     Occlusion first, then salt-and-pepper on top (sensor noise). Values are on a

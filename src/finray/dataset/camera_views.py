@@ -11,6 +11,7 @@ resampling to each size. (The threshold's histogram holds the window's backgroun
 the whole frame's: the background class's mean moves by a fraction of a grey level.)
 The stress target stays the front view's map of the frame.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -29,9 +30,17 @@ class CameraViewPreparer:
     ``stacked()`` gives ``camera_input_HxW`` (F, H, W) uint8 per size and
     ``camera_view`` (F, len(VIEW_COLUMNS)) float64."""
 
-    def __init__(self, mesh: TriMesh, extrusion_mm: float, views: CameraViews,
-                 params: DatasetParams, base_width_mm: float, base_band: float, scene_id: str,
-                 look=None):
+    def __init__(
+        self,
+        mesh: TriMesh,
+        extrusion_mm: float,
+        views: CameraViews,
+        params: DatasetParams,
+        base_width_mm: float,
+        base_band: float,
+        scene_id: str,
+        look=None,
+    ):
         from ..render.params import RenderParams
 
         self.raster = PerspectiveRaster(mesh, extrusion_mm, views.supersample, corners_only=True)
@@ -47,18 +56,31 @@ class CameraViewPreparer:
         rgb, _ = self.raster.image(points2d, camera, self.look)
         p = self.params
         scale = camera.width * camera.height / (rgb.shape[0] * rgb.shape[1])  # of the whole frame
-        return segment(rgb, p.threshold, p.foreground, p.min_object_frac * scale,
-                       p.max_hole_frac * scale, p.keep_largest)
+        return segment(
+            rgb,
+            p.threshold,
+            p.foreground,
+            p.min_object_frac * scale,
+            p.max_hole_frac * scale,
+            p.keep_largest,
+        )
 
     def prepare(self, frame: int, points2d: np.ndarray) -> tuple[dict[str, np.ndarray], np.ndarray]:
         cam, row = self.views.sample(self.scene_id, frame)
         mask = self.mask(points2d, cam)
         try:
-            box = base_anchored_box(mask, self.base_width_mm, self.params.crop_x_mm,
-                                    self.params.crop_y_mm, base_band=self.base_band)
+            box = base_anchored_box(
+                mask,
+                self.base_width_mm,
+                self.params.crop_x_mm,
+                self.params.crop_y_mm,
+                base_band=self.base_band,
+            )
         except EmptyMaskError:
-            raise ValueError(f"{self.scene_id} frame {frame}: the camera view {dict(zip(VIEW_COLUMNS, row))} "
-                             "sees no finger") from None
+            raise ValueError(
+                f"{self.scene_id} frame {frame}: the camera view {dict(zip(VIEW_COLUMNS, row))} "
+                "sees no finger"
+            ) from None
         return {size_key(s): silhouette_input(mask, box, s) for s in self.params.sizes}, row
 
     def add(self, frame: int, points2d: np.ndarray) -> None:

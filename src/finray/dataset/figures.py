@@ -1,5 +1,6 @@
 """The paper-style example figure: input image, stress map, mask, every noise and
 occlusion level, and the pitch series."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -19,14 +20,20 @@ def _crop_rgb(rgb, box):
     h, w = rgb.shape[:2]
     out = np.zeros((r1 - r0, c1 - c0, 3), dtype=rgb.dtype)
     rs, cs = slice(max(r0, 0), min(r1, h)), slice(max(c0, 0), min(c1, w))
-    out[rs.start - r0:rs.stop - r0, cs.start - c0:cs.stop - c0] = rgb[rs, cs]
+    out[rs.start - r0 : rs.stop - r0, cs.start - c0 : cs.stop - c0] = rgb[rs, cs]
     return out
 
 
-def example_figure(render_dir: str | Path, out_path: str | Path, *, frame: int = -1,
-                   pitch_dirs: dict[float, str | Path] | None = None,
-                   size: tuple[int, int] = (128, 64), params: DatasetParams | None = None,
-                   seed: int = 0) -> Path:
+def example_figure(
+    render_dir: str | Path,
+    out_path: str | Path,
+    *,
+    frame: int = -1,
+    pitch_dirs: dict[float, str | Path] | None = None,
+    size: tuple[int, int] = (128, 64),
+    params: DatasetParams | None = None,
+    seed: int = 0,
+) -> Path:
     """Write the example figure (PDF or PNG by ``out_path``'s suffix).
 
     Row 1: camera image, stress map, segmented mask, network input (``size``).
@@ -50,8 +57,9 @@ def example_figure(render_dir: str | Path, out_path: str | Path, *, frame: int =
     key = size_key(size)
     inp = arrays[f"input_{key}"]
     seg = params.segment(rgb)
-    stress_crop = area_resample(maps["stress"], box,
-                                (int(round(box[3] - box[1])), int(round(box[2] - box[0]))))
+    stress_crop = area_resample(
+        maps["stress"], box, (int(round(box[3] - box[1])), int(round(box[2] - box[0])))
+    )
     scene_id = str(index.get("scene", {}).get("object", Path(render_dir).name))
 
     noise = list(params.noise)
@@ -74,25 +82,45 @@ def example_figure(render_dir: str | Path, out_path: str | Path, *, frame: int =
     axes[0, 3].imshow(inp, cmap="gray", vmin=0, vmax=255)
     axes[0, 3].set_title(f"input {size[0]}x{size[1]}", fontsize=8)
     for j, level in enumerate(noise):
-        p = sample_augment(augment_seed(seed, scene_id, k, "noise", level), size, noise=level,
-                           noise_levels=params.noise, occlusion_levels=params.occlusion)
-        axes[1, j].imshow(apply_augment(inp, p, params.occluder_value), cmap="gray", vmin=0, vmax=255)
+        p = sample_augment(
+            augment_seed(seed, scene_id, k, "noise", level),
+            size,
+            noise=level,
+            noise_levels=params.noise,
+            occlusion_levels=params.occlusion,
+        )
+        axes[1, j].imshow(
+            apply_augment(inp, p, params.occluder_value), cmap="gray", vmin=0, vmax=255
+        )
         axes[1, j].set_title(f"noise {level}\n{params.noise[level]:.0%} of pixels", fontsize=8)
     for j, level in enumerate(occl):
-        p = sample_augment(augment_seed(seed, scene_id, k, "occlusion", level), size,
-                           occlusion=level, noise_levels=params.noise,
-                           occlusion_levels=params.occlusion)
-        axes[2, j].imshow(apply_augment(inp, p, params.occluder_value), cmap="gray", vmin=0, vmax=255)
+        p = sample_augment(
+            augment_seed(seed, scene_id, k, "occlusion", level),
+            size,
+            occlusion=level,
+            noise_levels=params.noise,
+            occlusion_levels=params.occlusion,
+        )
+        axes[2, j].imshow(
+            apply_augment(inp, p, params.occluder_value), cmap="gray", vmin=0, vmax=255
+        )
         lo, hi = params.occlusion[level]
         axes[2, j].set_title(f"occlusion {level}\ndisc {lo:.0%}-{hi:.0%} of width", fontsize=8)
     for j, (pitch, d) in enumerate(pitches):
         idx = load_render_index(d)
         prgb, _ = read_render_frame(d, k % idx["n_frames"], idx)
-        axes[3, j].imshow(_crop_rgb(prgb, RenderParams.from_config(idx["params"]).box_px(
-            params.crop_x_mm, params.crop_y_mm)))
+        axes[3, j].imshow(
+            _crop_rgb(
+                prgb,
+                RenderParams.from_config(idx["params"]).box_px(params.crop_x_mm, params.crop_y_mm),
+            )
+        )
         axes[3, j].set_title(f"pitch {float(pitch):g}°", fontsize=8)
-    fig.suptitle(f"{scene_id}: frame {k}, displacement {fr['displacement_mm']:.2f} mm, "
-                 f"fx {fr['fx_N']:.2f} N", fontsize=9)
+    fig.suptitle(
+        f"{scene_id}: frame {k}, displacement {fr['displacement_mm']:.2f} mm, "
+        f"fx {fr['fx_N']:.2f} N",
+        fontsize=9,
+    )
     fig.tight_layout()
     out_path = Path(out_path)
     out_path.parent.mkdir(parents=True, exist_ok=True)

@@ -4,6 +4,7 @@ segmentation, exact area-weighted crop + resize.
 Nothing here knows about the mesh: the finger mask comes from the image alone
 (threshold + morphology), so the same code runs on camera frames.
 """
+
 from __future__ import annotations
 
 import numba as nb
@@ -101,13 +102,16 @@ _LUMA_8BIT = (_LUMA / 255.0).astype(np.float32)
 @nb.njit(cache=True)
 def _luma_u8(img: np.ndarray, stride: int, w: np.ndarray) -> np.ndarray:
     """Luma (float32) of every ``stride``-th row and column of an 8-bit colour image."""
-    out = np.empty(((img.shape[0] + stride - 1) // stride, (img.shape[1] + stride - 1) // stride),
-                   np.float32)
+    out = np.empty(
+        ((img.shape[0] + stride - 1) // stride, (img.shape[1] + stride - 1) // stride), np.float32
+    )
     for i in range(out.shape[0]):
         for j in range(out.shape[1]):
-            out[i, j] = (np.float32(img[i * stride, j * stride, 0]) * w[0]
-                         + np.float32(img[i * stride, j * stride, 1]) * w[1]
-                         + np.float32(img[i * stride, j * stride, 2]) * w[2])
+            out[i, j] = (
+                np.float32(img[i * stride, j * stride, 0]) * w[0]
+                + np.float32(img[i * stride, j * stride, 1]) * w[1]
+                + np.float32(img[i * stride, j * stride, 2]) * w[2]
+            )
     return out
 
 
@@ -121,10 +125,16 @@ def _luma(img: np.ndarray, stride: int = 1) -> np.ndarray:
     return to_gray(img[::stride, ::stride])
 
 
-def segment(image: np.ndarray, threshold: str | float = "isodata", foreground: str = "bright",
-            min_object_frac: float = 1e-3, max_hole_frac: float = 2e-4,
-            keep_largest: bool = True, roi_stride: int = 1,
-            stats: dict | None = None) -> np.ndarray:
+def segment(
+    image: np.ndarray,
+    threshold: str | float = "isodata",
+    foreground: str = "bright",
+    min_object_frac: float = 1e-3,
+    max_hole_frac: float = 2e-4,
+    keep_largest: bool = True,
+    roi_stride: int = 1,
+    stats: dict | None = None,
+) -> np.ndarray:
     """Finger mask (H, W) bool of a camera image.
 
     1. grey level (BT.709 luma), 2. global threshold: Ridler-Calvard's
@@ -188,8 +198,12 @@ def segment(image: np.ndarray, threshold: str | float = "isodata", foreground: s
     return clean_mask(mask, min_object_frac, max_hole_frac, keep_largest)
 
 
-def clean_mask(mask: np.ndarray, min_object_frac: float = 1e-3, max_hole_frac: float = 2e-4,
-               keep_largest: bool = True) -> np.ndarray:
+def clean_mask(
+    mask: np.ndarray,
+    min_object_frac: float = 1e-3,
+    max_hole_frac: float = 2e-4,
+    keep_largest: bool = True,
+) -> np.ndarray:
     """The morphology of :func:`segment` on a thresholded mask (H, W) bool, in place
     (and returned): drop specks (4-connected) of at most ``min_object_frac`` of the
     image, fill holes (4-connected) of at most ``max_hole_frac``, keep the largest
@@ -265,8 +279,12 @@ def _sparse_products(sub, wy, y_lo, y_hi, wx, x_lo, x_hi) -> np.ndarray:
     return out
 
 
-def area_resample(image: np.ndarray, box_px: tuple[float, float, float, float],
-                  out_shape: tuple[int, int], fast: bool = False) -> np.ndarray:
+def area_resample(
+    image: np.ndarray,
+    box_px: tuple[float, float, float, float],
+    out_shape: tuple[int, int],
+    fast: bool = False,
+) -> np.ndarray:
     """Crop ``box_px = (col0, row0, col1, row1)`` (pixel edges, floats allowed) and
     resize to ``out_shape = (H, W)`` by exact area averaging (each output pixel is
     the mean of the input over its footprint; outside the image counts as 0).
@@ -290,8 +308,9 @@ def area_resample(image: np.ndarray, box_px: tuple[float, float, float, float],
             return np.zeros(out_shape)
         wy = _axis_weights(i1 - i0, r0 - i0, r1 - i0, out_shape[0])
         wx = _axis_weights(j1 - j0, c0 - j0, c1 - j0, out_shape[1])
-        return _sparse_products(np.ascontiguousarray(img[i0:i1, j0:j1]), wy, *_nonzero_span(wy),
-                                wx, *_nonzero_span(wx))
+        return _sparse_products(
+            np.ascontiguousarray(img[i0:i1, j0:j1]), wy, *_nonzero_span(wy), wx, *_nonzero_span(wx)
+        )
     img = img.astype(np.float64, copy=False)
     wy = _axis_weights(img.shape[0], r0, r1, out_shape[0])
     wx = _axis_weights(img.shape[1], c0, c1, out_shape[1])
@@ -300,9 +319,14 @@ def area_resample(image: np.ndarray, box_px: tuple[float, float, float, float],
     return np.einsum("ij,jkc,lk->ilc", wy, img, wx, optimize=True)
 
 
-def base_anchored_box(mask: np.ndarray, base_width_mm: float, crop_x_mm: tuple[float, float],
-                      crop_y_mm: tuple[float, float], base_rows: int = 1,
-                      base_band: float = 0.0) -> tuple[float, float, float, float]:
+def base_anchored_box(
+    mask: np.ndarray,
+    base_width_mm: float,
+    crop_x_mm: tuple[float, float],
+    crop_y_mm: tuple[float, float],
+    base_rows: int = 1,
+    base_band: float = 0.0,
+) -> tuple[float, float, float, float]:
     """The training window ``(col0, row0, col1, row1)`` in pixel edges, anchored on the
     finger itself: the lowest row of ``mask`` is the clamped base, its width is
     ``base_width_mm``, which fixes the scale (px/mm); the window ``crop_x_mm`` x
@@ -320,7 +344,7 @@ def base_anchored_box(mask: np.ndarray, base_width_mm: float, crop_x_mm: tuple[f
     bottom = rows[-1]
     base_rows = max(int(base_rows), int(np.ceil(base_band * (rows[-1] - rows[0] + 1))))
     if base_rows > 1:
-        low = mask[max(bottom - base_rows + 1, 0):bottom + 1]
+        low = mask[max(bottom - base_rows + 1, 0) : bottom + 1]
         has = low.any(axis=1)
         first = np.where(has, low.argmax(axis=1), 0)
         last = np.where(has, low.shape[1] - low[:, ::-1].argmax(axis=1), 0)
@@ -330,8 +354,12 @@ def base_anchored_box(mask: np.ndarray, base_width_mm: float, crop_x_mm: tuple[f
     left, right = cols[0], cols[-1] + 1  # pixel edges of the base
     ppm = (right - left) / base_width_mm
     base_edge = bottom + 1
-    return (left + crop_x_mm[0] * ppm, base_edge - crop_y_mm[1] * ppm,
-            left + crop_x_mm[1] * ppm, base_edge - crop_y_mm[0] * ppm)
+    return (
+        left + crop_x_mm[0] * ppm,
+        base_edge - crop_y_mm[1] * ppm,
+        left + crop_x_mm[1] * ppm,
+        base_edge - crop_y_mm[0] * ppm,
+    )
 
 
 def silhouette_input(mask: np.ndarray, box_px, out_shape: tuple[int, int]) -> np.ndarray:

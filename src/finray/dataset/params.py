@@ -1,5 +1,6 @@
 """Settings of the dataset stage (config section ``dataset``) and the names it gives
 shards and scenes."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
@@ -14,8 +15,17 @@ from ..schema import schema_default
 #: The settings a shard's arrays depend on (sizes, crop, segmentation); the rest of
 #: :class:`DatasetParams` is for the test-time corruptions and figures. A shard records
 #: these only, and the workflow re-renders when one of them changes.
-SHARD_KEYS = ("sizes", "crop_x_mm", "crop_y_mm", "threshold", "foreground", "min_object_frac",
-              "max_hole_frac", "keep_largest", "base_band")
+SHARD_KEYS = (
+    "sizes",
+    "crop_x_mm",
+    "crop_y_mm",
+    "threshold",
+    "foreground",
+    "min_object_frac",
+    "max_hole_frac",
+    "keep_largest",
+    "base_band",
+)
 
 
 def _noise_items(levels: dict) -> tuple:
@@ -44,10 +54,12 @@ class DatasetParams:
     #: the widest row among the lowest ``base_band`` of the mask's height (a rolled or
     #: pitched camera slants its bottom edge over several rows).
     base_band: float = schema_default("dataset.base_band")
-    noise_levels: tuple[tuple[str, float], ...] = schema_default("dataset.noise_levels",
-                                                                 _noise_items)
+    noise_levels: tuple[tuple[str, float], ...] = schema_default(
+        "dataset.noise_levels", _noise_items
+    )
     occlusion_levels: tuple[tuple[str, tuple[float, float]], ...] = schema_default(
-        "dataset.occlusion_levels", _occlusion_items)
+        "dataset.occlusion_levels", _occlusion_items
+    )
     occluder_value: float = schema_default("dataset.occluder_value")
     pitch_object: str | None = schema_default("dataset.pitch_object")
 
@@ -60,8 +72,10 @@ class DatasetParams:
         if cw <= 0 or ch <= 0:
             raise ValueError("dataset.crop_x_mm / crop_y_mm: empty crop")
         if abs(ch - 2 * cw) > 1e-9:
-            raise ValueError(f"dataset.crop_y_mm: the crop ({cw:g} x {ch:g} mm) must be twice "
-                             "as tall as wide, like the output sizes")
+            raise ValueError(
+                f"dataset.crop_y_mm: the crop ({cw:g} x {ch:g} mm) must be twice "
+                "as tall as wide, like the output sizes"
+            )
 
     @classmethod
     def from_config(cls, section: dict | None) -> "DatasetParams":
@@ -91,8 +105,14 @@ class DatasetParams:
         return dict(self.occlusion_levels)
 
     def segment(self, image: np.ndarray) -> np.ndarray:
-        return segment(image, self.threshold, self.foreground, self.min_object_frac,
-                       self.max_hole_frac, self.keep_largest)
+        return segment(
+            image,
+            self.threshold,
+            self.foreground,
+            self.min_object_frac,
+            self.max_hole_frac,
+            self.keep_largest,
+        )
 
     def to_dict(self) -> dict:
         d = {f.name: getattr(self, f.name) for f in fields(self)}
@@ -109,5 +129,7 @@ def size_key(size: tuple[int, int]) -> str:
 
 def scene_id(scene: dict) -> str:
     """``<object>_<material>_h<height>_p<pitch>``."""
-    return (f"{scene.get('object', 'unknown')}_{scene.get('material', 'unknown')}"
-            f"_h{float(scene.get('height_mm', 0)):g}_p{float(scene.get('pitch_deg', 0)):g}")
+    return (
+        f"{scene.get('object', 'unknown')}_{scene.get('material', 'unknown')}"
+        f"_h{float(scene.get('height_mm', 0)):g}_p{float(scene.get('pitch_deg', 0)):g}"
+    )

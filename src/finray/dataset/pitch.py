@@ -10,6 +10,7 @@ to the soft (area-averaged) silhouette this reproduces the pitched renders close
 so that training can be augmented over a range of pitches. The stress target is
 unchanged: it is the front view's, as in the pitch test set.
 """
+
 from __future__ import annotations
 
 import math
@@ -18,9 +19,14 @@ import torch
 import torch.nn.functional as F
 
 
-def pitch_silhouette(x: torch.Tensor, pitch_deg: torch.Tensor, mm_per_px: float,
-                     centre_row: float, extrusion_mm: float = 20.0,
-                     step_px: float = 0.5) -> torch.Tensor:
+def pitch_silhouette(
+    x: torch.Tensor,
+    pitch_deg: torch.Tensor,
+    mm_per_px: float,
+    centre_row: float,
+    extrusion_mm: float = 20.0,
+    step_px: float = 0.5,
+) -> torch.Tensor:
     """Silhouettes ``x`` (B, C, H, W) in [0, 1] seen at camera pitches ``pitch_deg`` (B,).
 
     ``mm_per_px``: image-plane mm per pixel (vertical); ``centre_row``: the row (pixel
@@ -43,6 +49,7 @@ def pitch_silhouette(x: torch.Tensor, pitch_deg: torch.Tensor, mm_per_px: float,
         theta[:, 1, 1] = 1.0 / cos
         theta[:, 1, 2] = yc_n + (shift_n - yc_n) / cos
         grid = F.affine_grid(theta, list(x.shape), align_corners=False)
-        out = torch.maximum(out, F.grid_sample(x, grid, mode="bilinear", padding_mode="zeros",
-                                               align_corners=False))
+        out = torch.maximum(
+            out, F.grid_sample(x, grid, mode="bilinear", padding_mode="zeros", align_corners=False)
+        )
     return out

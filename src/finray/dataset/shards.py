@@ -35,6 +35,7 @@ map: ``meta["has_stress"]`` is false and :func:`load_shard` fills ``stress_HxW``
 Corruptions (noise, occlusion) are not baked in: they are drawn at use time
 from :func:`~finray.dataset.augment.augment_seed` so any sample can be replayed.
 """
+
 from __future__ import annotations
 
 import json
@@ -47,8 +48,21 @@ from ..render.params import RenderParams
 from .imageops import _axis_weights
 from .params import SHARD_KEYS, DatasetParams, scene_id, size_key
 
-MANIFEST_COLUMNS = ["shard", "scene_id", "object", "material", "height_mm", "split", "pitch_deg",
-                    "frame", "fea_frame", "displacement_mm", "fx_N", "fy_N", "contact_y_mm"]
+MANIFEST_COLUMNS = [
+    "shard",
+    "scene_id",
+    "object",
+    "material",
+    "height_mm",
+    "split",
+    "pitch_deg",
+    "frame",
+    "fea_frame",
+    "displacement_mm",
+    "fx_N",
+    "fy_N",
+    "contact_y_mm",
+]
 
 
 #: "Covers at least half the pixel", robust to rounding: area averages of binary
@@ -99,15 +113,21 @@ class FramePreparer:
         self.box_px = tuple(box_px)
         self.params = params
         # (key, rows band, columns band) per output size
-        self._weights = [(size_key(size), _band(_axis_weights(self.image_shape[0], r0, r1, size[0])),
-                          _band(_axis_weights(self.image_shape[1], c0, c1, size[1])))
-                         for size in params.sizes]
+        self._weights = [
+            (
+                size_key(size),
+                _band(_axis_weights(self.image_shape[0], r0, r1, size[0])),
+                _band(_axis_weights(self.image_shape[1], c0, c1, size[1])),
+            )
+            for size in params.sizes
+        ]
         self._frames: dict[str, list] = {}
         self.support_iou: list[float] = []
         self._last_iou = None
 
-    def prepare(self, rgb: np.ndarray, maps: dict[str, np.ndarray] | None = None
-                ) -> dict[str, np.ndarray]:
+    def prepare(
+        self, rgb: np.ndarray, maps: dict[str, np.ndarray] | None = None
+    ) -> dict[str, np.ndarray]:
         if tuple(rgb.shape[:2]) != self.image_shape:
             raise ValueError(f"image shape {rgb.shape[:2]} != {self.image_shape}")
         seg = self.params.segment(rgb)
@@ -142,8 +162,9 @@ class FramePreparer:
         return {name: np.stack(v) for name, v in self._frames.items()}
 
 
-def prepare_frame(rgb: np.ndarray, maps: dict[str, np.ndarray] | None, box_px,
-                  params: DatasetParams) -> dict[str, np.ndarray]:
+def prepare_frame(
+    rgb: np.ndarray, maps: dict[str, np.ndarray] | None, box_px, params: DatasetParams
+) -> dict[str, np.ndarray]:
     """Network arrays of one image at every size: ``input_HxW``, ``mask_HxW`` and,
     if the render's stress maps are given (simulation: ``stress_area`` and
     ``coverage``), ``stress_HxW``. ``box_px`` is the crop in the image's pixel
@@ -164,16 +185,28 @@ def _scene_of(index: dict, scene: dict | None) -> dict:
     return sc
 
 
-def _write_shard(out_npz, index: dict, prep: FramePreparer, scene: dict | None,
-                 params: DatasetParams, box, render_dir, extra: dict | None = None) -> dict:
+def _write_shard(
+    out_npz,
+    index: dict,
+    prep: FramePreparer,
+    scene: dict | None,
+    params: DatasetParams,
+    box,
+    render_dir,
+    extra: dict | None = None,
+) -> dict:
     """Save the stacked frame arrays with the per-frame values and ``meta``; returns meta.
     ``meta["support_iou_min"]``: the lowest :attr:`FramePreparer.support_iou`.
     ``extra``: ``{"arrays": ..., "meta": ...}`` added to both (the camera views)."""
     fr = index["frames"]
     meta = {
-        "scene": _scene_of(index, scene), "sizes": [list(s) for s in params.sizes],
-        "crop_box_px": list(box), "render_dir": str(render_dir), "render": index["params"],
-        "renderer": index["renderer"], "stress_transform": index["stress_transform"],
+        "scene": _scene_of(index, scene),
+        "sizes": [list(s) for s in params.sizes],
+        "crop_box_px": list(box),
+        "render_dir": str(render_dir),
+        "render": index["params"],
+        "renderer": index["renderer"],
+        "stress_transform": index["stress_transform"],
         "dataset": {k: v for k, v in params.to_dict().items() if k in SHARD_KEYS},
         "n_frames": index["n_frames"],
         "support_iou_min": min(prep.support_iou) if prep.support_iou else None,
@@ -209,8 +242,12 @@ def save_npz(path: str | Path, arrays: dict[str, np.ndarray], level: int = 1) ->
                 npformat.write_array(f, np.asanyarray(arr), allow_pickle=False)
 
 
-def build_shard(render_dir: str | Path, out_npz: str | Path, scene: dict | None = None,
-                params: DatasetParams | None = None) -> dict:
+def build_shard(
+    render_dir: str | Path,
+    out_npz: str | Path,
+    scene: dict | None = None,
+    params: DatasetParams | None = None,
+) -> dict:
     """Build the shard of one rendered scene from its files; returns its ``meta``.
 
     Every frame of the render directory must have its files (``files_per_scene``
@@ -230,11 +267,19 @@ def build_shard(render_dir: str | Path, out_npz: str | Path, scene: dict | None 
     return _write_shard(out_npz, index, prep, scene, params, box, render_dir)
 
 
-def render_shard(result_npz: str | Path, render_dir: str | Path, out_npz: str | Path,
-                 pitch_deg: float = 0.0, *, render_params: RenderParams | None = None,
-                 params: DatasetParams | None = None, extrusion_mm: float = 20.0,
-                 scene: dict | None = None, camera_views=None,
-                 base_width_mm: float = 30.0) -> dict:
+def render_shard(
+    result_npz: str | Path,
+    render_dir: str | Path,
+    out_npz: str | Path,
+    pitch_deg: float = 0.0,
+    *,
+    render_params: RenderParams | None = None,
+    params: DatasetParams | None = None,
+    extrusion_mm: float = 20.0,
+    scene: dict | None = None,
+    camera_views=None,
+    base_width_mm: float = 30.0,
+) -> dict:
     """Render a solver result and build its shard in one pass; returns the shard's ``meta``.
 
     Each frame goes from the renderer straight to :class:`FramePreparer` (the same
@@ -260,16 +305,35 @@ def render_shard(result_npz: str | Path, render_dir: str | Path, out_npz: str | 
         from .camera_views import CameraViewPreparer
 
         sid = scene_id({**(scene or {}), "pitch_deg": float(pitch_deg)})
-        cams = CameraViewPreparer(load_fea_result(result_npz).mesh, extrusion_mm, camera_views,
-                                  params, base_width_mm, params.base_band, sid, render_params)
-    index = render_scene(result_npz, render_dir, pitch_deg, params=render_params,
-                         extrusion_mm=extrusion_mm, scene=scene,
-                         on_frame=lambda k, rgb, maps: prep.add(rgb, maps),
-                         on_points=cams.add if cams is not None else None)
+        cams = CameraViewPreparer(
+            load_fea_result(result_npz).mesh,
+            extrusion_mm,
+            camera_views,
+            params,
+            base_width_mm,
+            params.base_band,
+            sid,
+            render_params,
+        )
+    index = render_scene(
+        result_npz,
+        render_dir,
+        pitch_deg,
+        params=render_params,
+        extrusion_mm=extrusion_mm,
+        scene=scene,
+        on_frame=lambda k, rgb, maps: prep.add(rgb, maps),
+        on_points=cams.add if cams is not None else None,
+    )
     extra = None
     if cams is not None:
-        extra = {"arrays": cams.stacked(), "meta": {"camera_views": camera_views.to_dict(),
-                                                    "camera_view_columns": list(VIEW_COLUMNS)}}
+        extra = {
+            "arrays": cams.stacked(),
+            "meta": {
+                "camera_views": camera_views.to_dict(),
+                "camera_view_columns": list(VIEW_COLUMNS),
+            },
+        }
     return _write_shard(out_npz, index, prep, scene, params, box, render_dir, extra)
 
 
@@ -287,17 +351,32 @@ def load_shard(path: str | Path) -> dict:
     d.setdefault("contact_y_mm", np.full(len(d["frame"]), np.nan))  # shards before it, recordings
     if not d["has_stress"]:
         for name in [k for k in d if k.startswith("input_")]:
-            d["stress_" + name[len("input_"):]] = np.full(d[name].shape, np.nan, np.float32)
+            d["stress_" + name[len("input_") :]] = np.full(d[name].shape, np.nan, np.float32)
     return d
 
 
 #: The per-frame table of :func:`load_frames`.
-FRAME_COLUMNS = ["scene_id", "object", "material", "height_mm", "pitch_deg", "frame",
-                 "displacement_mm", "fx_N", "fy_N", "contact_y_mm"]
+FRAME_COLUMNS = [
+    "scene_id",
+    "object",
+    "material",
+    "height_mm",
+    "pitch_deg",
+    "frame",
+    "displacement_mm",
+    "fx_N",
+    "fy_N",
+    "contact_y_mm",
+]
 
 
-def load_frames(shard_paths, size: tuple[int, int], every: int = 1, require_stress: bool = False,
-                camera: bool = False):
+def load_frames(
+    shard_paths,
+    size: tuple[int, int],
+    every: int = 1,
+    require_stress: bool = False,
+    camera: bool = False,
+):
     """The frames of shards at one input size, in the order given: arrays and a
     per-frame table (the one shard reader of training, evaluation and the studies).
 
@@ -315,8 +394,14 @@ def load_frames(shard_paths, size: tuple[int, int], every: int = 1, require_stre
 
     k = size_key(size)
     sel = slice(0, None, max(1, int(every)))
-    arrays: dict[str, list] = {"images": [], "stress": [], "mask": [], "fx_N": [], "fy_N": [],
-                               "contact_y_mm": []}
+    arrays: dict[str, list] = {
+        "images": [],
+        "stress": [],
+        "mask": [],
+        "fx_N": [],
+        "fy_N": [],
+        "contact_y_mm": [],
+    }
     rows = []
     for path in shard_paths:
         with np.load(path, allow_pickle=False) as f:
@@ -326,32 +411,46 @@ def load_frames(shard_paths, size: tuple[int, int], every: int = 1, require_stre
             arrays["images"].append(x)
             if camera:
                 if f"camera_input_{k}" not in f.files:
-                    raise ValueError(f"{path} has no camera views (render.camera_views is off "
-                                     "for its scene)")
+                    raise ValueError(
+                        f"{path} has no camera views (render.camera_views is off for its scene)"
+                    )
                 arrays.setdefault("camera_images", []).append(f[f"camera_input_{k}"][sel])
             if meta.get("has_stress", True):
                 arrays["stress"].append(f[f"stress_{k}"][sel])
             elif require_stress:
-                raise ValueError(f"{path} has no stress map (a lab recording): it cannot be "
-                                 "trained on by the stress + force loss")
+                raise ValueError(
+                    f"{path} has no stress map (a lab recording): it cannot be "
+                    "trained on by the stress + force loss"
+                )
             else:
                 arrays["stress"].append(np.full(x.shape, np.nan, np.float32))
             arrays["mask"].append(f[f"mask_{k}"][sel].astype(bool))
             arrays["fx_N"].append(f["fx_N"][sel])
             arrays["fy_N"].append(f["fy_N"][sel])
-            arrays["contact_y_mm"].append(f["contact_y_mm"][sel] if "contact_y_mm" in f.files
-                                          else np.full(len(x), np.nan))
+            arrays["contact_y_mm"].append(
+                f["contact_y_mm"][sel] if "contact_y_mm" in f.files else np.full(len(x), np.nan)
+            )
             frame, disp = f["frame"][sel], f["displacement_mm"][sel]
-        rows.append(pd.DataFrame({
-            "scene_id": sc["scene_id"], "object": sc.get("object"), "material": sc.get("material"),
-            "height_mm": float(sc.get("height_mm", np.nan)), "pitch_deg": float(sc["pitch_deg"]),
-            "frame": frame, "displacement_mm": disp, "fx_N": arrays["fx_N"][-1],
-            "fy_N": arrays["fy_N"][-1], "contact_y_mm": arrays["contact_y_mm"][-1]},
-            columns=FRAME_COLUMNS))
+        rows.append(
+            pd.DataFrame(
+                {
+                    "scene_id": sc["scene_id"],
+                    "object": sc.get("object"),
+                    "material": sc.get("material"),
+                    "height_mm": float(sc.get("height_mm", np.nan)),
+                    "pitch_deg": float(sc["pitch_deg"]),
+                    "frame": frame,
+                    "displacement_mm": disp,
+                    "fx_N": arrays["fx_N"][-1],
+                    "fy_N": arrays["fy_N"][-1],
+                    "contact_y_mm": arrays["contact_y_mm"][-1],
+                },
+                columns=FRAME_COLUMNS,
+            )
+        )
     if not rows:
         raise ValueError("no shards given")
-    return ({n: np.concatenate(v) for n, v in arrays.items()},
-            pd.concat(rows, ignore_index=True))
+    return ({n: np.concatenate(v) for n, v in arrays.items()}, pd.concat(rows, ignore_index=True))
 
 
 def write_manifest(shard_paths, out_csv: str | Path, relative_to: str | Path | None = None):
@@ -370,16 +469,25 @@ def write_manifest(shard_paths, out_csv: str | Path, relative_to: str | Path | N
             meta = json.loads(str(f["meta"]))
             per_frame = {k: f[k] for k in ("frame", "fea_frame", "displacement_mm", "fx_N", "fy_N")}
             n = len(per_frame["frame"])
-            per_frame["contact_y_mm"] = f["contact_y_mm"] if "contact_y_mm" in f.files else np.full(n, np.nan)
+            per_frame["contact_y_mm"] = (
+                f["contact_y_mm"] if "contact_y_mm" in f.files else np.full(n, np.nan)
+            )
         sc = meta["scene"]
         name = str(Path(p).resolve().relative_to(Path(relative_to).resolve())) if relative_to else p
         for split in sc["splits"]:
             for i in range(len(per_frame["frame"])):
-                rows.append({
-                    "shard": name, "scene_id": sc["scene_id"], "object": sc.get("object"),
-                    "material": sc.get("material"), "height_mm": sc.get("height_mm"),
-                    "split": split, "pitch_deg": sc["pitch_deg"],
-                    **{k: v[i].item() for k, v in per_frame.items()}})
+                rows.append(
+                    {
+                        "shard": name,
+                        "scene_id": sc["scene_id"],
+                        "object": sc.get("object"),
+                        "material": sc.get("material"),
+                        "height_mm": sc.get("height_mm"),
+                        "split": split,
+                        "pitch_deg": sc["pitch_deg"],
+                        **{k: v[i].item() for k, v in per_frame.items()},
+                    }
+                )
     df = pd.DataFrame(rows, columns=MANIFEST_COLUMNS)
     Path(out_csv).parent.mkdir(parents=True, exist_ok=True)
     df.to_csv(out_csv, index=False)

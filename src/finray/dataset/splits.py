@@ -10,6 +10,7 @@ Only the pitch object is rendered at pitches other than 0. Its pitch-0 frames
 belong to both its own split and ``pitch`` (the manifest lists them once per
 split), so ``manifest[manifest.split == "pitch"]`` is the whole pitch series.
 """
+
 from __future__ import annotations
 
 SPLITS = ("train", "shape", "material", "pitch")

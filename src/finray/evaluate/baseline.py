@@ -11,6 +11,7 @@ cross-validation over whole scenes, maps the profile to the force (N). Across
 objects at one height the force-displacement curves are close, so this simple model
 already does well on clean images: the comparison shows what the CNN adds.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -44,8 +45,14 @@ class RidgeBaseline:
         return self.predict(front_edge_profile(images))
 
     def save(self, path: str | Path) -> None:
-        np.savez(path, mean=self.mean, scale=self.scale, coef=self.coef,
-                 intercept=self.intercept, alpha=self.alpha)
+        np.savez(
+            path,
+            mean=self.mean,
+            scale=self.scale,
+            coef=self.coef,
+            intercept=self.intercept,
+            alpha=self.alpha,
+        )
 
     @classmethod
     def load(cls, path: str | Path) -> "RidgeBaseline":
@@ -62,9 +69,14 @@ def _solve(z: np.ndarray, y: np.ndarray, alpha: float) -> tuple[np.ndarray, floa
     return coef, float(ym - zm @ coef)
 
 
-def fit_ridge(features: np.ndarray, force_N: np.ndarray, groups: np.ndarray,
-              alphas=(1e-2, 1e-1, 1.0, 10.0, 100.0, 1e3, 1e4), n_folds: int = 5,
-              seed: int = 0) -> tuple[RidgeBaseline, dict]:
+def fit_ridge(
+    features: np.ndarray,
+    force_N: np.ndarray,
+    groups: np.ndarray,
+    alphas=(1e-2, 1e-1, 1.0, 10.0, 100.0, 1e3, 1e4),
+    n_folds: int = 5,
+    seed: int = 0,
+) -> tuple[RidgeBaseline, dict]:
     """Fit with the penalty of least cross-validated MSE (folds of whole scenes,
     ``groups``: one label per frame); returns the model and the CV errors (N^2)."""
     f = np.asarray(features, dtype=np.float64)
@@ -74,8 +86,12 @@ def fit_ridge(features: np.ndarray, force_N: np.ndarray, groups: np.ndarray,
     scale[scale < 1e-9] = 1.0  # rows the finger never reaches: constant features
     z = (f - mean) / scale
     ids = np.unique(groups)
-    fold_of = dict(zip(np.random.default_rng(seed).permutation(ids),
-                       np.arange(len(ids)) % max(2, min(n_folds, len(ids)))))
+    fold_of = dict(
+        zip(
+            np.random.default_rng(seed).permutation(ids),
+            np.arange(len(ids)) % max(2, min(n_folds, len(ids))),
+        )
+    )
     fold = np.array([fold_of[g] for g in groups])
     cv = {}
     for a in alphas:

@@ -9,6 +9,7 @@ same value the shard holds for that frame) and their stress target from the
 frame's EXR (``coverage``, ``stress_area``) resampled over the predictor's crop,
 so that the stress metrics compare maps on the same pixels as the input.
 """
+
 from __future__ import annotations
 
 import json
@@ -22,6 +23,7 @@ from ..dataset.shards import HALF
 from ..errors import FrameError
 from ..predictor import Predictor
 from ..render import load_render_index, read_render_frame
+
 
 def camera_test_set(index_paths, predictor: Predictor) -> tuple[dict, pd.DataFrame]:
     """Network inputs of every rendered frame with files, through ``predictor``'s
@@ -54,17 +56,29 @@ def camera_test_set(index_paths, predictor: Predictor) -> tuple[dict, pd.DataFra
             area = area_resample(maps["stress_area"], box, predictor.size)
             full = cov >= HALF
             stress.append(np.where(full, area / np.where(full, cov, 1.0), 0.0).astype(np.float32))
-            rows.append({"scene_id": sid, "object": sc.get("object"), "material": sc.get("material"),
-                         "height_mm": float(sc.get("height_mm", np.nan)),
-                         "pitch_deg": sc["pitch_deg"], "frame": int(fr["frame"]),
-                         "displacement_mm": float(fr["displacement_mm"]), "fx_N": float(fr["fx_N"]),
-                         "fy_N": float(fr["fy_N"])})
+            rows.append(
+                {
+                    "scene_id": sid,
+                    "object": sc.get("object"),
+                    "material": sc.get("material"),
+                    "height_mm": float(sc.get("height_mm", np.nan)),
+                    "pitch_deg": sc["pitch_deg"],
+                    "frame": int(fr["frame"]),
+                    "displacement_mm": float(fr["displacement_mm"]),
+                    "fx_N": float(fr["fx_N"]),
+                    "fy_N": float(fr["fy_N"]),
+                }
+            )
     if not rows:
         raise ValueError("no rendered frame has files (render.files_per_scene is 0?)")
     table = pd.DataFrame(rows)
     h, w = predictor.size
-    arrays = {"images": np.stack(images).reshape(-1, h, w), "stress": np.stack(stress),
-              "mask": np.stack(masks), "fx_N": table["fx_N"].to_numpy()}
+    arrays = {
+        "images": np.stack(images).reshape(-1, h, w),
+        "stress": np.stack(stress),
+        "mask": np.stack(masks),
+        "fx_N": table["fx_N"].to_numpy(),
+    }
     return arrays, table
 
 
@@ -75,8 +89,10 @@ def shared_preprocessing(predictors: dict[str, Predictor]) -> Predictor:
     ref = (first.size, json.dumps(first.meta.get("preprocess", {}), sort_keys=True))
     for name, p in predictors.items():
         if (p.size, json.dumps(p.meta.get("preprocess", {}), sort_keys=True)) != ref:
-            raise ValueError(f"camera path: models {first_name} and {name} preprocess frames "
-                             "differently (input size or model.ts.json 'preprocess')")
+            raise ValueError(
+                f"camera path: models {first_name} and {name} preprocess frames "
+                "differently (input size or model.ts.json 'preprocess')"
+            )
     return first
 
 
@@ -89,14 +105,18 @@ def rendered_subset(table: pd.DataFrame, camera: pd.DataFrame) -> np.ndarray:
     missing = ~ckey.isin(key)
     if missing.any():
         sid, fr = ckey[np.flatnonzero(missing)[0]]
-        raise ValueError(f"camera path: rendered frame {fr} of {sid} is not in the test shards "
-                         f"({int(missing.sum())} such frames)")
+        raise ValueError(
+            f"camera path: rendered frame {fr} of {sid} is not in the test shards "
+            f"({int(missing.sum())} such frames)"
+        )
     sel = key.isin(ckey)
     shard_fx = pd.Series(table["fx_N"].to_numpy()[sel], index=key[sel])
     diff = np.abs(shard_fx.loc[ckey].to_numpy() - camera["fx_N"].to_numpy())
     if diff.max() > 1e-9 * max(1.0, float(np.abs(camera["fx_N"]).max())):
         i = int(diff.argmax())
-        raise ValueError(f"camera path: FEA force of frame {ckey[i][1]} of {ckey[i][0]} differs "
-                         f"between its render index and its shard by {diff[i]:.3g} N "
-                         "(renders and shards of different runs)")
+        raise ValueError(
+            f"camera path: FEA force of frame {ckey[i][1]} of {ckey[i][0]} differs "
+            f"between its render index and its shard by {diff[i]:.3g} N "
+            "(renders and shards of different runs)"
+        )
     return sel

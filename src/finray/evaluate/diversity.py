@@ -5,6 +5,7 @@ on the paper's held-out test sets by :func:`~finray.evaluate.experiments.run_exp
 (``<test>/metrics.csv`` ...), ``table.csv`` (one row per test set and group: n, each
 metric of both models and the difference) and ``summary.json`` (the summary's
 ``diversity`` key)."""
+
 from __future__ import annotations
 
 import json
@@ -38,7 +39,9 @@ def comparison_table(metrics: dict[str, pd.DataFrame]) -> pd.DataFrame:
                 raise ValueError(f"{test}/{group}: no metrics of {sorted(missing)}")
             a, b = by.loc[PAPER], by.loc[GENERATED]
             if int(a["n"]) != int(b["n"]):
-                raise ValueError(f"{test}/{group}: the models were scored on {int(a['n'])} and {int(b['n'])} frames")
+                raise ValueError(
+                    f"{test}/{group}: the models were scored on {int(a['n'])} and {int(b['n'])} frames"
+                )
             row = {"test": test, "group": group, "n": int(a["n"])}
             for k in METRICS:
                 row[f"{k}_{PAPER}"], row[f"{k}_{GENERATED}"] = float(a[k]), float(b[k])
@@ -51,11 +54,13 @@ def _node(row: dict) -> dict:
     """One table row as ``{n, paper_objects: {..}, with_generated: {..}, diff: {..},
     better: {metric: with_generated is better}}`` (a tie is not better)."""
     diff = {k: row[f"{k}_diff"] for k in METRICS}
-    return {"n": int(row["n"]),
-            PAPER: {k: row[f"{k}_{PAPER}"] for k in METRICS},
-            GENERATED: {k: row[f"{k}_{GENERATED}"] for k in METRICS},
-            "diff": diff,
-            "better": {k: bool(d > 0 if k in HIGHER_IS_BETTER else d < 0) for k, d in diff.items()}}
+    return {
+        "n": int(row["n"]),
+        PAPER: {k: row[f"{k}_{PAPER}"] for k in METRICS},
+        GENERATED: {k: row[f"{k}_{GENERATED}"] for k in METRICS},
+        "diff": diff,
+        "better": {k: bool(d > 0 if k in HIGHER_IS_BETTER else d < 0) for k, d in diff.items()},
+    }
 
 
 def diversity_summary(table: pd.DataFrame, trainings: dict[str, dict], setup: dict) -> dict:
@@ -72,18 +77,30 @@ def diversity_summary(table: pd.DataFrame, trainings: dict[str, dict], setup: di
     return {**setup, "training": trainings, "tests": tests}
 
 
-def run_diversity(out_dir, test_sets: dict[str, dict], size, models: dict[str, str],
-                  histories: dict[str, str], setup: dict, log=print) -> dict:
+def run_diversity(
+    out_dir,
+    test_sets: dict[str, dict],
+    size,
+    models: dict[str, str],
+    histories: dict[str, str],
+    setup: dict,
+    log=print,
+) -> dict:
     """Score ``models`` (PAPER and GENERATED -> TorchScript) on every test set (name ->
     ``{"shards": [...], "group_col": str}``) into ``out_dir/<test>/``; write
     ``table.csv`` and ``summary.json`` (returned). ``histories``: each model's
     ``history.json``; ``setup``: what the summary states of the set-up."""
     if set(models) != {PAPER, GENERATED} or set(histories) != set(models):
-        raise ValueError(f"need the models {PAPER} and {GENERATED}, got {sorted(models)} and {sorted(histories)}")
+        raise ValueError(
+            f"need the models {PAPER} and {GENERATED}, got {sorted(models)} and {sorted(histories)}"
+        )
     out_dir = Path(out_dir)
-    metrics = {t: run_experiment(out_dir / t, ts["shards"], tuple(size), models, None,
-                                 group_col=ts["group_col"], log=log)
-               for t, ts in test_sets.items()}
+    metrics = {
+        t: run_experiment(
+            out_dir / t, ts["shards"], tuple(size), models, None, group_col=ts["group_col"], log=log
+        )
+        for t, ts in test_sets.items()
+    }
     table = comparison_table(metrics)
     table.to_csv(out_dir / "table.csv", index=False, float_format="%.10g")
     log(table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))

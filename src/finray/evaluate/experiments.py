@@ -24,6 +24,7 @@ Every experiment writes into one directory:
 - ``checks.json`` (written by the rule's script): experiment-specific checks, e.g. for
   the pitch study the IoU of the pitch augmentation against the pitched renders.
 """
+
 from __future__ import annotations
 
 import json
@@ -35,12 +36,19 @@ import pandas as pd
 
 from .baseline import RidgeBaseline
 from .camera import camera_test_set, rendered_subset, shared_preprocessing
-from .metrics import CONTACT_MIN_FORCE_N, contact_metrics, force_metrics, force_vector_metrics, stress_metrics
+from .metrics import (
+    CONTACT_MIN_FORCE_N,
+    contact_metrics,
+    force_metrics,
+    force_vector_metrics,
+    stress_metrics,
+)
 from ..dataset import scene_id
 from ..errors import FrameError
 from ..predictor import Predictor
 from .predictions import load_test_set, occlude, predict_images
 from .tables import PATH_KEYS
+
 
 def _predict_all(images_u8, models: dict[str, Predictor], baseline: RidgeBaseline | None):
     """``({predictor: forces (N, k) N, fx first}, {network: stress maps}, {network:
@@ -72,36 +80,63 @@ def _contact_row(frames: pd.DataFrame, p: str, sel) -> dict:
     |Fx| > CONTACT_MIN_FORCE_N, where it predicts the height and the frames know it."""
     if f"contact_pred_{p}" not in frames or "contact_y_mm" not in frames:
         return {}
-    m = contact_metrics(frames["contact_y_mm"][sel], frames[f"contact_pred_{p}"][sel],
-                        frames["fx_N"][sel], CONTACT_MIN_FORCE_N)
+    m = contact_metrics(
+        frames["contact_y_mm"][sel],
+        frames[f"contact_pred_{p}"][sel],
+        frames["fx_N"][sel],
+        CONTACT_MIN_FORCE_N,
+    )
     return {"contact_rmse_mm": m["rmse_mm"], "contact_mae_mm": m["mae_mm"], "contact_n": m["n"]}
 
 
-def _metric_rows(frames: pd.DataFrame, group_col: str | None, condition: str,
-                 predictors, stress: dict | None = None, path: str = "shard",
-                 subset: str = "all") -> list[dict]:
+def _metric_rows(
+    frames: pd.DataFrame,
+    group_col: str | None,
+    condition: str,
+    predictors,
+    stress: dict | None = None,
+    path: str = "shard",
+    subset: str = "all",
+) -> list[dict]:
     """Force (and stress) metrics over the condition and per value of ``group_col``."""
     groups = [("all", np.ones(len(frames), bool))]
     if group_col:
-        groups += [(str(g), (frames[group_col] == g).to_numpy()) for g in sorted(frames[group_col].unique())]
+        groups += [
+            (str(g), (frames[group_col] == g).to_numpy())
+            for g in sorted(frames[group_col].unique())
+        ]
     rows = []
     for gname, sel in groups:
         for p in predictors:
-            row = {"condition": condition, "path": path, "frames": subset, "group": gname,
-                   "predictor": p,
-                   **force_metrics(frames["fx_N"][sel], frames[f"pred_{p}"][sel])}
+            row = {
+                "condition": condition,
+                "path": path,
+                "frames": subset,
+                "group": gname,
+                "predictor": p,
+                **force_metrics(frames["fx_N"][sel], frames[f"pred_{p}"][sel]),
+            }
             row.update(_contact_row(frames, p, sel))
             if f"pred_fy_{p}" in frames:
-                row.update(force_vector_metrics(frames["fx_N"][sel], frames["fy_N"][sel],
-                                                frames[f"pred_{p}"][sel], frames[f"pred_fy_{p}"][sel]))
+                row.update(
+                    force_vector_metrics(
+                        frames["fx_N"][sel],
+                        frames["fy_N"][sel],
+                        frames[f"pred_{p}"][sel],
+                        frames[f"pred_fy_{p}"][sel],
+                    )
+                )
             if stress is not None and p in stress["pred"]:
-                row.update(stress_metrics(stress["true"][sel], stress["pred"][p][sel], stress["mask"][sel]))
+                row.update(
+                    stress_metrics(stress["true"][sel], stress["pred"][p][sel], stress["mask"][sel])
+                )
             rows.append(row)
     return rows
 
 
-def _height_rows(frames: pd.DataFrame, condition: str, predictors,
-                 train_heights_mm=()) -> list[dict]:
+def _height_rows(
+    frames: pd.DataFrame, condition: str, predictors, train_heights_mm=()
+) -> list[dict]:
     """Force metrics per contact height of the test scenes (RMSE in N; NRMSE in % of the
     largest |Fx| at that height, since the force near the base is many times the force
     at the tip), each height with its 10 mm band (``band_mm``: the band's lower edge) and
@@ -112,11 +147,17 @@ def _height_rows(frames: pd.DataFrame, condition: str, predictors,
     for h in np.unique(heights):
         sel = heights == h
         for p in predictors:
-            rows.append({"condition": condition, "height_mm": float(h),
-                         "band_mm": float(10 * np.floor(h / 10)),
-                         "unseen": round(float(h), 6) not in seen, "predictor": p,
-                         **force_metrics(frames["fx_N"][sel], frames[f"pred_{p}"][sel]),
-                         **_contact_row(frames, p, sel)})
+            rows.append(
+                {
+                    "condition": condition,
+                    "height_mm": float(h),
+                    "band_mm": float(10 * np.floor(h / 10)),
+                    "unseen": round(float(h), 6) not in seen,
+                    "predictor": p,
+                    **force_metrics(frames["fx_N"][sel], frames[f"pred_{p}"][sel]),
+                    **_contact_row(frames, p, sel),
+                }
+            )
     return rows
 
 
@@ -133,8 +174,9 @@ def _variant(row: dict) -> str:
     return row["predictor"] if key is None else f"{row['predictor']}/{key}"
 
 
-def _camera_rows(render_indices, nets, base, tab, fr, stress, maps, group_col, cname,
-                 predictors, frames_out, log) -> list[dict]:
+def _camera_rows(
+    render_indices, nets, base, tab, fr, stress, maps, group_col, cname, predictors, frames_out, log
+) -> list[dict]:
     """Metrics of the camera path on the rendered frames and of the shard path on the
     same frames; the camera frames are appended to ``frames_out``."""
     t0 = time.perf_counter()
@@ -146,34 +188,66 @@ def _camera_rows(render_indices, nets, base, tab, fr, stress, maps, group_col, c
     cfr.insert(1, "path", "camera")
     _add_predictions(cfr, preds, ccontact)
     frames_out.append(cfr)
-    rows = _metric_rows(fr[sel].reset_index(drop=True), group_col, cname, predictors,
-                        {"true": stress["true"][sel], "mask": stress["mask"][sel],
-                         "pred": {k: v[sel] for k, v in maps.items()}}, "shard", "rendered")
-    rows += _metric_rows(cfr, group_col, cname, predictors,
-                         {"true": arrays["stress"], "mask": arrays["mask"], "pred": cmaps},
-                         "camera", "rendered")
-    log(f"{cname}: camera path on {len(ctab)} rendered frames of {len(render_indices)} views "
-        f"in {time.perf_counter() - t0:.2f} s")
+    rows = _metric_rows(
+        fr[sel].reset_index(drop=True),
+        group_col,
+        cname,
+        predictors,
+        {
+            "true": stress["true"][sel],
+            "mask": stress["mask"][sel],
+            "pred": {k: v[sel] for k, v in maps.items()},
+        },
+        "shard",
+        "rendered",
+    )
+    rows += _metric_rows(
+        cfr,
+        group_col,
+        cname,
+        predictors,
+        {"true": arrays["stress"], "mask": arrays["mask"], "pred": cmaps},
+        "camera",
+        "rendered",
+    )
+    log(
+        f"{cname}: camera path on {len(ctab)} rendered frames of {len(render_indices)} views "
+        f"in {time.perf_counter() - t0:.2f} s"
+    )
     return rows
 
 
-def _write_outputs(out_dir: Path, rows: list[dict], frames_out: list[pd.DataFrame],
-                   examples: dict, height_rows: list[dict] = ()) -> pd.DataFrame:
+def _write_outputs(
+    out_dir: Path,
+    rows: list[dict],
+    frames_out: list[pd.DataFrame],
+    examples: dict,
+    height_rows: list[dict] = (),
+) -> pd.DataFrame:
     """Write ``frames.csv``, ``metrics.csv``, ``metrics.json`` (per condition, in the
     order of ``examples``), ``heights.csv`` (:func:`_height_rows`) and ``examples.npz``;
     returns the metrics table."""
     metrics = pd.DataFrame(rows)
     pd.DataFrame(list(height_rows), columns=HEIGHT_COLUMNS if not height_rows else None).to_csv(
-        out_dir / "heights.csv", index=False, float_format="%.10g")
-    pd.concat(frames_out, ignore_index=True).to_csv(out_dir / "frames.csv", index=False,
-                                                    float_format="%.6g")
+        out_dir / "heights.csv", index=False, float_format="%.10g"
+    )
+    pd.concat(frames_out, ignore_index=True).to_csv(
+        out_dir / "frames.csv", index=False, float_format="%.6g"
+    )
     metrics.to_csv(out_dir / "metrics.csv", index=False, float_format="%.10g")
-    summary = {c: {_variant(r): {k: r[k] for k in r if k not in ID_COLUMNS}
-                   for r in rows if r["condition"] == c and r["group"] == "all"}
-               for c in examples}
+    summary = {
+        c: {
+            _variant(r): {k: r[k] for k in r if k not in ID_COLUMNS}
+            for r in rows
+            if r["condition"] == c and r["group"] == "all"
+        }
+        for c in examples
+    }
     (out_dir / "metrics.json").write_text(json.dumps(summary, indent=1))
-    np.savez_compressed(out_dir / "examples.npz", **{f"{c}/{k}": v for c, d in examples.items()
-                                                     for k, v in d.items()})
+    np.savez_compressed(
+        out_dir / "examples.npz",
+        **{f"{c}/{k}": v for c, d in examples.items() for k, v in d.items()},
+    )
     return metrics
 
 
@@ -185,11 +259,22 @@ def _example_indices(table: pd.DataFrame, per: str, n: int = 1) -> np.ndarray:
     return np.asarray(idx, dtype=int)
 
 
-def run_experiment(out_dir, shard_paths, size, models: dict[str, str], baseline_path=None, *,
-                   conditions: dict[str, dict] | None = None, condition_col: str = "condition",
-                   group_col: str | None = "object", occlusion_levels: dict | None = None,
-                   seed: int = 0, render_indices=None, train_heights_mm=(),
-                   log=print) -> pd.DataFrame:
+def run_experiment(
+    out_dir,
+    shard_paths,
+    size,
+    models: dict[str, str],
+    baseline_path=None,
+    *,
+    conditions: dict[str, dict] | None = None,
+    condition_col: str = "condition",
+    group_col: str | None = "object",
+    occlusion_levels: dict | None = None,
+    seed: int = 0,
+    render_indices=None,
+    train_heights_mm=(),
+    log=print,
+) -> pd.DataFrame:
     """Evaluate ``models`` (name -> TorchScript path) and the baseline on the shards.
 
     ``conditions``: name -> ``{"occlusion": level}`` (images corrupted, replayable from
@@ -204,8 +289,10 @@ def run_experiment(out_dir, shard_paths, size, models: dict[str, str], baseline_
     out_dir.mkdir(parents=True, exist_ok=True)
     arrays, table = load_test_set(shard_paths, size)
     # TorchScript: batched, and the same runtime as the training's export
-    nets = {name: Predictor(path, threads=1, backend="torchscript", roi_stride=1)
-            for name, path in models.items()}
+    nets = {
+        name: Predictor(path, threads=1, backend="torchscript", roi_stride=1)
+        for name, path in models.items()
+    }
     base = RidgeBaseline.load(baseline_path) if baseline_path else None
     predictors = list(nets) + (["baseline"] if base is not None else [])
     conditions = conditions or {"all": {}}
@@ -229,20 +316,36 @@ def run_experiment(out_dir, shard_paths, size, models: dict[str, str], baseline_
         fr.insert(1, "path", "shard")
         frames_out.append(fr)
         if render_indices and not cond:
-            rows += _camera_rows(render_indices, nets, base, tab, fr, stress, maps, group_col,
-                                 cname, predictors, frames_out, log)
+            rows += _camera_rows(
+                render_indices,
+                nets,
+                base,
+                tab,
+                fr,
+                stress,
+                maps,
+                group_col,
+                cname,
+                predictors,
+                frames_out,
+                log,
+            )
         ex = _example_indices(tab, group_col or "scene_id")
-        examples[cname] = {"input": images[ex], "stress_true": stress["true"][ex],
-                           "mask": stress["mask"][ex],
-                           **{f"stress_{k}": v[ex] for k, v in maps.items()},
-                           "label": tab[group_col or "scene_id"].to_numpy()[ex].astype(str),
-                           "fx_N": tab["fx_N"].to_numpy()[ex],
-                           **{f"pred_{k}": v[ex, 0] for k, v in preds.items()}}
+        examples[cname] = {
+            "input": images[ex],
+            "stress_true": stress["true"][ex],
+            "mask": stress["mask"][ex],
+            **{f"stress_{k}": v[ex] for k, v in maps.items()},
+            "label": tab[group_col or "scene_id"].to_numpy()[ex].astype(str),
+            "fx_N": tab["fx_N"].to_numpy()[ex],
+            **{f"pred_{k}": v[ex, 0] for k, v in preds.items()},
+        }
     return _write_outputs(out_dir, rows, frames_out, examples, height_rows)
 
 
-def viewpoint_test_set(index_paths, shard_paths, predictor: Predictor, size
-                       ) -> tuple[dict, pd.DataFrame]:
+def viewpoint_test_set(
+    index_paths, shard_paths, predictor: Predictor, size
+) -> tuple[dict, pd.DataFrame]:
     """The viewpoint experiment's frames (:func:`finray.render.viewpoint.render_viewpoint`)
     through ``predictor``'s preprocessing (segment, base-anchored crop, resample), with
     their targets: the FEA forces of the render index and the front-view stress map
@@ -252,7 +355,9 @@ def viewpoint_test_set(index_paths, shard_paths, predictor: Predictor, size
     from ..render.imageio import read_png
 
     arrays, table = load_test_set(shard_paths, size)
-    row_of = {(sid, int(fr)): i for i, (sid, fr) in enumerate(zip(table["scene_id"], table["frame"]))}
+    row_of = {
+        (sid, int(fr)): i for i, (sid, fr) in enumerate(zip(table["scene_id"], table["frame"]))
+    }
     images, idx, rows = [], [], []
     for path in sorted(str(p) for p in index_paths):
         index = json.loads(Path(path).read_text())
@@ -261,11 +366,15 @@ def viewpoint_test_set(index_paths, shard_paths, predictor: Predictor, size
         for fr in index["frames"]:
             key = (sid, fr["frame"])
             if key not in row_of:
-                raise ValueError(f"viewpoint: frame {fr['frame']} of {sid} is not in the test shards")
+                raise ValueError(
+                    f"viewpoint: frame {fr['frame']} of {sid} is not in the test shards"
+                )
             i = row_of[key]
             if abs(table.at[i, "fx_N"] - fr["fx_N"]) > 1e-9 * max(1.0, abs(fr["fx_N"])):
-                raise ValueError(f"viewpoint: FEA force of frame {fr['frame']} of {sid} differs between "
-                                 "its render and its shard (renders and shards of different runs)")
+                raise ValueError(
+                    f"viewpoint: FEA force of frame {fr['frame']} of {sid} differs between "
+                    "its render and its shard (renders and shards of different runs)"
+                )
             png = Path(path).parent / fr["image"]
             try:
                 x = predictor.network_input(predictor.segment(read_png(png)))
@@ -273,31 +382,52 @@ def viewpoint_test_set(index_paths, shard_paths, predictor: Predictor, size
                 raise ValueError(f"{png}: {exc}") from None
             images.append(np.rint(x[0, 0] * 255.0).astype(np.uint8))
             idx.append(i)
-            rows.append({**{c: table.at[i, c] for c in table.columns}, "pitch_deg": fr["pitch_deg"],
-                         "distance_mm": fr["distance_mm"]})
+            rows.append(
+                {
+                    **{c: table.at[i, c] for c in table.columns},
+                    "pitch_deg": fr["pitch_deg"],
+                    "distance_mm": fr["distance_mm"],
+                }
+            )
     if not rows:
         raise ValueError("viewpoint: no rendered frames")
     idx = np.asarray(idx)
-    out = {"images": np.stack(images), "stress": arrays["stress"][idx], "mask": arrays["mask"][idx],
-           "fx_N": arrays["fx_N"][idx]}
+    out = {
+        "images": np.stack(images),
+        "stress": arrays["stress"][idx],
+        "mask": arrays["mask"][idx],
+        "fx_N": arrays["fx_N"][idx],
+    }
     return out, pd.DataFrame(rows)
 
 
-def run_viewpoint(out_dir, index_paths, shard_paths, size, models: dict[str, str],
-                  baseline_path=None, *, log=print) -> pd.DataFrame:
+def run_viewpoint(
+    out_dir,
+    index_paths,
+    shard_paths,
+    size,
+    models: dict[str, str],
+    baseline_path=None,
+    *,
+    log=print,
+) -> pd.DataFrame:
     """The viewpoint experiment: every model (and the baseline) on the perspective
     renders of the held-out scenes, through the predictor's preprocessing; one condition
     per pitch (named by it), groups by camera distance. Writes what :func:`run_experiment`
     writes (``path`` camera, ``frames`` all) and returns the metrics table."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    nets = {name: Predictor(path, threads=1, backend="torchscript", roi_stride=1)
-            for name, path in models.items()}
+    nets = {
+        name: Predictor(path, threads=1, backend="torchscript", roi_stride=1)
+        for name, path in models.items()
+    }
     base = RidgeBaseline.load(baseline_path) if baseline_path else None
     predictors = list(nets) + (["baseline"] if base is not None else [])
     t0 = time.perf_counter()
     arrays, table = viewpoint_test_set(index_paths, shard_paths, shared_preprocessing(nets), size)
-    log(f"viewpoint: {len(table)} rendered frames through the predictor in {time.perf_counter() - t0:.1f} s")
+    log(
+        f"viewpoint: {len(table)} rendered frames through the predictor in {time.perf_counter() - t0:.1f} s"
+    )
     preds, maps, _ = _predict_all(arrays["images"], nets, base)
     rows, frames_out, examples = [], [], {}
     for p in sorted(table["pitch_deg"].unique()):
@@ -307,17 +437,23 @@ def run_viewpoint(out_dir, index_paths, shard_paths, size, models: dict[str, str
         fr.insert(0, "condition", cname)
         fr.insert(1, "path", "camera")
         _add_predictions(fr, {k: v[sel] for k, v in preds.items()})
-        stress = {"true": arrays["stress"][sel], "mask": arrays["mask"][sel],
-                  "pred": {k: v[sel] for k, v in maps.items()}}
+        stress = {
+            "true": arrays["stress"][sel],
+            "mask": arrays["mask"][sel],
+            "pred": {k: v[sel] for k, v in maps.items()},
+        }
         rows += _metric_rows(fr, "distance_mm", cname, predictors, stress, "camera", "all")
         frames_out.append(fr)
         ex = _example_indices(fr, "distance_mm")
-        examples[cname] = {"input": arrays["images"][sel][ex], "stress_true": stress["true"][ex],
-                           "mask": stress["mask"][ex],
-                           **{f"stress_{k}": v[ex] for k, v in stress["pred"].items()},
-                           "label": fr["distance_mm"].to_numpy()[ex].astype(str),
-                           "fx_N": fr["fx_N"].to_numpy()[ex],
-                           **{f"pred_{k}": v[sel][ex, 0] for k, v in preds.items()}}
+        examples[cname] = {
+            "input": arrays["images"][sel][ex],
+            "stress_true": stress["true"][ex],
+            "mask": stress["mask"][ex],
+            **{f"stress_{k}": v[ex] for k, v in stress["pred"].items()},
+            "label": fr["distance_mm"].to_numpy()[ex].astype(str),
+            "fx_N": fr["fx_N"].to_numpy()[ex],
+            **{f"pred_{k}": v[sel][ex, 0] for k, v in preds.items()},
+        }
     return _write_outputs(out_dir, rows, frames_out, examples)
 
 
@@ -345,13 +481,25 @@ def pitch_augmentation_iou(shard_paths, size, geometry: dict) -> dict[str, float
     out = {}
     for p in sorted(set(pitch.tolist()) - {0.0}):
         true = arrays["images"][pitch == p] >= 128
-        aug = pitch_silhouette(x0, torch.full((len(x0),), float(p)), geometry["mm_per_px"],
-                               geometry["pitch_centre_row"], geometry["extrusion_mm"])[:, 0].numpy() >= 0.5
+        aug = (
+            pitch_silhouette(
+                x0,
+                torch.full((len(x0),), float(p)),
+                geometry["mm_per_px"],
+                geometry["pitch_centre_row"],
+                geometry["extrusion_mm"],
+            )[:, 0].numpy()
+            >= 0.5
+        )
         iou = (aug & true).sum((1, 2)) / np.maximum((aug | true).sum((1, 2)), 1)
         iou0 = (front >= 128) & true
-        out[f"{p:g}"] = {"iou_mean": float(iou.mean()), "iou_min": float(iou.min()),
-                         "iou_front_view_mean": float((iou0.sum((1, 2)) / np.maximum(
-                             ((front >= 128) | true).sum((1, 2)), 1)).mean())}
+        out[f"{p:g}"] = {
+            "iou_mean": float(iou.mean()),
+            "iou_min": float(iou.min()),
+            "iou_front_view_mean": float(
+                (iou0.sum((1, 2)) / np.maximum(((front >= 128) | true).sum((1, 2)), 1)).mean()
+            ),
+        }
     return out
 
 
@@ -361,7 +509,9 @@ def fit_baseline(train_shards, size, out_npz, seed: int = 0) -> dict:
 
     arrays, table = load_test_set(train_shards, size)
     feats = front_edge_profile(arrays["images"].astype(np.float32) / 255.0)
-    model, info = fit_ridge(feats, table["fx_N"].to_numpy(), table["scene_id"].to_numpy(), seed=seed)
+    model, info = fit_ridge(
+        feats, table["fx_N"].to_numpy(), table["scene_id"].to_numpy(), seed=seed
+    )
     model.save(out_npz)
     train_pred = model.predict(feats)
     info["train"] = force_metrics(table["fx_N"], train_pred)

@@ -1,4 +1,5 @@
 """Figures of the paper's experiments (PDF + PNG), from an experiment's outputs."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -9,11 +10,22 @@ import pandas as pd
 from .experiments import load_examples
 from .tables import headline_rows
 
-COLOURS = {"fea": "black", "plain": "tab:blue", "occlusion": "tab:orange", "pitch": "tab:green",
-           "camera": "tab:purple", "baseline": "tab:gray"}
-LABELS = {"fea": "FEA", "plain": "CNN", "occlusion": "CNN, occlusion-trained",
-          "pitch": "CNN, pitch-augmented", "camera": "CNN, camera views",
-          "baseline": "ridge on front edge"}
+COLOURS = {
+    "fea": "black",
+    "plain": "tab:blue",
+    "occlusion": "tab:orange",
+    "pitch": "tab:green",
+    "camera": "tab:purple",
+    "baseline": "tab:gray",
+}
+LABELS = {
+    "fea": "FEA",
+    "plain": "CNN",
+    "occlusion": "CNN, occlusion-trained",
+    "pitch": "CNN, pitch-augmented",
+    "camera": "CNN, camera views",
+    "baseline": "ridge on front edge",
+}
 #: the names in a panel's title that are not the model's own (one word each, so that several fit)
 SHORT = {"plain": "CNN", "baseline": "ridge"}
 
@@ -39,27 +51,45 @@ def _predictors(frames: pd.DataFrame) -> list[str]:
     return [c[5:] for c in frames.columns if c.startswith("pred_") and not c.startswith("pred_fy_")]
 
 
-def _force_panel(ax, g: pd.DataFrame, predictors, metrics: pd.DataFrame | None = None,
-                 condition=None, group=None):
+def _force_panel(
+    ax, g: pd.DataFrame, predictors, metrics: pd.DataFrame | None = None, condition=None, group=None
+):
     """Force over the frames of a test video (scenes one after another)."""
     x = np.arange(len(g))
     ax.plot(x, g["fx_N"], color=COLOURS["fea"], lw=2.0, label=LABELS["fea"])
     for p in predictors:
-        ax.plot(x, g[f"pred_{p}"], color=COLOURS.get(p, None), lw=1.0,
-                ls="--" if p == "baseline" else "-", label=LABELS.get(p, p))
+        ax.plot(
+            x,
+            g[f"pred_{p}"],
+            color=COLOURS.get(p, None),
+            lw=1.0,
+            ls="--" if p == "baseline" else "-",
+            label=LABELS.get(p, p),
+        )
     # scene boundaries (the heights)
-    starts = np.flatnonzero(np.r_[True, g["scene_id"].to_numpy()[1:] != g["scene_id"].to_numpy()[:-1]])
+    starts = np.flatnonzero(
+        np.r_[True, g["scene_id"].to_numpy()[1:] != g["scene_id"].to_numpy()[:-1]]
+    )
     for s in starts[1:]:
         ax.axvline(s, color="0.8", lw=0.8)
     for s, sid in zip(starts, g["scene_id"].to_numpy()[starts]):
-        ax.text(s + 3, ax.get_ylim()[1] * 0.97 if ax.get_ylim()[1] > 0 else 0, f"{g['height_mm'].iloc[s]:g} mm",
-                fontsize=7, va="top", color="0.4")
+        ax.text(
+            s + 3,
+            ax.get_ylim()[1] * 0.97 if ax.get_ylim()[1] > 0 else 0,
+            f"{g['height_mm'].iloc[s]:g} mm",
+            fontsize=7,
+            va="top",
+            color="0.4",
+        )
     ax.set_xlabel("frame")
     if metrics is not None:
         sel = metrics[(metrics["condition"] == condition) & (metrics["group"] == group)]
-        parts = [f"{SHORT.get(r.predictor, r.predictor)} {r.nrmse_pct:.1f}%"
-                 for r in sel.itertuples() if r.predictor in predictors]
-        lines = [", ".join(parts[i:i + 3]) for i in range(0, len(parts), 3)]  # 3 a line
+        parts = [
+            f"{SHORT.get(r.predictor, r.predictor)} {r.nrmse_pct:.1f}%"
+            for r in sel.itertuples()
+            if r.predictor in predictors
+        ]
+        lines = [", ".join(parts[i : i + 3]) for i in range(0, len(parts), 3)]  # 3 a line
         ax.set_title("\n".join([str(group), "NRMSE " + "\n".join(lines)]), fontsize=8)
 
 
@@ -79,10 +109,17 @@ def _triptych(inp, true, pred, mask, vmax: float) -> np.ndarray:
 def _stress_row(axes, ex: dict, net: str, vmax: float, title_prefix=""):
     """Input, FEA stress, predicted stress of each example (one example per axis)."""
     for j, ax in enumerate(axes):
-        ax.imshow(_triptych(ex["input"][j], ex["stress_true"][j], ex[f"stress_{net}"][j],
-                            ex["mask"][j], vmax), interpolation="nearest")
-        ax.set_title(f"{title_prefix}{ex['label'][j]}: {ex['fx_N'][j]:.2f} N (FEA), "
-                     f"{ex[f'pred_{net}'][j]:.2f} N (CNN)\ninput | FEA stress | CNN stress", fontsize=7)
+        ax.imshow(
+            _triptych(
+                ex["input"][j], ex["stress_true"][j], ex[f"stress_{net}"][j], ex["mask"][j], vmax
+            ),
+            interpolation="nearest",
+        )
+        ax.set_title(
+            f"{title_prefix}{ex['label'][j]}: {ex['fx_N'][j]:.2f} N (FEA), "
+            f"{ex[f'pred_{net}'][j]:.2f} N (CNN)\ninput | FEA stress | CNN stress",
+            fontsize=7,
+        )
         ax.axis("off")
 
 
@@ -104,13 +141,21 @@ def _force_and_stress_grid(exp_dir, group_col: str, extra_cols: int = 0):
     gs = fig.add_gridspec(2, n + extra_cols, height_ratios=[1, 1.3])
     for i, grp in enumerate(groups):
         ax = fig.add_subplot(gs[0, i])
-        _force_panel(ax, frames[frames[group_col].astype(str) == grp].reset_index(drop=True), preds,
-                     metrics, "all", grp)
+        _force_panel(
+            ax,
+            frames[frames[group_col].astype(str) == grp].reset_index(drop=True),
+            preds,
+            metrics,
+            "all",
+            grp,
+        )
         if i == 0:
             ax.set_ylabel("Fx on the finger (N)")
             ax.legend(fontsize=7, loc="lower right")
     vmax = float(max(ex["stress_true"].max(), 1e-6))
-    _stress_row([fig.add_subplot(gs[1, i]) for i in range(min(n, len(ex["label"])))], ex, preds[0], vmax)
+    _stress_row(
+        [fig.add_subplot(gs[1, i]) for i in range(min(n, len(ex["label"])))], ex, preds[0], vmax
+    )
     return fig, gs, groups
 
 
@@ -135,14 +180,22 @@ def material_figure(exp_dir, out_pdf, fea_seconds: dict[str, float], net_ms: flo
     ax.set_yscale("log")
     ax.set_ylabel("seconds (FEA: per scene; CNN: per frame)")
     ax.set_title("time per material", fontsize=8)
-    fig.suptitle("Material generalisation: ring in steel, NinjaFlex and neoprene (no retraining)",
-                 fontsize=10)
+    fig.suptitle(
+        "Material generalisation: ring in steel, NinjaFlex and neoprene (no retraining)",
+        fontsize=10,
+    )
     fig.tight_layout()
     _save(fig, out_pdf)
 
 
-def condition_figure(exp_dir, out_pdf, title: str, xlabel: str, threshold_pct: float | None = None,
-                     example_net: str | None = None):
+def condition_figure(
+    exp_dir,
+    out_pdf,
+    title: str,
+    xlabel: str,
+    threshold_pct: float | None = None,
+    example_net: str | None = None,
+):
     """Occlusion or pitch: force NRMSE per condition and predictor, with the inputs
     and stress maps of each condition."""
     plt = _plt()
@@ -159,19 +212,41 @@ def condition_figure(exp_dir, out_pdf, title: str, xlabel: str, threshold_pct: f
     for j, c in enumerate(conds):
         e = ex[c]
         ax = fig.add_subplot(gs[0, j])
-        ax.imshow(_triptych(e["input"][0], e["stress_true"][0], e[f"stress_{net}"][0], e["mask"][0],
-                            float(max(e["stress_true"].max(), 1e-6))), interpolation="nearest")
-        ax.set_title(f"{c}: {e['fx_N'][0]:.2f} N (FEA), {e[f'pred_{net}'][0]:.2f} N\n"
-                     "input | FEA | CNN stress", fontsize=7)
+        ax.imshow(
+            _triptych(
+                e["input"][0],
+                e["stress_true"][0],
+                e[f"stress_{net}"][0],
+                e["mask"][0],
+                float(max(e["stress_true"].max(), 1e-6)),
+            ),
+            interpolation="nearest",
+        )
+        ax.set_title(
+            f"{c}: {e['fx_N'][0]:.2f} N (FEA), {e[f'pred_{net}'][0]:.2f} N\n"
+            "input | FEA | CNN stress",
+            fontsize=7,
+        )
         ax.axis("off")
     ax = fig.add_subplot(gs[1, :])
     x = np.arange(len(conds))
     width = 0.8 / len(preds)
     for i, p in enumerate(preds):
-        v = [float(allm[(allm["condition"].astype(str) == c) & (allm["predictor"] == p)]["nrmse_pct"].iloc[0])
-             for c in conds]
-        bars = ax.bar(x + (i - (len(preds) - 1) / 2) * width, v, width, color=COLOURS.get(p),
-                      label=LABELS.get(p, p))
+        v = [
+            float(
+                allm[(allm["condition"].astype(str) == c) & (allm["predictor"] == p)][
+                    "nrmse_pct"
+                ].iloc[0]
+            )
+            for c in conds
+        ]
+        bars = ax.bar(
+            x + (i - (len(preds) - 1) / 2) * width,
+            v,
+            width,
+            color=COLOURS.get(p),
+            label=LABELS.get(p, p),
+        )
         ax.bar_label(bars, fmt="%.1f", fontsize=6)
     if threshold_pct is not None:
         ax.axhline(threshold_pct, color="k", ls=":", lw=1, label=f"{threshold_pct:g}% (usable)")
@@ -198,30 +273,42 @@ def speed_figure(speed: dict, out_pdf):
     names = list(fea) + ["CNN (1 thread)"]
     vals = [fea[k]["median"] for k in fea] + [speed["network_ms_per_frame"] / 1e3]
     bars = ax[0].bar(names, vals, color=["0.5"] * len(fea) + [COLOURS["plain"]])
-    ax[0].bar_label(bars, labels=[f"{v:.1f} s" for v in vals[:-1]] + [f"{vals[-1] * 1e3:.1f} ms"],
-                    fontsize=7)
+    ax[0].bar_label(
+        bars, labels=[f"{v:.1f} s" for v in vals[:-1]] + [f"{vals[-1] * 1e3:.1f} ms"], fontsize=7
+    )
     ax[0].set_yscale("log")
     ax[0].set_ylabel("s (FEA: median per scene; CNN: per frame)")
     ax[0].tick_params(axis="x", labelsize=8)
     st, studies = speed["stages"], speed["studies"]
     # job durations (one thread per job); Snakemake's sampled cpu_time misses short jobs
-    bars = ax[1].barh(list(st) + [f"study: {k}" for k in studies],
-                      [st[k]["wall_s"] / 60 for k in st] + [v["wall_s"] / 60 for v in studies.values()],
-                      color=["tab:blue"] * len(st) + ["0.6"] * len(studies))
+    bars = ax[1].barh(
+        list(st) + [f"study: {k}" for k in studies],
+        [st[k]["wall_s"] / 60 for k in st] + [v["wall_s"] / 60 for v in studies.values()],
+        color=["tab:blue"] * len(st) + ["0.6"] * len(studies),
+    )
     ax[1].bar_label(bars, fmt="%.1f", fontsize=7)
     ax[1].set_xlabel("minutes (sum of job times, one thread each)")
     ax[1].tick_params(axis="y", labelsize=7)
     ax[1].invert_yaxis()
     dag = speed["dag"]
-    ax[1].set_title(f"pipeline stages (blue), studies (grey); whole DAG "
-                    f"{dag['wall_s'] / 60:.1f} min wall", fontsize=8)
+    ax[1].set_title(
+        f"pipeline stages (blue), studies (grey); whole DAG {dag['wall_s'] / 60:.1f} min wall",
+        fontsize=8,
+    )
     fig.suptitle("Speed: FEA against the network, and the pipeline's stages", fontsize=10)
     fig.tight_layout()
     _save(fig, out_pdf)
 
 
-def annotated_figure(model_path, render_index, lab_video, lab_ingest_json, out_pdf,
-                     pitch_deg: float = 15.0, distance_mm: float = 200.0):
+def annotated_figure(
+    model_path,
+    render_index,
+    lab_video,
+    lab_ingest_json,
+    out_pdf,
+    pitch_deg: float = 15.0,
+    distance_mm: float = 200.0,
+):
     """Two frames as ``finray predict --annotate`` draws them (:mod:`finray.annotate`):
     a held-out shape's pyvista render (the frame of the largest true force at
     ``pitch_deg`` and ``distance_mm``) and a frame of an emulated lab take (of every 30th
@@ -248,17 +335,27 @@ def annotated_figure(model_path, render_index, lab_video, lab_ingest_json, out_p
         j0, i0 = max(int(c0 - dc), 0), max(int(r0 - dr), 0)
         j1, i1 = min(int(c1 + dc) + 1, frame.shape[1]), min(int(r1 + dr) + 1, frame.shape[0])
         box = (c0 - j0, r0 - i0, c1 - j0, r1 - i0)
-        return annotate_frame(frame[i0:i1, j0:j1], mask[i0:i1, j0:j1], box, stress[0, 0], forces,
-                              None, label), forces
+        return annotate_frame(
+            frame[i0:i1, j0:j1], mask[i0:i1, j0:j1], box, stress[0, 0], forces, None, label
+        ), forces
 
     folder = Path(render_index).parent
     index = load_render_index(folder)
-    fr = max((f for f in index["frames"] if f["pitch_deg"] == pitch_deg
-              and f["distance_mm"] == distance_mm), key=lambda f: f["fx_N"])
+    fr = max(
+        (
+            f
+            for f in index["frames"]
+            if f["pitch_deg"] == pitch_deg and f["distance_mm"] == distance_mm
+        ),
+        key=lambda f: f["fx_N"],
+    )
     rgb = iio.imread(folder / fr["image"])[..., :3]
     scene = index["scene"]
-    left, _ = annotated(rgb, p.segment(rgb), f"{scene['object']}, pitch {pitch_deg:g} deg\n"
-                        f"FEA fx {fr['fx_N']:.2f} N")
+    left, _ = annotated(
+        rgb,
+        p.segment(rgb),
+        f"{scene['object']}, pitch {pitch_deg:g} deg\nFEA fx {fr['fx_N']:.2f} N",
+    )
     colour = ColourRange.from_take(json.loads(Path(lab_ingest_json).read_text())["colour"])
     best = None
     for k, f in enumerate(video_frames(lab_video)):
@@ -274,13 +371,17 @@ def annotated_figure(model_path, render_index, lab_video, lab_ingest_json, out_p
         raise ValueError(f"no frame of {lab_video} shows the finger's colour")
     plt = _plt()
     fig, ax = plt.subplots(1, 2, figsize=(9, 4.6))
-    for a, img, title in ((ax[0], left, "pyvista render of a held-out shape"),
-                          (ax[1], best[0], "emulated lab rig (not a recording)")):
+    for a, img, title in (
+        (ax[0], left, "pyvista render of a held-out shape"),
+        (ax[1], best[0], "emulated lab rig (not a recording)"),
+    ):
         a.imshow(img)
         a.set_title(title, fontsize=9)
         a.axis("off")
-    fig.suptitle("finray predict --annotate: the camera model's stress map over the finger "
-                 "and its force", fontsize=10)
+    fig.suptitle(
+        "finray predict --annotate: the camera model's stress map over the finger and its force",
+        fontsize=10,
+    )
     fig.tight_layout()
     _save(fig, out_pdf)
 
@@ -301,12 +402,24 @@ def face_figure(heights_csvs: dict[str, str], out_pdf, paper_band_mm=(20.0, 40.0
         for p, g in h.groupby("predictor", sort=False):
             g = g.sort_values("height_mm")
             c = COLOURS.get(p)
-            ax.plot(g["height_mm"], g["nrmse_pct"], color=c, ls=styles[k % len(styles)], lw=1.2,
-                    label=f"{LABELS.get(p, p)}, {label}" if len(heights_csvs) > 1 else LABELS.get(p, p))
+            ax.plot(
+                g["height_mm"],
+                g["nrmse_pct"],
+                color=c,
+                ls=styles[k % len(styles)],
+                lw=1.2,
+                label=f"{LABELS.get(p, p)}, {label}" if len(heights_csvs) > 1 else LABELS.get(p, p),
+            )
             un = g["unseen"].astype(bool).to_numpy()
             ax.scatter(g["height_mm"][un], g["nrmse_pct"][un], color=c, s=18, zorder=3)
-            ax.scatter(g["height_mm"][~un], g["nrmse_pct"][~un], facecolors="white", edgecolors=c,
-                       s=18, zorder=3)
+            ax.scatter(
+                g["height_mm"][~un],
+                g["nrmse_pct"][~un],
+                facecolors="white",
+                edgecolors=c,
+                s=18,
+                zorder=3,
+            )
         if forces is None:
             forces = h.drop_duplicates("height_mm").sort_values("height_mm")
     for a in (ax, axf):
@@ -314,8 +427,10 @@ def face_figure(heights_csvs: dict[str, str], out_pdf, paper_band_mm=(20.0, 40.0
         a.set_xlabel("contact height (mm above the clamped base)")
     ax.set_ylim(bottom=0)
     ax.set_ylabel("Fx NRMSE (% of the largest |Fx| at that height)")
-    ax.set_title("held-out shapes (filled: heights no training scene used;\n"
-                 "shaded: the paper's heights)", fontsize=8)
+    ax.set_title(
+        "held-out shapes (filled: heights no training scene used;\nshaded: the paper's heights)",
+        fontsize=8,
+    )
     ax.legend(fontsize=6)
     axf.plot(forces["height_mm"], forces["max_true_N"], "k.-")
     axf.set_ylim(bottom=0)

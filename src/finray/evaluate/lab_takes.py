@@ -8,6 +8,7 @@ frames ingest kept, and its time. Per take and over all: the force metrics of a 
 ingest wrote: gain error and offsets included) and with the true push force.
 These are emulated takes: the numbers measure the pipeline on a stand-in for a rig.
 """
+
 from __future__ import annotations
 
 import json
@@ -24,7 +25,7 @@ def _unpack(npz) -> tuple[np.ndarray, dict]:
     with np.load(npz) as f:
         rest = {k: f[k] for k in f.files if k != "bits"}
         bits = f["bits"]
-    return np.unpackbits(bits, axis=-1)[..., :int(rest["shape"][-1])].astype(bool), rest
+    return np.unpackbits(bits, axis=-1)[..., : int(rest["shape"][-1])].astype(bool), rest
 
 
 def mask_iou(ingest_dir, take_dir) -> pd.DataFrame:
@@ -34,8 +35,14 @@ def mask_iou(ingest_dir, take_dir) -> pd.DataFrame:
     true = _unpack(Path(take_dir) / "truth" / "masks.npz")[0][frames]
     inter = (got & true).sum(axis=(1, 2))
     union = (got | true).sum(axis=(1, 2))
-    return pd.DataFrame({"frame": frames, "iou": inter / np.maximum(union, 1),
-                         "true_px": true.sum(axis=(1, 2)), "mask_px": got.sum(axis=(1, 2))})
+    return pd.DataFrame(
+        {
+            "frame": frames,
+            "iou": inter / np.maximum(union, 1),
+            "true_px": true.sum(axis=(1, 2)),
+            "mask_px": got.sum(axis=(1, 2)),
+        }
+    )
 
 
 def take_qa(take_dir, ingest_dir) -> tuple[dict, pd.DataFrame]:
@@ -46,23 +53,37 @@ def take_qa(take_dir, ingest_dir) -> tuple[dict, pd.DataFrame]:
     frames = pd.read_csv(ingest_dir / "frames.csv")
     true_frames = pd.read_csv(take_dir / "truth" / "frames.csv")
     iou = mask_iou(ingest_dir, take_dir)
-    table = (frames[["frame", "t_s", "status", "force_N"]]
-             .rename(columns={"force_N": "sensor_label_N"})
-             .merge(true_frames[["frame", "push_mm", "force_N"]].rename(columns={"force_N": "true_force_N"}),
-                    on="frame", how="left")
-             .merge(iou[["frame", "iou"]], on="frame", how="left"))
+    table = (
+        frames[["frame", "t_s", "status", "force_N"]]
+        .rename(columns={"force_N": "sensor_label_N"})
+        .merge(
+            true_frames[["frame", "push_mm", "force_N"]].rename(
+                columns={"force_N": "true_force_N"}
+            ),
+            on="frame",
+            how="left",
+        )
+        .merge(iou[["frame", "iou"]], on="frame", how="left")
+    )
     err = summary["sync"]["offset_s"] - truth["offset_s"]
-    qa = {"take": take_dir.name, "frames": int(truth["n_frames"]),
-          "frames_kept": int(summary["frames"]["ok"]),
-          "frame_rate_hz": float(summary["frame_rate_hz"]),
-          "offset_true_s": truth["offset_s"], "offset_s": summary["sync"]["offset_s"],
-          "offset_uncertainty_s": summary["sync"]["uncertainty_s"],
-          "offset_error_ms": 1e3 * err, "offset_error_frames": err / truth["frame_interval_s"],
-          "offset_drift_ms": 1e3 * abs(truth["offset_end_s"] - truth["offset_start_s"]),
-          "iou_min": float(iou["iou"].min()), "iou_median": float(iou["iou"].median()),
-          "iou_min_frame": int(iou.loc[iou["iou"].idxmin(), "frame"]),
-          "ingest_wall_s": summary["wall_s"], "ingest_cpu_s": summary["cpu_s"],
-          "force_max_true_N": truth["force_max_N"]}
+    qa = {
+        "take": take_dir.name,
+        "frames": int(truth["n_frames"]),
+        "frames_kept": int(summary["frames"]["ok"]),
+        "frame_rate_hz": float(summary["frame_rate_hz"]),
+        "offset_true_s": truth["offset_s"],
+        "offset_s": summary["sync"]["offset_s"],
+        "offset_uncertainty_s": summary["sync"]["uncertainty_s"],
+        "offset_error_ms": 1e3 * err,
+        "offset_error_frames": err / truth["frame_interval_s"],
+        "offset_drift_ms": 1e3 * abs(truth["offset_end_s"] - truth["offset_start_s"]),
+        "iou_min": float(iou["iou"].min()),
+        "iou_median": float(iou["iou"].median()),
+        "iou_min_frame": int(iou.loc[iou["iou"].idxmin(), "frame"]),
+        "ingest_wall_s": summary["wall_s"],
+        "ingest_cpu_s": summary["cpu_s"],
+        "force_max_true_N": truth["force_max_N"],
+    }
     return qa, table
 
 
@@ -78,13 +99,20 @@ def model_forces(shards: dict, model_path, size) -> pd.DataFrame:
     for take, shard in shards.items():
         a, table = load_frames([shard], tuple(size))
         pred, _ = predict_images(net, a["images"])
-        parts.append(pd.DataFrame({"take": take, "frame": table["frame"].to_numpy(),
-                                   "pred_N": pred[:, 0]}))  # fx: the sensor's push force
+        parts.append(
+            pd.DataFrame({"take": take, "frame": table["frame"].to_numpy(), "pred_N": pred[:, 0]})
+        )  # fx: the sensor's push force
     return pd.concat(parts, ignore_index=True)
 
 
-def lab_qa(take_dirs, ingest_dirs, model_path, size, model_name: str = "plain",
-           other_models: dict[str, str] | None = None):
+def lab_qa(
+    take_dirs,
+    ingest_dirs,
+    model_path,
+    size,
+    model_name: str = "plain",
+    other_models: dict[str, str] | None = None,
+):
     """QA of every take: (per-take table, per-frame table, summary dict). ``other_models``
     (name -> model.ts) are scored on the same frames too: ``summary["other_models"]``
     and ``pred_<name>_N`` in the per-frame table."""
@@ -95,16 +123,21 @@ def lab_qa(take_dirs, ingest_dirs, model_path, size, model_name: str = "plain",
         frames.append(table.assign(take=qa["take"]))
     per_take = pd.DataFrame(rows)
     per_frame = pd.concat(frames, ignore_index=True)
-    pred = model_forces({q: Path(d) / "shard.npz" for q, d in zip(per_take["take"], ingest_dirs)},
-                        model_path, size)
+    pred = model_forces(
+        {q: Path(d) / "shard.npz" for q, d in zip(per_take["take"], ingest_dirs)}, model_path, size
+    )
     per_frame = per_frame.merge(pred, on=["take", "frame"], how="left")
     scored = per_frame.dropna(subset=["pred_N", "sensor_label_N"])
     for col, what in (("sensor_label_N", "sensor"), ("true_force_N", "true")):
         m = {t: force_metrics(g[col], g["pred_N"]) for t, g in scored.groupby("take")}
         per_take[f"{model_name}_mse_N2_vs_{what}"] = per_take["take"].map(lambda t: m[t]["mse_N2"])
-        per_take[f"{model_name}_nrmse_pct_vs_{what}"] = per_take["take"].map(lambda t: m[t]["nrmse_pct"])
+        per_take[f"{model_name}_nrmse_pct_vs_{what}"] = per_take["take"].map(
+            lambda t: m[t]["nrmse_pct"]
+        )
     summary = {
-        "emulated": True, "n_takes": int(len(per_take)), "model": model_name,
+        "emulated": True,
+        "n_takes": int(len(per_take)),
+        "model": model_name,
         "offset_error_ms_max": float(per_take["offset_error_ms"].abs().max()),
         "offset_error_frames_max": float(per_take["offset_error_frames"].abs().max()),
         "iou_min": float(per_take["iou_min"].min()),
@@ -112,7 +145,8 @@ def lab_qa(take_dirs, ingest_dirs, model_path, size, model_name: str = "plain",
         "iou_median": float(per_frame["iou"].median()),
         "ingest_wall_s_max": float(per_take["ingest_wall_s"].max()),
         "ingest_cpu_s_max": float(per_take["ingest_cpu_s"].max()),
-        "frames_kept": int(per_take["frames_kept"].sum()), "frames": int(per_take["frames"].sum()),
+        "frames_kept": int(per_take["frames_kept"].sum()),
+        "frames": int(per_take["frames"].sum()),
         "force_vs_sensor": force_metrics(scored["sensor_label_N"], scored["pred_N"]),
         "force_vs_true": force_metrics(scored["true_force_N"], scored["pred_N"]),
         "sensor_vs_true": force_metrics(scored["true_force_N"], scored["sensor_label_N"]),
@@ -123,9 +157,14 @@ def lab_qa(take_dirs, ingest_dirs, model_path, size, model_name: str = "plain",
     summary["rest_frames"] = int(rest.sum())
     summary["rest_pred_mean_N"] = float(scored.loc[rest, "pred_N"].mean()) if rest.any() else None
     sq = (scored["pred_N"] - scored["true_force_N"]) ** 2
-    summary["rest_share_of_squared_error_pct"] = float(100 * sq[rest].sum() / sq.sum()) if sq.sum() > 0 else None
-    summary["contact_vs_true"] = (force_metrics(scored.loc[~rest, "true_force_N"], scored.loc[~rest, "pred_N"])
-                                  if (~rest).any() else None)
+    summary["rest_share_of_squared_error_pct"] = (
+        float(100 * sq[rest].sum() / sq.sum()) if sq.sum() > 0 else None
+    )
+    summary["contact_vs_true"] = (
+        force_metrics(scored.loc[~rest, "true_force_N"], scored.loc[~rest, "pred_N"])
+        if (~rest).any()
+        else None
+    )
     summary["other_models"] = {}
     shards = {q: Path(d) / "shard.npz" for q, d in zip(per_take["take"], ingest_dirs)}
     for name, path in (other_models or {}).items():
@@ -136,7 +175,8 @@ def lab_qa(take_dirs, ingest_dirs, model_path, size, model_name: str = "plain",
         summary["other_models"][name] = {
             "force_vs_sensor": force_metrics(sc["sensor_label_N"], sc[f"pred_{name}_N"]),
             "force_vs_true": force_metrics(sc["true_force_N"], sc[f"pred_{name}_N"]),
-            "rest_pred_mean_N": float(sc.loc[r, f"pred_{name}_N"].mean()) if r.any() else None}
+            "rest_pred_mean_N": float(sc.loc[r, f"pred_{name}_N"].mean()) if r.any() else None,
+        }
     return per_take, per_frame, summary
 
 

@@ -1,6 +1,7 @@
 """The manuscript: a Jinja2 template (``paper/manuscript.md.j2``) filled from
 ``results/summary.json`` (no number is typed by hand; the comparatives come from
 :mod:`finray.evaluate.wording`), rendered to HTML."""
+
 from __future__ import annotations
 
 import json
@@ -39,11 +40,15 @@ def render_manuscript(template, summary_json, out_md, out_html, extra: dict | No
     text = render_text(template, json.loads(Path(summary_json).read_text()), extra)
     Path(out_md).write_text(text)
     body = markdown.markdown(text, extensions=["tables", "toc"])
-    css = ("body{max-width:52em;margin:2em auto;font-family:Georgia,serif;line-height:1.45;"
-           "padding:0 1em}img{max-width:100%}table{border-collapse:collapse;margin:1em 0}"
-           "td,th{border:1px solid #bbb;padding:.25em .6em;text-align:right}"
-           "td:first-child,th:first-child{text-align:left}code{font-size:90%}")
-    Path(out_html).write_text("<!DOCTYPE html>\n<html><head><meta charset='utf-8'>"
-                              f"<title>finray</title><style>{css}</style></head><body>\n"
-                              f"{body}\n</body></html>\n")
+    css = (
+        "body{max-width:52em;margin:2em auto;font-family:Georgia,serif;line-height:1.45;"
+        "padding:0 1em}img{max-width:100%}table{border-collapse:collapse;margin:1em 0}"
+        "td,th{border:1px solid #bbb;padding:.25em .6em;text-align:right}"
+        "td:first-child,th:first-child{text-align:left}code{font-size:90%}"
+    )
+    Path(out_html).write_text(
+        "<!DOCTYPE html>\n<html><head><meta charset='utf-8'>"
+        f"<title>finray</title><style>{css}</style></head><body>\n"
+        f"{body}\n</body></html>\n"
+    )
     return text

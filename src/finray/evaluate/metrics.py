@@ -6,6 +6,7 @@ push, the headline), and of fy and the magnitude for a two-output model. Stress:
 log-stress inside the finger mask and SSIM (scikit-image) of the maps. Contact height:
 RMSE and MAE (mm) over the frames pushed harder than a threshold.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -53,12 +54,17 @@ def contact_metrics(true_mm, pred_mm, fx_N, min_force_N: float = CONTACT_MIN_FOR
     frames counted. Heights in mm (the finger's frame), one per frame."""
     t, p, f = (np.asarray(a, dtype=float).ravel() for a in (true_mm, pred_mm, fx_N))
     if not (t.shape == p.shape == f.shape):
-        raise ValueError(f"need one height and one force per frame, got {t.shape}, {p.shape}, {f.shape}")
+        raise ValueError(
+            f"need one height and one force per frame, got {t.shape}, {p.shape}, {f.shape}"
+        )
     keep = np.isfinite(t) & (np.abs(f) > min_force_N)
     err = p[keep] - t[keep]
     n = int(keep.sum())
-    return {"n": n, "rmse_mm": float(np.sqrt(np.mean(err ** 2))) if n else float("nan"),
-            "mae_mm": float(np.mean(np.abs(err))) if n else float("nan")}
+    return {
+        "n": n,
+        "rmse_mm": float(np.sqrt(np.mean(err**2))) if n else float("nan"),
+        "mae_mm": float(np.mean(np.abs(err))) if n else float("nan"),
+    }
 
 
 def stress_metrics(true_maps, pred_maps, masks) -> dict:

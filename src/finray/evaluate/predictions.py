@@ -1,4 +1,5 @@
 """Test sets from dataset shards and batched predictions of an exported model."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -15,8 +16,14 @@ def load_test_set(shard_paths, size: tuple[int, int]) -> tuple[dict, pd.DataFram
     return load_frames(sorted(str(p) for p in shard_paths), size)
 
 
-def occlude(images: np.ndarray, table: pd.DataFrame, level: str, seed: int,
-            occlusion_levels: dict | None = None, occluder_value: float = 0.0) -> np.ndarray:
+def occlude(
+    images: np.ndarray,
+    table: pd.DataFrame,
+    level: str,
+    seed: int,
+    occlusion_levels: dict | None = None,
+    occluder_value: float = 0.0,
+) -> np.ndarray:
     """Every image occluded by a disc of the level, replayable from
     ``augment_seed(seed, scene_id, frame, level)``."""
     if level == "none":
@@ -24,8 +31,12 @@ def occlude(images: np.ndarray, table: pd.DataFrame, level: str, seed: int,
     out = np.empty_like(images)
     shape = images.shape[1:]
     for i, (sid, fr) in enumerate(zip(table["scene_id"], table["frame"])):
-        p = sample_augment(augment_seed(seed, sid, int(fr), level), shape, occlusion=level,
-                           occlusion_levels=occlusion_levels)
+        p = sample_augment(
+            augment_seed(seed, sid, int(fr), level),
+            shape,
+            occlusion=level,
+            occlusion_levels=occlusion_levels,
+        )
         out[i] = apply_augment(images[i], p, occluder_value)
     return out
 
@@ -40,7 +51,7 @@ def predict_images(predictor, images: np.ndarray, batch: int = 256, contact: boo
     scale = 255.0 if x.dtype == np.uint8 else 1.0
     forces, maps, heights = [], [], []
     for i in range(0, len(x), batch):
-        xb = x[i:i + batch, None].astype(np.float32) / scale
+        xb = x[i : i + batch, None].astype(np.float32) / scale
         if contact:
             stress, force, c = predictor.run_contact(xb)
             heights.append(c)

@@ -1,6 +1,7 @@
 """The experiments' metrics tables, read back without running a network: which rows are
 an experiment's headline, the variants' keys, the usable pitch range. No torch (the
 workflow imports the summary, which reads them, to plan the DAG)."""
+
 from __future__ import annotations
 
 import pandas as pd
@@ -9,10 +10,12 @@ import pandas as pd
 #: headline numbers), the shard inputs on the rendered frames only, the camera
 #: path on those frames, and the camera path on all of an experiment's frames where it
 #: has no shard path (viewpoint: the headline). The key names the variant in ``metrics.json`` and the summary.
-PATH_KEYS = {("shard", "all"): None, ("shard", "rendered"): "shard_rendered",
-             ("camera", "rendered"): "camera",
-             ("camera", "all"): None}  # the viewpoint experiment: camera frames only
-
+PATH_KEYS = {
+    ("shard", "all"): None,
+    ("shard", "rendered"): "shard_rendered",
+    ("camera", "rendered"): "camera",
+    ("camera", "all"): None,
+}  # the viewpoint experiment: camera frames only
 
 
 def headline_rows(metrics: pd.DataFrame) -> pd.DataFrame:

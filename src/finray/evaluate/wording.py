@@ -1,6 +1,7 @@
 """Words derived from numbers, for the manuscript: every comparative ("times smaller",
 "about the same", "below the paper's range", "only") is computed from the values it
 compares, with the tolerances stated here, so that the text turns when the numbers do."""
+
 from __future__ import annotations
 
 import math
@@ -16,8 +17,7 @@ MOST_R2 = 0.5
 #: of variation (std / mean) is at most this (%).
 CLOSE_CV_PCT = 10.0
 
-NUMBER_WORDS = ["no", "one", "two", "three", "four", "five", "six", "seven", "eight", "nine",
-                "ten"]
+NUMBER_WORDS = ["no", "one", "two", "three", "four", "five", "six", "seven", "eight", "nine", "ten"]
 
 
 def _ok(*v) -> bool:
@@ -31,8 +31,9 @@ def ratio(a: float, b: float) -> float | None:
     return float(a) / float(b)
 
 
-def compare(a: float, b: float, smaller: str = "smaller", larger: str = "larger",
-            than: bool = True) -> str:
+def compare(
+    a: float, b: float, smaller: str = "smaller", larger: str = "larger", than: bool = True
+) -> str:
     """How ``a`` compares with ``b``: ``"3.4 times smaller than"``, ``"about the same as"``
     (within :data:`SAME_FACTOR`) or ``"2.1 times larger than"``; ``than=False`` drops the
     connector. ``smaller``/``larger`` name the direction ("less"/"more" for times).
@@ -97,7 +98,16 @@ def count(n: int, noun: str, plural: str | None = None) -> str:
 
 def jinja_globals() -> dict:
     """The helpers and tolerances, as the manuscript template sees them."""
-    return {"compare": compare, "is_same": is_same, "range_relation": range_relation,
-            "number_word": number_word, "count": count, "reach": reach, "ratio": ratio,
-            "SAME_FACTOR": SAME_FACTOR, "HIGH_OVERLAP": HIGH_OVERLAP, "MOST_R2": MOST_R2,
-            "CLOSE_CV_PCT": CLOSE_CV_PCT}
+    return {
+        "compare": compare,
+        "is_same": is_same,
+        "range_relation": range_relation,
+        "number_word": number_word,
+        "count": count,
+        "reach": reach,
+        "ratio": ratio,
+        "SAME_FACTOR": SAME_FACTOR,
+        "HIGH_OVERLAP": HIGH_OVERLAP,
+        "MOST_R2": MOST_R2,
+        "CLOSE_CV_PCT": CLOSE_CV_PCT,
+    }

@@ -19,10 +19,17 @@ simulate   the pure-compute entry point :func:`simulate` for the Fin Ray scene.
 scene      the stage's entry point :func:`~finray.fea.scene.run_scene`: one scene
            from the config to its files.
 """
+
 from .material import NeoHookean
 from ..errors import SimulationError
-from .simulate import (DeformableObject, RigidObject, SimulationOptions, SimulationResult,
-                       simulate)
+from .simulate import DeformableObject, RigidObject, SimulationOptions, SimulationResult, simulate
 
-__all__ = ["NeoHookean", "RigidObject", "DeformableObject",
-           "SimulationOptions", "SimulationResult", "SimulationError", "simulate"]
+__all__ = [
+    "NeoHookean",
+    "RigidObject",
+    "DeformableObject",
+    "SimulationOptions",
+    "SimulationResult",
+    "SimulationError",
+    "simulate",
+]

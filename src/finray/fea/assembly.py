@@ -17,6 +17,7 @@ The sparse pattern of the Hessian and the scatter index from element entries to
 the CSR data array are computed once in :class:`ElasticAssembler`; each
 evaluation only fills a new data array (``np.bincount``).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -41,8 +42,7 @@ def gauss_rule(degree: int) -> tuple[np.ndarray, np.ndarray]:
     if degree <= 4:  # Strang-Fix / Dunavant 6-point, degree 4
         a1, b1, w1 = 0.816847572980459, 0.091576213509771, 0.109951743655322
         a2, b2, w2 = 0.108103018168070, 0.445948490915965, 0.223381589678011
-        pts = [[a1, b1, b1], [b1, a1, b1], [b1, b1, a1],
-               [a2, b2, b2], [b2, a2, b2], [b2, b2, a2]]
+        pts = [[a1, b1, b1], [b1, a1, b1], [b1, b1, a1], [a2, b2, b2], [b2, a2, b2], [b2, b2, a2]]
         return np.array(pts), np.array([w1] * 3 + [w2] * 3)
     raise ValueError(f"no Gauss rule of degree {degree}")
 
@@ -59,8 +59,16 @@ def shape_functions(nodes_per_element: int, L: np.ndarray) -> tuple[np.ndarray, 
         dN = np.broadcast_to(np.array([[-1.0, -1.0], [1.0, 0.0], [0.0, 1.0]]), (q, 3, 2)).copy()
         return N, dN
     if nodes_per_element == 6:
-        N = np.column_stack([L0 * (2 * L0 - 1), L1 * (2 * L1 - 1), L2 * (2 * L2 - 1),
-                             4 * L0 * L1, 4 * L1 * L2, 4 * L2 * L0])
+        N = np.column_stack(
+            [
+                L0 * (2 * L0 - 1),
+                L1 * (2 * L1 - 1),
+                L2 * (2 * L2 - 1),
+                4 * L0 * L1,
+                4 * L1 * L2,
+                4 * L2 * L0,
+            ]
+        )
         # dL/dxi = (-1, 1, 0), dL/deta = (-1, 0, 1)
         dN = np.empty((q, 6, 2))
         g0 = 4 * L0 - 1
@@ -83,8 +91,9 @@ def shape_functions(nodes_per_element: int, L: np.ndarray) -> tuple[np.ndarray, 
 #: Barycentric coordinates of the element nodes (for nodal stress recovery).
 NODE_BARY = {
     3: np.eye(3),
-    6: np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1],
-                 [0.5, 0.5, 0], [0, 0.5, 0.5], [0.5, 0, 0.5]], dtype=float),
+    6: np.array(
+        [[1, 0, 0], [0, 1, 0], [0, 0, 1], [0.5, 0.5, 0], [0, 0.5, 0.5], [0.5, 0, 0.5]], dtype=float
+    ),
 }
 
 
@@ -126,7 +135,8 @@ def _element_hessians(G, wdet, A, out):
                         c1 = ga0 * A[m, p, i, 0, k, 1] + ga1 * A[m, p, i, 1, k, 1]
                         for b in range(n):
                             out[m, 2 * a + i, 2 * b + k] += w * (
-                                c0 * G[m, p, b, 0] + c1 * G[m, p, b, 1])
+                                c0 * G[m, p, b, 0] + c1 * G[m, p, b, 1]
+                            )
     return out
 
 
@@ -141,10 +151,10 @@ def _element_forces(G, wdet, P, out):
             w = wdet[m, p]
             for a in range(n):
                 for i in range(2):
-                    out[m, 2 * a + i] += w * (P[m, p, i, 0] * G[m, p, a, 0]
-                                              + P[m, p, i, 1] * G[m, p, a, 1])
+                    out[m, 2 * a + i] += w * (
+                        P[m, p, i, 0] * G[m, p, a, 0] + P[m, p, i, 1] * G[m, p, a, 1]
+                    )
     return out
-
 
 
 @nb.njit(cache=True)
@@ -185,8 +195,11 @@ def _nh_fused(tri, U, G, wdet, mu_e, lam_e, order, psd, pos, data, g_full):
             if J <= 0.0:
                 return np.inf
             lnJ = np.log(J)
-            E += w * (0.5 * mu * (f00 * f00 + f01 * f01 + f10 * f10 + f11 * f11 - 2.0)
-                      - mu * lnJ + 0.5 * lam * lnJ * lnJ)
+            E += w * (
+                0.5 * mu * (f00 * f00 + f01 * f01 + f10 * f10 + f11 * f11 - 2.0)
+                - mu * lnJ
+                + 0.5 * lam * lnJ * lnJ
+            )
             if order < 1:
                 continue
             # Finv[J, k]
@@ -263,6 +276,7 @@ def _nh_fused(tri, U, G, wdet, mu_e, lam_e, order, psd, pos, data, g_full):
                                 data[pp] += w * (c[a, i, k, 0] * h0 + c[a, i, k, 1] * h1)
     return E
 
+
 # ----------------------------------------------------------------------------------
 # Sparse pattern with a fixed scatter index
 # ----------------------------------------------------------------------------------
@@ -334,8 +348,14 @@ class ElasticAssembler:
     quad_degree : Gauss rule degree (default 2 for P2, 1 for P1).
     """
 
-    def __init__(self, points: np.ndarray, blocks: list[ElementBlock], dof_map: np.ndarray,
-                 n_dofs: int, quad_degree: int | None = None):
+    def __init__(
+        self,
+        points: np.ndarray,
+        blocks: list[ElementBlock],
+        dof_map: np.ndarray,
+        n_dofs: int,
+        quad_degree: int | None = None,
+    ):
         self.points = np.asarray(points, float)
         self.blocks = blocks
         self.dof_map = np.asarray(dof_map)
@@ -413,8 +433,9 @@ class ElasticAssembler:
         U = np.ascontiguousarray(U, dtype=float)
         g = np.zeros(2 * self.n_nodes)
         data = np.zeros(self.pattern.nnz if order >= 2 else 1)
-        E = _nh_fused(self.tri, U, self.G, self.wdet, self._mu, self._lam, order, psd,
-                      self._pos, data, g)
+        E = _nh_fused(
+            self.tri, U, self.G, self.wdet, self._mu, self._lam, order, psd, self._pos, data, g
+        )
         if not np.isfinite(E):
             return np.inf, None, None
         return E, (g if order >= 1 else None), (data if order >= 2 else None)
@@ -477,8 +498,9 @@ class ElasticAssembler:
             ids = self.tri.ravel()
             cnt = np.bincount(ids, minlength=self.n_nodes)
             # the mean over the elements sharing each node, as one sparse product
-            self._node_mean = sp.csr_matrix((1.0 / cnt[ids], (ids, np.arange(len(ids)))),
-                                            shape=(self.n_nodes, len(ids)))
+            self._node_mean = sp.csr_matrix(
+                (1.0 / cnt[ids], (ids, np.arange(len(ids)))), shape=(self.n_nodes, len(ids))
+            )
             self._no_element = cnt == 0
         # optimize=True swaps the operands: 5x faster here (same c_einsum, one thread)
         F = np.einsum("mni,mqnJ->mqiJ", U[self.tri], G, optimize=True)
@@ -494,5 +516,10 @@ class ElasticAssembler:
         sig[:, 0, 0], sig[:, 1, 1] = out[:, 0], out[:, 1]
         sig[:, 0, 1] = sig[:, 1, 0] = out[:, 2]
         vm = von_mises(sig, out[:, 3])
-        return {"sxx": out[:, 0], "syy": out[:, 1], "sxy": out[:, 2], "szz": out[:, 3],
-                "von_mises": vm}
+        return {
+            "sxx": out[:, 0],
+            "syy": out[:, 1],
+            "sxy": out[:, 2],
+            "szz": out[:, 3],
+            "von_mises": vm,
+        }

@@ -22,6 +22,7 @@ Energies are per unit out-of-plane thickness (N mm / mm), gradients are nodal
 forces (N/mm), Hessians N/mm^2. All full-size vectors are node-major
 ``[x0, y0, x1, y1, ...]`` over the full node array.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -101,8 +102,14 @@ class ContactModel:
     # the gap is left
     SAFE_MOVE = 0.45
 
-    def __init__(self, rest_points: np.ndarray, segments: np.ndarray, body: np.ndarray,
-                 rigid_bodies=(), params: ContactParams | None = None):
+    def __init__(
+        self,
+        rest_points: np.ndarray,
+        segments: np.ndarray,
+        body: np.ndarray,
+        rigid_bodies=(),
+        params: ContactParams | None = None,
+    ):
         self.params = params or ContactParams()
         self.n_full = len(rest_points)
         segments = np.asarray(segments, np.int32)
@@ -140,8 +147,10 @@ class ContactModel:
         self._cand = None  # (ipctk.Candidates, the vertices they were found at)
         self._last_set = None  # (vertices, their barrier pair set) of the last evaluation
         self._tangential = None
-        self._proj = {"abs": ipctk.PSDProjectionMethod.ABS,
-                      "clamp": ipctk.PSDProjectionMethod.CLAMP}[self.params.projection]
+        self._proj = {
+            "abs": ipctk.PSDProjectionMethod.ABS,
+            "clamp": ipctk.PSDProjectionMethod.CLAMP,
+        }[self.params.projection]
 
     # -- helpers -------------------------------------------------------------------
     def vertices(self, U_full: np.ndarray) -> np.ndarray:
@@ -168,12 +177,15 @@ class ContactModel:
         else found anew. Line-search trials and Newton iterates stay close."""
         if self._cand is not None:
             cand, V_ref = self._cand
-            if V_ref.shape == V.shape and np.square(V - V_ref).sum(axis=1).max(
-                    initial=0.0) <= self.CANDIDATE_MARGIN_MM ** 2:
+            if (
+                V_ref.shape == V.shape
+                and np.square(V - V_ref).sum(axis=1).max(initial=0.0) <= self.CANDIDATE_MARGIN_MM**2
+            ):
                 return cand
         cand = ipctk.Candidates()
-        cand.build(self.mesh, V, 0.5 * self.params.dhat + self.CANDIDATE_MARGIN_MM,
-                   self.broad_phase)
+        cand.build(
+            self.mesh, V, 0.5 * self.params.dhat + self.CANDIDATE_MARGIN_MM, self.broad_phase
+        )
         self._cand = (cand, V.copy())
         return cand
 
@@ -182,8 +194,13 @@ class ContactModel:
         return (2 * self.full_ids[:, None] + np.arange(2)[None, :]).ravel()
 
     # -- potentials ----------------------------------------------------------------
-    def evaluate(self, U_full: np.ndarray, U_step_start: np.ndarray | None = None,
-                 order: int = 2, project: bool = True):
+    def evaluate(
+        self,
+        U_full: np.ndarray,
+        U_step_start: np.ndarray | None = None,
+        order: int = 2,
+        project: bool = True,
+    ):
         """Contact energy, gradient (2 nV,) and Hessian (csc, 2 nV square, PSD-projected).
 
         Gradient and Hessian are in *collision DOFs* (see :meth:`full_dof_index`).
@@ -246,13 +263,18 @@ class ContactModel:
         if self._last_set is not None and np.array_equal(self._last_set[0], V0):
             col = self._last_set[1]
             # (ipctk gives the squared distance)
-            gap = min(self.params.dhat, np.sqrt(col.compute_minimum_distance(self.mesh, V0))
-                      if len(col) else np.inf)
+            gap = min(
+                self.params.dhat,
+                np.sqrt(col.compute_minimum_distance(self.mesh, V0)) if len(col) else np.inf,
+            )
             move = np.sqrt(np.square(V1 - V0).sum(axis=1).max(initial=0.0))
             if move < self.SAFE_MOVE * gap:
                 return 1.0
-        return float(ipctk.compute_collision_free_stepsize(
-            self.mesh, V0, V1, 0.0, self.broad_phase, self.ccd))
+        return float(
+            ipctk.compute_collision_free_stepsize(
+                self.mesh, V0, V1, 0.0, self.broad_phase, self.ccd
+            )
+        )
 
     def has_intersections(self, U_full: np.ndarray) -> bool:
         return bool(ipctk.has_intersections(self.mesh, self.vertices(U_full)))
@@ -296,10 +318,10 @@ class ContactModel:
         vv = np.array([(c.vertex0_id, c.vertex1_id) for c in col.vv_collisions], np.int64)
         out = np.empty((len(ev) + len(vv), 3), np.int64)
         if len(ev):
-            out[:len(ev), :2] = self.seg[ev[:, 0]]
-            out[:len(ev), 2] = ev[:, 1]
+            out[: len(ev), :2] = self.seg[ev[:, 0]]
+            out[: len(ev), 2] = ev[:, 1]
         if len(vv):
-            out[len(ev):] = vv[:, [0, 1, 1]]
+            out[len(ev) :] = vv[:, [0, 1, 1]]
         return out
 
     def boundary_arclength(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -7,6 +7,7 @@ is always there. ``resolve`` reuses the last factorisation (Newton's chord steps
 :class:`SplitMatrix` holds the Hessian as a fixed-pattern elastic part plus a
 varying contact part.
 """
+
 from __future__ import annotations
 
 import time
@@ -19,17 +20,20 @@ from ..errors import NotPositiveDefinite
 try:  # CHOLMOD (scikit-sparse): symbolic analysis reused across Newton iterations
     from sksparse.cholmod import CholmodNotPositiveDefiniteError
     from sksparse.cholmod import analyze as _cholmod_analyze
+
     HAVE_CHOLMOD = True
 except Exception:  # pragma: no cover - depends on the machine
     HAVE_CHOLMOD = False
 try:  # CHOLMOD bundled in cvxopt's wheels: the same reuse without SuiteSparse's headers
     import cvxopt as _cvxopt
     import cvxopt.cholmod as _cvx_cholmod
+
     HAVE_CVXOPT = True
 except Exception:  # pragma: no cover
     HAVE_CVXOPT = False
 try:
     import cholespy as _cholespy
+
     HAVE_CHOLESPY = True
 except Exception:  # pragma: no cover
     HAVE_CHOLESPY = False
@@ -43,8 +47,7 @@ class SplitMatrix:
     the sum is formed only where something asks for it (:meth:`tocsr`).
     """
 
-    def __init__(self, base: sp.csr_matrix, extra: sp.coo_matrix | None = None,
-                 margin=None):
+    def __init__(self, base: sp.csr_matrix, extra: sp.coo_matrix | None = None, margin=None):
         self.base = base
         self.extra = extra
         # () -> (rows, cols) of entries the extra part is likely to get soon (contact
@@ -67,8 +70,10 @@ class SplitMatrix:
         return d if self.extra is None else d + self.extra.diagonal()
 
     def all_finite(self) -> bool:
-        return bool(np.isfinite(self.base.data).all() and
-                    (self.extra is None or np.isfinite(self.extra.data).all()))
+        return bool(
+            np.isfinite(self.base.data).all()
+            and (self.extra is None or np.isfinite(self.extra.data).all())
+        )
 
 
 def _csr_keys(indptr: np.ndarray, indices: np.ndarray, n: int) -> np.ndarray:
@@ -80,8 +85,16 @@ def _csr_keys(indptr: np.ndarray, indices: np.ndarray, n: int) -> np.ndarray:
 def available_backends() -> list[str]:
     """The linear solver backends that import here, in the order "auto" prefers them
     (SuperLU, always there, last)."""
-    return [b for b, ok in (("cholmod", HAVE_CHOLMOD), ("cvxopt", HAVE_CVXOPT),
-                            ("cholespy", HAVE_CHOLESPY), ("splu", True)) if ok]
+    return [
+        b
+        for b, ok in (
+            ("cholmod", HAVE_CHOLMOD),
+            ("cvxopt", HAVE_CVXOPT),
+            ("cholespy", HAVE_CHOLESPY),
+            ("splu", True),
+        )
+        if ok
+    ]
 
 
 class LinearSolver:
@@ -112,8 +125,9 @@ class LinearSolver:
         if backend == "auto":
             backend = available_backends()[0]
         if backend not in ("cholmod", "cvxopt", "cholespy", "splu"):
-            raise ValueError(f"unknown linear solver {backend!r}: use auto, cholmod, cvxopt, "
-                             f"cholespy or splu")
+            raise ValueError(
+                f"unknown linear solver {backend!r}: use auto, cholmod, cvxopt, cholespy or splu"
+            )
         self.backend = backend
         self._factor = None
         self._base = None  # sorted int64 keys (row * n + col) of the base pattern
@@ -167,8 +181,7 @@ class LinearSolver:
                 best, best_t = mode, dt
         return best
 
-    def _ensure_analysis(self, A: sp.csr_matrix, extra: sp.spmatrix | None,
-                         margin=None) -> None:
+    def _ensure_analysis(self, A: sp.csr_matrix, extra: sp.spmatrix | None, margin=None) -> None:
         """Analyse the union of the base pattern and every extra pattern seen so far;
         re-analyse only when an extra entry falls outside it, then with the entries of
         ``margin()`` ((rows, cols), see :class:`SplitMatrix`) too.
@@ -180,8 +193,9 @@ class LinearSolver:
         n = A.shape[0]
         if self._base is None or self._base_n != n:
             self._base = self._keys(A)  # sorted: CSR with sorted indices
-            self._base_csr = sp.csr_matrix((np.ones(len(self._base)), A.indices.copy(),
-                                            A.indptr.copy()), shape=A.shape)
+            self._base_csr = sp.csr_matrix(
+                (np.ones(len(self._base)), A.indices.copy(), A.indptr.copy()), shape=A.shape
+            )
             self._base_n = n
             self._base_up = np.flatnonzero(self._base % n >= self._base // n)
             self._extra = np.empty(0, np.int64)
@@ -199,8 +213,9 @@ class LinearSolver:
             if margin is not None:
                 r, c = margin()
                 keys = r.astype(np.int64) * n + c
-                new = np.concatenate([new, self._missing(self._missing(keys, self._extra),
-                                                         self._base)])
+                new = np.concatenate(
+                    [new, self._missing(self._missing(keys, self._extra), self._base)]
+                )
             self._extra = np.union1d(self._extra, new)
         t0 = time.perf_counter()
         if self.backend == "cvxopt":
@@ -238,8 +253,11 @@ class LinearSolver:
             self._spm_base = self._cvxopt_lower(r, c, n)
         r, c = np.divmod(self._extra, n)
         # a new matrix either way: its values get replaced, the base's stay a pattern
-        self._spm = (self._spm_base + self._cvxopt_lower(r, c, n)
-                     if len(self._extra) else 1.0 * self._spm_base)
+        self._spm = (
+            self._spm_base + self._cvxopt_lower(r, c, n)
+            if len(self._extra)
+            else 1.0 * self._spm_base
+        )
         colptr, rowind, _ = self._spm.CCS
         self._upper = (np.array(colptr, np.int64).ravel(), np.array(rowind, np.int64).ravel())
         self._upper_keys = _csr_keys(*self._upper, n)
@@ -328,6 +346,7 @@ class LinearSolver:
             x = _cvxopt.matrix(np.asarray(b, float).reshape(-1, 1))
             _cvx_cholmod.solve(factor, x)
             return np.array(x).ravel()
+
         self._last = solve
         x = solve(b)
         self.time_factor += t1 - t0
@@ -349,8 +368,9 @@ class LinearSolver:
             if self.backend == "cvxopt":
                 if self._base is not None and len(self._base) != A.base.nnz:
                     self._base = None  # another base pattern: analyse anew
-                self._ensure_analysis(A.base, A.extra if A.extra is not None
-                                      else sp.coo_matrix(A.shape), A.margin)
+                self._ensure_analysis(
+                    A.base, A.extra if A.extra is not None else sp.coo_matrix(A.shape), A.margin
+                )
                 return self._solve_cvxopt(A, b)
             A, extra, margin = A.tocsr(), A.extra, A.margin
         else:
@@ -383,17 +403,22 @@ class LinearSolver:
             t0 = time.perf_counter()
             n = A.shape[0]
             try:
-                s = _cholespy.CholeskySolverD(n, A.indptr.astype(np.int32),
-                                              A.indices.astype(np.int32),
-                                              np.ascontiguousarray(A.data),
-                                              _cholespy.MatrixType.CSR)
+                s = _cholespy.CholeskySolverD(
+                    n,
+                    A.indptr.astype(np.int32),
+                    A.indices.astype(np.int32),
+                    np.ascontiguousarray(A.data),
+                    _cholespy.MatrixType.CSR,
+                )
             except ValueError as e:  # "Matrix is not positive definite!"
                 self.time_factor += time.perf_counter() - t0
                 raise NotPositiveDefinite(str(e)) from None
+
             def solve(b):
                 x = np.zeros(n)
                 s.solve(np.ascontiguousarray(b, dtype=float), x)
                 return x
+
             self._last = solve
             x = solve(b)
             self.n_factorizations += 1

@@ -20,12 +20,14 @@ The constants (Young's modulus, Poisson's ratio, rigid or not) and their sources
 the config's ``materials:`` section (``config/config.yaml``); :func:`finray.fea.scene.material_law`
 builds the law of a configured material.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numba as nb
 import numpy as np
+
 
 def gent_modulus_from_shore_a(shore_a: float) -> float:
     """Young's modulus (MPa) from Shore A hardness, Gent (1958)."""
@@ -117,9 +119,11 @@ class NeoHookean:
         eye = np.eye(2)
         c1 = (self.mu - self.lam * lnJ)[..., None, None, None, None]
         # A_iJkL = mu d_ik d_JL + (mu - lam lnJ) Finv_Jk Finv_Li + lam Finv_Ji Finv_Lk
-        A = (self.mu * np.einsum("ik,JL->iJkL", eye, eye)
-             + c1 * np.einsum("...Jk,...Li->...iJkL", Finv, Finv)
-             + self.lam * np.einsum("...Ji,...Lk->...iJkL", Finv, Finv))
+        A = (
+            self.mu * np.einsum("ik,JL->iJkL", eye, eye)
+            + c1 * np.einsum("...Jk,...Li->...iJkL", Finv, Finv)
+            + self.lam * np.einsum("...Ji,...Lk->...iJkL", Finv, Finv)
+        )
         return W, P, A
 
     def cauchy(self, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -139,8 +143,7 @@ class NeoHookean:
 def von_mises(sig: np.ndarray, szz: np.ndarray) -> np.ndarray:
     """Von Mises stress (MPa) of a plane state with out-of-plane normal stress szz."""
     sxx, syy, sxy = sig[..., 0, 0], sig[..., 1, 1], sig[..., 0, 1]
-    return np.sqrt(0.5 * ((sxx - syy) ** 2 + (syy - szz) ** 2 + (szz - sxx) ** 2)
-                   + 3.0 * sxy**2)
+    return np.sqrt(0.5 * ((sxx - syy) ** 2 + (syy - szz) ** 2 + (szz - sxx) ** 2) + 3.0 * sxy**2)
 
 
 @nb.njit(cache=True)

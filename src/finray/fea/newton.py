@@ -15,6 +15,7 @@ load forces (:meth:`Model.residual_norm`, from the gradient already assembled fo
 step); that last, tiny step is taken too. Line-search failures and gradient-descent
 fallbacks are counted in ``Model.counters``, never silent.
 """
+
 from __future__ import annotations
 
 import time
@@ -24,6 +25,7 @@ import numpy as np
 
 from .problem import Model
 from ..schema import schema_default
+
 
 @dataclass
 class NewtonOptions:
@@ -65,8 +67,14 @@ class NewtonResult:
     note: str = ""
 
 
-def newton(model: Model, q0: np.ndarray, opts: NewtonOptions | None = None,
-           relag=None, relags: int = 0, relag_dx: float = 0.0) -> NewtonResult:
+def newton(
+    model: Model,
+    q0: np.ndarray,
+    opts: NewtonOptions | None = None,
+    relag=None,
+    relags: int = 0,
+    relag_dx: float = 0.0,
+) -> NewtonResult:
     """Minimise the model's potential from q0 (must be valid and intersection-free).
 
     ``relag(q)`` changes the potential (friction re-lagged at q) ``relags`` times
@@ -89,8 +97,9 @@ def newton(model: Model, q0: np.ndarray, opts: NewtonOptions | None = None,
     (:meth:`_Newton.collision_free`) and a backtracking line search
     (:meth:`_Newton.line_search`).
     """
-    return _Newton(model, opts or NewtonOptions(), relag, relags if relag is not None else 0,
-                   relag_dx).solve(q0)
+    return _Newton(
+        model, opts or NewtonOptions(), relag, relags if relag is not None else 0, relag_dx
+    ).solve(q0)
 
 
 class _Newton:
@@ -98,8 +107,7 @@ class _Newton:
     one), the re-lags left, the steps since the last re-lag and the history rows
     ``[E, |g|, |d|, argmax, ccd alpha, alpha, residual]``."""
 
-    def __init__(self, model: Model, opts: NewtonOptions, relag, relags: int,
-                 relag_dx: float):
+    def __init__(self, model: Model, opts: NewtonOptions, relag, relags: int, relag_dx: float):
         self.model, self.opts = model, opts
         self.relag, self.relags, self.relag_dx = relag, relags, relag_dx
         self.last_step = np.inf  # |dx| of the last full Newton step taken
@@ -138,8 +146,17 @@ class _Newton:
             d, gd, H = self.descent(q, g, d, H)
             dmax = float(np.abs(d).max()) if len(d) else 0.0
             res = model.residual_norm(g, opts.residual_floor)  # g of this state: no assembly
-            hist.append([E, float(np.abs(g).max()) if len(g) else 0.0, dmax,
-                         int(np.abs(d).argmax()) if len(d) else -1, 1.0, 1.0, res])
+            hist.append(
+                [
+                    E,
+                    float(np.abs(g).max()) if len(g) else 0.0,
+                    dmax,
+                    int(np.abs(d).argmax()) if len(d) else -1,
+                    1.0,
+                    1.0,
+                    res,
+                ]
+            )
             if dmax < opts.tol_dx and res <= opts.tol_residual:
                 q, E = self.last_step_taken(q, d, E)
                 # re-lag at the solution and go on, unless the last re-lag needed no step
@@ -160,8 +177,12 @@ class _Newton:
             self.last_step = dmax if alpha == 1.0 else np.inf
             if self.since_relag is not None:
                 self.since_relag += 1
-            if self.relags > 0 and self.since_relag is None and alpha == 1.0 \
-                    and dmax <= self.relag_dx:
+            if (
+                self.relags > 0
+                and self.since_relag is None
+                and alpha == 1.0
+                and dmax <= self.relag_dx
+            ):
                 E, g, H = self.relag_at(q)
             elif ahead:  # the accepted first trial, evaluated at q
                 E, g, H = ahead
@@ -169,10 +190,16 @@ class _Newton:
                 E, g, H = self.assemble(q)
         res_last = model.residual_norm(g, opts.residual_floor)
         dmax_last = hist[-1][2] if hist else np.nan
-        return NewtonResult(q, False, opts.max_iterations,
-                            f"no convergence in {opts.max_iterations} iterations "
-                            f"(last |dx| = {dmax_last:.2e} mm, residual {res_last:.2e})", E,
-                            hist, res_last)
+        return NewtonResult(
+            q,
+            False,
+            opts.max_iterations,
+            f"no convergence in {opts.max_iterations} iterations "
+            f"(last |dx| = {dmax_last:.2e} mm, residual {res_last:.2e})",
+            E,
+            hist,
+            res_last,
+        )
 
     def direction(self, q, g, H):
         """The step at q: a chord step (the last factorisation) near the solution where
@@ -184,8 +211,10 @@ class _Newton:
         if self.chord_next():  # near the solution: try the last factorisation
             d = model.linsolve.resolve(-g)
             if d is not None and not (
-                    np.all(np.isfinite(d)) and float(g @ d) < 0
-                    and np.abs(d).max() <= opts.chord_contraction * self.last_step):
+                np.all(np.isfinite(d))
+                and float(g @ d) < 0
+                and np.abs(d).max() <= opts.chord_contraction * self.last_step
+            ):
                 d = None
         if d is None and H is None:  # the chord was refused: the Hessian after all
             model.counters["chord_refused"] += 1
@@ -264,8 +293,7 @@ class _Newton:
         while True:
             q_try = q + alpha * d
             if ahead is None:
-                ahead = model.evaluate(q_try, 1 if (alpha == 1.0 and dmax < opts.chord_dx)
-                                       else 2)
+                ahead = model.evaluate(q_try, 1 if (alpha == 1.0 and dmax < opts.chord_dx) else 2)
                 E_try = ahead[0]
             else:
                 ahead = False
@@ -287,9 +315,25 @@ class _Newton:
         if dmax < 100 * opts.tol_dx and res <= opts.tol_residual:
             # balanced forces, energy differences below round-off
             cnt["residual_max_rel"] = max(cnt["residual_max_rel"], res)
-            return NewtonResult(q, True, it - 1, "", E, self.hist, res,
-                                note=f"line search stalled at |dx| = {dmax:.2e} mm "
-                                     f"with the residual {res:.2e} within tolerance")
-        return NewtonResult(q, False, it, f"line search failed (no decrease) at "
-                            f"|dx| = {dmax:.2e} mm, residual {res:.2e} (tolerance "
-                            f"{opts.tol_residual:.0e})", E, self.hist, res)
+            return NewtonResult(
+                q,
+                True,
+                it - 1,
+                "",
+                E,
+                self.hist,
+                res,
+                note=f"line search stalled at |dx| = {dmax:.2e} mm "
+                f"with the residual {res:.2e} within tolerance",
+            )
+        return NewtonResult(
+            q,
+            False,
+            it,
+            f"line search failed (no decrease) at "
+            f"|dx| = {dmax:.2e} mm, residual {res:.2e} (tolerance "
+            f"{opts.tol_residual:.0e})",
+            E,
+            self.hist,
+            res,
+        )

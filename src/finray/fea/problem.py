@@ -13,6 +13,7 @@ conditions), so that every step of the solve is a line search on one energy and
 the object never enters the finger. The force the finger exerts on the object is
 ``k (t - t_target)``, equal to ``-d(B + D)/dt`` at equilibrium.
 """
+
 from __future__ import annotations
 
 import time
@@ -23,6 +24,7 @@ import scipy.sparse as sp
 from .assembly import ElasticAssembler, ElementBlock
 from .contact import ContactModel
 from .linear import LinearSolver, SplitMatrix
+
 
 class Model:
     """Elastic bodies + contact + a rigidly driven node set, on reduced unknowns.
@@ -47,10 +49,19 @@ class Model:
     #: (0.1 mm: 13 analyses instead of 36 on a steel scene, for a little more fill-in)
     PATTERN_MARGIN_MM = 0.1
 
-    def __init__(self, points, blocks: list[ElementBlock], fixed_nodes=(), driven_nodes=(),
-                 contact: ContactModel | None = None, driver_stiffness: float = 1e5,
-                 external_force: np.ndarray | None = None, psd="auto",
-                 quad_degree: int | None = None, linear_solver: str = "auto"):
+    def __init__(
+        self,
+        points,
+        blocks: list[ElementBlock],
+        fixed_nodes=(),
+        driven_nodes=(),
+        contact: ContactModel | None = None,
+        driver_stiffness: float = 1e5,
+        external_force: np.ndarray | None = None,
+        psd="auto",
+        quad_degree: int | None = None,
+        linear_solver: str = "auto",
+    ):
         self.points = np.asarray(points, float)
         N = len(self.points)
         self.N = N
@@ -84,7 +95,9 @@ class Model:
         self.free = free
         self.U_presc = np.zeros((N, 2))
         self.k_drive = float(driver_stiffness)
-        self.f_ext = np.zeros((N, 2)) if external_force is None else np.asarray(external_force, float)
+        self.f_ext = (
+            np.zeros((N, 2)) if external_force is None else np.asarray(external_force, float)
+        )
         self.psd = psd
         self.elastic = ElasticAssembler(self.points, blocks, dof_map, self.n, quad_degree)
         self.contact = contact
@@ -96,17 +109,27 @@ class Model:
         self.t_target = np.zeros(2)
         self.load = 0.0
         self.U_step_start: np.ndarray | None = None
-        self.stats = {"assembly_s": 0.0, "contact_s": 0.0, "solve_s": 0.0, "ccd_s": 0.0,
-                      "line_search_s": 0.0}
+        self.stats = {
+            "assembly_s": 0.0,
+            "contact_s": 0.0,
+            "solve_s": 0.0,
+            "ccd_s": 0.0,
+            "line_search_s": 0.0,
+        }
         # per model (scene): backtracking that found no decrease, non-descent Newton
         # directions replaced by scaled gradient descent, the largest relative
         # residual of a converged solve, chord steps refused (a Hessian assembled and
         # factorised instead), and load-step predictions solved with the last
         # factorisation (stepping's "tangent" predictor), and frames solved again to a
         # tenth of the residual tolerance to meet the equilibrium tolerance (simulate)
-        self.counters = {"line_search_failures": 0, "gradient_fallbacks": 0,
-                         "residual_max_rel": 0.0, "chord_refused": 0, "predictor_solves": 0,
-                         "equilibrium_polishes": 0}
+        self.counters = {
+            "line_search_failures": 0,
+            "gradient_fallbacks": 0,
+            "residual_max_rel": 0.0,
+            "chord_refused": 0,
+            "predictor_solves": 0,
+            "equilibrium_polishes": 0,
+        }
         self._fixed_dofs = np.flatnonzero(np.repeat(fixed, 2))
         self.force_scale = 0.0  # N/mm, set by evaluate() (see residual_norm)
 
@@ -195,9 +218,10 @@ class Model:
             return E, g, None
         C = None
         if extra_r:
-            C = sp.coo_matrix((np.concatenate(extra_v), (np.concatenate(extra_r),
-                                                          np.concatenate(extra_c))),
-                              shape=(self.n, self.n))
+            C = sp.coo_matrix(
+                (np.concatenate(extra_v), (np.concatenate(extra_r), np.concatenate(extra_c))),
+                shape=(self.n, self.n),
+            )
         margin = None
         if self.contact is not None:
             margin = lambda: self._contact_pattern(U)  # noqa: E731 - only on a re-analysis
@@ -216,24 +240,31 @@ class Model:
         return r[keep], c[keep]
 
     # -- reactions -----------------------------------------------------------------
-    def contact_force(self, q: np.ndarray, nodes: np.ndarray, friction_only: bool = False) -> np.ndarray:
+    def contact_force(
+        self, q: np.ndarray, nodes: np.ndarray, friction_only: bool = False
+    ) -> np.ndarray:
         """Total contact force (barrier + friction, N/mm) acting on the given nodes
         (bool mask or ids), ``-sum d(B + D)/dx`` over them."""
         if self.contact is None:
             return np.zeros(2)
         return self.contact_nodal_forces(q, nodes, friction_only).sum(axis=0)
 
-    def contact_nodal_forces(self, q: np.ndarray, nodes: np.ndarray,
-                             friction_only: bool = False) -> np.ndarray:
+    def contact_nodal_forces(
+        self, q: np.ndarray, nodes: np.ndarray, friction_only: bool = False
+    ) -> np.ndarray:
         """Contact force (barrier + friction, N/mm) on each of the given nodes (bool
         mask or ids), ``-d(B + D)/dx`` (n, 2)."""
         if self.contact is None:
-            return np.zeros((int(np.count_nonzero(nodes)) if np.asarray(nodes).dtype == bool
-                             else len(nodes), 2))
+            return np.zeros(
+                (int(np.count_nonzero(nodes)) if np.asarray(nodes).dtype == bool else len(nodes), 2)
+            )
         U = self.U(q)
         if friction_only:
-            gc = self.contact.friction_gradient(U, self.U_step_start) \
-                if self.U_step_start is not None else np.zeros(len(self.coll_full))
+            gc = (
+                self.contact.friction_gradient(U, self.U_step_start)
+                if self.U_step_start is not None
+                else np.zeros(len(self.coll_full))
+            )
         else:
             gc = self.contact.evaluate(U, self.U_step_start, order=1)[1]
         g = np.zeros(2 * self.N)
@@ -269,5 +300,5 @@ class Model:
         scale they have; where a load is applied it equals the reaction at
         equilibrium. ``floor`` (N/mm) stands in for F when nothing is loaded.
         """
-        r = float(np.linalg.norm(g[:self.n_free_dofs]))
+        r = float(np.linalg.norm(g[: self.n_free_dofs]))
         return r / max(self.force_scale, floor)

@@ -16,6 +16,7 @@ stresses MPa):
   objects): the deformation series with displacement and von Mises stress, for
   ParaView (apply "Warp By Vector" on ``u``).
 """
+
 from __future__ import annotations
 
 import json
@@ -29,8 +30,7 @@ from ..geometry.mesh import BOUNDARY_TAGS, TriMesh
 from .contact import ContactParams, split_p2_edges
 from .material import NeoHookean
 from ..errors import SimulationError
-from .simulate import (DeformableObject, RigidObject, SimulationOptions, SimulationResult,
-                       simulate)
+from .simulate import DeformableObject, RigidObject, SimulationOptions, SimulationResult, simulate
 from .newton import NewtonOptions
 
 
@@ -44,17 +44,26 @@ def material_law(cfg: dict, name: str) -> NeoHookean:
 
 def simulation_options(cfg: dict) -> SimulationOptions:
     f = cfg["fea"]
-    contact = ContactParams(dhat=f["dhat_mm"], kappa=f["barrier_stiffness_MPa"],
-                            mu=f["friction"], eps_v=f["static_slip_mm"],
-                            self_contact=f["self_contact"])
-    return SimulationOptions(push_mm=f["push_mm"], frame_step_mm=f["frame_step_mm"],
-                             contact=contact, max_step_mm=f["max_step_mm"],
-                             initial_step_mm=f["max_step_mm"], min_step_mm=f["min_step_mm"],
-                             max_retries=f["max_retries"],
-                             newton=NewtonOptions(tol_residual=f["residual_tol"]),
-                             equilibrium_tol=f["equilibrium_tol"],
-                             extrusion_mm=cfg["finger"]["extrusion_mm"],
-                             force_cap_N=f["force_cap_N"])
+    contact = ContactParams(
+        dhat=f["dhat_mm"],
+        kappa=f["barrier_stiffness_MPa"],
+        mu=f["friction"],
+        eps_v=f["static_slip_mm"],
+        self_contact=f["self_contact"],
+    )
+    return SimulationOptions(
+        push_mm=f["push_mm"],
+        frame_step_mm=f["frame_step_mm"],
+        contact=contact,
+        max_step_mm=f["max_step_mm"],
+        initial_step_mm=f["max_step_mm"],
+        min_step_mm=f["min_step_mm"],
+        max_retries=f["max_retries"],
+        newton=NewtonOptions(tol_residual=f["residual_tol"]),
+        equilibrium_tol=f["equilibrium_tol"],
+        extrusion_mm=cfg["finger"]["extrusion_mm"],
+        force_cap_N=f["force_cap_N"],
+    )
 
 
 def scene_object(obj_mesh: TriMesh, material: str, cfg: dict):
@@ -85,15 +94,22 @@ def write_result_npz(path: Path, finger: TriMesh, obj, result: SimulationResult)
     """The compact per-scene file of the render stage (forces on the finger, N)."""
     obj_pts, obj_segs = object_segments(obj, result)
     np.savez_compressed(
-        path, points=finger.points, triangles=finger.triangles,
-        boundary_edges=finger.boundary_edges, boundary_tags=finger.boundary_tags,
+        path,
+        points=finger.points,
+        triangles=finger.triangles,
+        boundary_edges=finger.boundary_edges,
+        boundary_tags=finger.boundary_tags,
         displacement_mm=result.displacement_mm,
         u_mm=result.finger_displacement_mm.astype(np.float32),
         von_mises_MPa=result.finger_von_mises_MPa.astype(np.float32),
-        fx_N=-result.force_N[:, 0], fy_N=-result.force_N[:, 1],
-        object_points_mm=obj_pts.astype(np.float32), object_edges=obj_segs,
-        n_pairs_self=result.n_pairs_self, n_pairs_object=result.n_pairs_object,
-        min_gap_self_mm=result.min_gap_self_mm, min_gap_object_mm=result.min_gap_object_mm,
+        fx_N=-result.force_N[:, 0],
+        fy_N=-result.force_N[:, 1],
+        object_points_mm=obj_pts.astype(np.float32),
+        object_edges=obj_segs,
+        n_pairs_self=result.n_pairs_self,
+        n_pairs_object=result.n_pairs_object,
+        min_gap_self_mm=result.min_gap_self_mm,
+        min_gap_object_mm=result.min_gap_object_mm,
         contact_y_mm=result.contact_y_mm,
         stop_reason=np.str_(result.meta["stop"]["reason"]),
         push_reached_mm=result.meta["stop"]["push_reached_mm"],
@@ -139,18 +155,25 @@ def _write_vtu_series(outdir: Path, finger: TriMesh, obj, result: SimulationResu
     cell = "triangle6" if finger.order == 2 else "triangle"
     for k, d in enumerate(result.displacement_mm):
         name = f"finger_{k:04d}.vtu"
-        meshio.Mesh(z(finger.points), [(cell, finger.triangles)],
-                    point_data={"u": z(result.finger_displacement_mm[k]),
-                                "von_mises_MPa": result.finger_von_mises_MPa[k].astype(np.float32)},
-                    ).write(vdir / name, compression="zlib")
+        meshio.Mesh(
+            z(finger.points),
+            [(cell, finger.triangles)],
+            point_data={
+                "u": z(result.finger_displacement_mm[k]),
+                "von_mises_MPa": result.finger_von_mises_MPa[k].astype(np.float32),
+            },
+        ).write(vdir / name, compression="zlib")
         series["finger"].append((float(d), f"vtu/{name}"))
         if isinstance(obj, DeformableObject):
             name = f"object_{k:04d}.vtu"
             point_data = {"u": z(result.object_displacement_mm[k])}
             if result.object_von_mises_MPa is not None:
                 point_data["von_mises_MPa"] = result.object_von_mises_MPa[k].astype(np.float32)
-            meshio.Mesh(z(obj.mesh.points), [(cell, obj.mesh.triangles)], point_data=point_data,
-                        ).write(vdir / name, compression="zlib")
+            meshio.Mesh(
+                z(obj.mesh.points),
+                [(cell, obj.mesh.triangles)],
+                point_data=point_data,
+            ).write(vdir / name, compression="zlib")
             series["object"].append((float(d), f"vtu/{name}"))
     for body, items in series.items():
         if not items:
@@ -158,7 +181,8 @@ def _write_vtu_series(outdir: Path, finger: TriMesh, obj, result: SimulationResu
         rows = "\n".join(f'    <DataSet timestep="{t:.6g}" part="0" file="{f}"/>' for t, f in items)
         (outdir / f"{body}.pvd").write_text(
             '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n'
-            f"  <Collection>\n{rows}\n  </Collection>\n</VTKFile>\n")
+            f"  <Collection>\n{rows}\n  </Collection>\n</VTKFile>\n"
+        )
 
 
 def summary(result: SimulationResult, wall_time_s: float, scene: dict) -> dict:
@@ -176,17 +200,24 @@ def summary(result: SimulationResult, wall_time_s: float, scene: dict) -> dict:
     gaps = gaps[np.isfinite(gaps)]
     m = result.meta
     return {
-        **scene, "converged": True, "stop": m["stop"], "wall_time_s": round(wall_time_s, 3),
+        **scene,
+        "converged": True,
+        "stop": m["stop"],
+        "wall_time_s": round(wall_time_s, 3),
         "n_frames": int(len(result.displacement_mm)),
         "n_steps": int(result.load_steps[-1]),
         "newton_iterations": int(result.newton_iterations.sum()),
         "max_von_mises_MPa": float(result.finger_von_mises_MPa.max()),
         "min_gap_mm": float(gaps.min()) if len(gaps) else None,
         "self_contact_max_pairs": int(result.n_pairs_self.max()),
-        "self_contact_first_mm": (float(result.displacement_mm[np.argmax(result.n_pairs_self > 0)])
-                                  if (result.n_pairs_self > 0).any() else None),
+        "self_contact_first_mm": (
+            float(result.displacement_mm[np.argmax(result.n_pairs_self > 0)])
+            if (result.n_pairs_self > 0).any()
+            else None
+        ),
         "object_contact_max_pairs": int(result.n_pairs_object.max()),
-        "fx_final_N": float(-result.force_N[-1, 0]), "fy_final_N": float(-result.force_N[-1, 1]),
+        "fx_final_N": float(-result.force_N[-1, 0]),
+        "fy_final_N": float(-result.force_N[-1, 1]),
         "residual_tol": m["residual_tol"],
         "residual_final_rel": float(result.residual_rel[-1]),
         "residual_max_rel": float(m["residual_max_rel"]),
@@ -198,9 +229,16 @@ def summary(result: SimulationResult, wall_time_s: float, scene: dict) -> dict:
     }
 
 
-def run_scene(cfg: dict, finger: TriMesh, obj_mesh: TriMesh, material: str, outdir: str | Path,
-              scene: dict | None = None, vtu: bool = True,
-              failure_report: str | Path | None = None) -> dict:
+def run_scene(
+    cfg: dict,
+    finger: TriMesh,
+    obj_mesh: TriMesh,
+    material: str,
+    outdir: str | Path,
+    scene: dict | None = None,
+    vtu: bool = True,
+    failure_report: str | Path | None = None,
+) -> dict:
     """Simulate one scene and write its files.
 
     A failed solve writes ``summary.json`` with ``converged: false`` and the cause
@@ -220,9 +258,16 @@ def run_scene(cfg: dict, finger: TriMesh, obj_mesh: TriMesh, material: str, outd
 
     def fail(exc: SimulationError) -> SimulationError:
         msg = f"scene {name}: {exc}"
-        report = {**scene, "converged": False, "wall_time_s": round(time.perf_counter() - t0, 3),
-                  "error": msg, "cause": exc.cause, "failed_step": exc.step,
-                  "load_factor": exc.load, "frames_converged": 0}
+        report = {
+            **scene,
+            "converged": False,
+            "wall_time_s": round(time.perf_counter() - t0, 3),
+            "error": msg,
+            "cause": exc.cause,
+            "failed_step": exc.step,
+            "load_factor": exc.load,
+            "frames_converged": 0,
+        }
         homes = [outdir] + ([Path(failure_report).parent] if failure_report is not None else [])
         for home in homes:
             home.mkdir(parents=True, exist_ok=True)
@@ -234,10 +279,17 @@ def run_scene(cfg: dict, finger: TriMesh, obj_mesh: TriMesh, material: str, outd
             n = report["frames_converged"] = int(len(part["displacement_mm"]) - 1)
             rows = np.column_stack([part["displacement_mm"], -part["force_N"]])
             paths = [outdir / "partial_forces.csv"] + (
-                [Path(failure_report).with_suffix(".partial_forces.csv")] if failure_report else [])
+                [Path(failure_report).with_suffix(".partial_forces.csv")] if failure_report else []
+            )
             for path in paths:
-                np.savetxt(path, rows, delimiter=",", header="displacement_mm,fx_N,fy_N",
-                           comments="", fmt="%.8g")
+                np.savetxt(
+                    path,
+                    rows,
+                    delimiter=",",
+                    header="displacement_mm,fx_N,fy_N",
+                    comments="",
+                    fmt="%.8g",
+                )
             report["partial_forces"] = str(paths[-1])
             msg = report["error"] = f"{msg}; the {n} frames that converged are in {paths[-1]}"
         text = json.dumps(report, indent=2)
@@ -247,21 +299,32 @@ def run_scene(cfg: dict, finger: TriMesh, obj_mesh: TriMesh, material: str, outd
         return SimulationError(msg, step=exc.step, load=exc.load, cause=exc.cause, partial=part)
 
     try:
-        res = simulate(finger, obj, material_law(cfg, cfg["finger"]["material"]),
-                       simulation_options(cfg))
+        res = simulate(
+            finger, obj, material_law(cfg, cfg["finger"]["material"]), simulation_options(cfg)
+        )
     except SimulationError as exc:
         raise fail(exc) from None
     wall = time.perf_counter() - t0
-    for what, arr in (("displacement", res.finger_displacement_mm), ("force", res.force_N),
-                      ("stress", res.finger_von_mises_MPa)):
+    for what, arr in (
+        ("displacement", res.finger_displacement_mm),
+        ("force", res.force_N),
+        ("stress", res.finger_von_mises_MPa),
+    ):
         if not np.isfinite(arr).all():
-            raise fail(SimulationError(f"non-finite {what} in the result",
-                                       cause="non-finite result"))
+            raise fail(
+                SimulationError(f"non-finite {what} in the result", cause="non-finite result")
+            )
     if failure_report is not None:
         Path(failure_report).unlink(missing_ok=True)
     write_result_npz(outdir / "result.npz", finger, obj, res)
-    np.savetxt(outdir / "forces.csv", np.column_stack([res.displacement_mm, -res.force_N]),
-               delimiter=",", header="displacement_mm,fx_N,fy_N", comments="", fmt="%.8g")
+    np.savetxt(
+        outdir / "forces.csv",
+        np.column_stack([res.displacement_mm, -res.force_N]),
+        delimiter=",",
+        header="displacement_mm,fx_N,fy_N",
+        comments="",
+        fmt="%.8g",
+    )
     if vtu:
         write_vtu_series(outdir, finger, obj, res)
     out = summary(res, wall, scene)
@@ -269,9 +332,17 @@ def run_scene(cfg: dict, finger: TriMesh, obj_mesh: TriMesh, material: str, outd
     return out
 
 
-def scene_job(cfg: dict, finger_npz, object_npz, material: str, outdir: str | Path,
-              scene: dict, log: str | Path, vtu: bool = True,
-              failure_report: str | Path | None = None) -> str | None:
+def scene_job(
+    cfg: dict,
+    finger_npz,
+    object_npz,
+    material: str,
+    outdir: str | Path,
+    scene: dict,
+    log: str | Path,
+    vtu: bool = True,
+    failure_report: str | Path | None = None,
+) -> str | None:
     """A workflow job's scene (:func:`run_scene` on the meshes' files), its output sent to
     ``log``. Returns None, or the one line a failed scene ends the job with (the report
     at ``failure_report`` outlives the job: Snakemake deletes a failed job's outputs)."""
@@ -279,8 +350,16 @@ def scene_job(cfg: dict, finger_npz, object_npz, material: str, outdir: str | Pa
 
     with log_to(log):
         try:
-            out = run_scene(cfg, TriMesh.load(finger_npz), TriMesh.load(object_npz), material,
-                            outdir, scene=scene, vtu=vtu, failure_report=failure_report)
+            out = run_scene(
+                cfg,
+                TriMesh.load(finger_npz),
+                TriMesh.load(object_npz),
+                material,
+                outdir,
+                scene=scene,
+                vtu=vtu,
+                failure_report=failure_report,
+            )
             print({k: v for k, v in out.items() if k != "solver"})
         except SimulationError as e:
             failed = f"{e} (report: {failure_report})"
@@ -292,5 +371,8 @@ def scene_job(cfg: dict, finger_npz, object_npz, material: str, outdir: str | Pa
 def rigid_object_cfg(fea: dict, finger: dict, finger_material: dict) -> dict:
     """A scene config whose object is rigid (material ``"rigid"``): a printed PLA object
     or a steel one against the TPU finger."""
-    return {"fea": fea, "finger": finger,
-            "materials": {"rigid": {"rigid": True}, finger["material"]: finger_material}}
+    return {
+        "fea": fea,
+        "finger": finger,
+        "materials": {"rigid": {"rigid": True}, finger["material"]: finger_material},
+    }

@@ -18,6 +18,7 @@ every solved frame is checked: a relative difference above
 ``SimulationOptions.equilibrium_tol`` stops the run with a :class:`SimulationError`
 naming the frame and the error.
 """
+
 from __future__ import annotations
 
 import logging
@@ -38,8 +39,14 @@ from .problem import Model
 from .stepping import StepOptions, march
 from ..schema import schema_default
 
-__all__ = ["RigidObject", "DeformableObject", "SimulationOptions", "SimulationResult",
-           "simulate", "boundary_loops"]
+__all__ = [
+    "RigidObject",
+    "DeformableObject",
+    "SimulationOptions",
+    "SimulationResult",
+    "simulate",
+    "boundary_loops",
+]
 
 log = logging.getLogger(__name__)
 #: mm: the record's first, cheap gap probe (one seventh of the 1 mm probe's cost on a
@@ -219,8 +226,13 @@ def _deformable_defaults(obj: DeformableObject, direction=(1.0, 0.0)):
     return contact, driven
 
 
-def simulate(finger_mesh: TriMesh, obj: RigidObject | DeformableObject, material: NeoHookean,
-             options: SimulationOptions | None = None, **kw) -> SimulationResult:
+def simulate(
+    finger_mesh: TriMesh,
+    obj: RigidObject | DeformableObject,
+    material: NeoHookean,
+    options: SimulationOptions | None = None,
+    **kw,
+) -> SimulationResult:
     """Push ``obj`` into the clamped finger and record frames.
 
     ``material``: the finger's elastic law. Keyword arguments override fields of
@@ -242,10 +254,21 @@ def simulate(finger_mesh: TriMesh, obj: RigidObject | DeformableObject, material
     push = float(opts.push_mm)
     extrusion = opts.extrusion_mm or float(finger_mesh.meta.get("extrusion_mm", 20.0))
     frames = _Frames(scene, opts, push, direction)
-    stopped = _push(scene, frames, opts, push, direction, extrusion,
-                    f"FEA {getattr(obj, 'name', 'object')}")
-    meta = _metadata(scene, obj, material, opts, push, direction, extrusion, stopped,
-                     frames.rec["displacement_mm"][-1], t_start)
+    stopped = _push(
+        scene, frames, opts, push, direction, extrusion, f"FEA {getattr(obj, 'name', 'object')}"
+    )
+    meta = _metadata(
+        scene,
+        obj,
+        material,
+        opts,
+        push,
+        direction,
+        extrusion,
+        stopped,
+        frames.rec["displacement_mm"][-1],
+        t_start,
+    )
     return frames.result(opts, extrusion, isinstance(obj, DeformableObject), meta)
 
 
@@ -289,12 +312,23 @@ def _assemble(fm: TriMesh, obj, material: NeoHookean, opts: SimulationOptions) -
     body = np.r_[np.zeros(Nf, int), np.ones(len(obj_pts), int)]
     segs = np.vstack([split_p2_edges(finger_edges).astype(np.int64), obj_segs])
     cm = ContactModel(points, segs, body, rigid_bodies=rigid, params=opts.contact)
-    model = Model(points, blocks, fixed_nodes=base_nodes, driven_nodes=driven, contact=cm,
-                  driver_stiffness=opts.driver_stiffness, psd=opts.psd,
-                  linear_solver=opts.linear_solver)
+    model = Model(
+        points,
+        blocks,
+        fixed_nodes=base_nodes,
+        driven_nodes=driven,
+        contact=cm,
+        driver_stiffness=opts.driver_stiffness,
+        psd=opts.psd,
+        linear_solver=opts.linear_solver,
+    )
     if cm.has_intersections(np.zeros((len(points), 2))):
-        raise SimulationError("the object intersects the finger in the initial state",
-                              step=0, load=0.0, cause="initial intersection")
+        raise SimulationError(
+            "the object intersects the finger in the initial state",
+            step=0,
+            load=0.0,
+            cause="initial intersection",
+        )
     obj_nodes = np.zeros(len(points), bool)
     obj_nodes[Nf:] = True
     base_mask = np.zeros(len(points), bool)
@@ -307,12 +341,29 @@ class _Frames:
     equilibrium) and appends its forces, displacements, stresses and contact gaps;
     :meth:`result` makes them a :class:`SimulationResult`."""
 
-    KEYS = ("displacement_mm", "target_mm", "force", "base", "friction", "Uf", "vmf", "Uo",
-            "vmo", "gap_obj", "gap_self", "n_obj", "n_self", "iters", "steps", "wall", "res",
-            "eq", "contact_y")
+    KEYS = (
+        "displacement_mm",
+        "target_mm",
+        "force",
+        "base",
+        "friction",
+        "Uf",
+        "vmf",
+        "Uo",
+        "vmo",
+        "gap_obj",
+        "gap_self",
+        "n_obj",
+        "n_self",
+        "iters",
+        "steps",
+        "wall",
+        "res",
+        "eq",
+        "contact_y",
+    )
 
-    def __init__(self, scene: _Scene, opts: SimulationOptions, push: float,
-                 direction: np.ndarray):
+    def __init__(self, scene: _Scene, opts: SimulationOptions, push: float, direction: np.ndarray):
         self.scene, self.opts, self.push, self.direction = scene, opts, push, direction
         self.rec: dict[str, list] = {k: [] for k in self.KEYS}
         # which self pairs are real contacts (not neighbours along the same boundary)
@@ -330,9 +381,19 @@ class _Frames:
         sc, model = self.scene, self.scene.model
         f_nodes = model.contact_nodal_forces(q, sc.obj_nodes)
         f_obj, f_base = f_nodes.sum(axis=0), model.elastic_force(q, sc.base_mask)
-        return f_obj, f_base, float(np.linalg.norm(f_obj - f_base) / max(
-            np.linalg.norm(f_obj), np.linalg.norm(f_base), self.opts.equilibrium_floor_N_per_mm)), \
-            contact_centroid_y(sc.points[sc.n_finger:, 1] + model.U(q)[sc.n_finger:, 1], f_nodes)
+        return (
+            f_obj,
+            f_base,
+            float(
+                np.linalg.norm(f_obj - f_base)
+                / max(
+                    np.linalg.norm(f_obj),
+                    np.linalg.norm(f_base),
+                    self.opts.equilibrium_floor_N_per_mm,
+                )
+            ),
+            contact_centroid_y(sc.points[sc.n_finger :, 1] + model.U(q)[sc.n_finger :, 1], f_nodes),
+        )
 
     def _equilibrium(self, k, s, q, info):
         """The frame's state (q, or q polished to ``equilibrium_tol``) and its
@@ -340,8 +401,12 @@ class _Frames:
         equilibrium."""
         opts, model = self.opts, self.scene.model
         if not np.all(np.isfinite(q)):
-            raise SimulationError(f"non-finite state at frame {k} (load factor {s:.4f})",
-                                  step=info.get("steps"), load=s, cause="non-finite state")
+            raise SimulationError(
+                f"non-finite state at frame {k} (load factor {s:.4f})",
+                step=info.get("steps"),
+                load=s,
+                cause="non-finite state",
+            )
         f_obj, f_base, err, y_c = self.balance(q)
         if k > 0 and not err <= opts.equilibrium_tol:  # frame 0: the rest state, not solved
             # the residual test (relative to all loads) passed, yet the object's force
@@ -356,7 +421,10 @@ class _Frames:
                 raise SimulationError(
                     f"frame {k}: equilibrium error {err:.2e} > tolerance "
                     f"{opts.equilibrium_tol:.0e} (|force on object - clamp reaction| / |force|)",
-                    step=info.get("steps"), load=s, cause="equilibrium")
+                    step=info.get("steps"),
+                    load=s,
+                    cause="equilibrium",
+                )
         return q, f_obj, f_base, err, y_c
 
     def _gaps(self, U):
@@ -375,9 +443,12 @@ class _Frames:
                 break
         d = pr["d"]
         act = d < opts.contact.dhat
-        return (float(d[fo].min()) if fo.any() else np.nan,
-                float(d[fs].min()) if fs.any() else np.nan,
-                int((fo & act).sum()), int((fs & act).sum()))
+        return (
+            float(d[fo].min()) if fo.any() else np.nan,
+            float(d[fs].min()) if fs.any() else np.nan,
+            int((fo & act).sum()),
+            int((fs & act).sum()),
+        )
 
     def record(self, k, s, q, info):
         """Record frame k at load factor s; returns its state (q, or q polished to
@@ -414,28 +485,42 @@ class _Frames:
         """The frames recorded whole (a frame that failed its check is not), for a
         :class:`SimulationError`'s ``partial``."""
         n_ok = len(self.rec["force"])
-        return {"displacement_mm": np.array(self.rec["displacement_mm"][:n_ok]),
-                "force_N": np.array(self.rec["force"]).reshape(n_ok, 2) * extrusion}
+        return {
+            "displacement_mm": np.array(self.rec["displacement_mm"][:n_ok]),
+            "force_N": np.array(self.rec["force"]).reshape(n_ok, 2) * extrusion,
+        }
 
-    def result(self, opts: SimulationOptions, extrusion: float, deformable: bool,
-               meta: dict) -> SimulationResult:
+    def result(
+        self, opts: SimulationOptions, extrusion: float, deformable: bool, meta: dict
+    ) -> SimulationResult:
         rec = self.rec
         F = np.array(rec["force"])
         B = np.array(rec["base"])
         vmo = np.array(rec["vmo"]) if (opts.stress and deformable) else None
         return SimulationResult(
-            displacement_mm=np.array(rec["displacement_mm"]), target_mm=np.array(rec["target_mm"]),
-            force_N_per_mm=F, force_N=F * extrusion, base_reaction_N_per_mm=B,
-            base_reaction_N=B * extrusion, friction_force_N_per_mm=np.array(rec["friction"]),
+            displacement_mm=np.array(rec["displacement_mm"]),
+            target_mm=np.array(rec["target_mm"]),
+            force_N_per_mm=F,
+            force_N=F * extrusion,
+            base_reaction_N_per_mm=B,
+            base_reaction_N=B * extrusion,
+            friction_force_N_per_mm=np.array(rec["friction"]),
             finger_displacement_mm=np.array(rec["Uf"]),
             finger_von_mises_MPa=np.array(rec["vmf"]) if opts.stress else None,
-            object_displacement_mm=np.array(rec["Uo"]), object_von_mises_MPa=vmo,
-            min_gap_object_mm=np.array(rec["gap_obj"]), min_gap_self_mm=np.array(rec["gap_self"]),
-            n_pairs_object=np.array(rec["n_obj"]), n_pairs_self=np.array(rec["n_self"]),
-            newton_iterations=np.array(rec["iters"]), residual_rel=np.array(rec["res"]),
-            equilibrium_rel_error=np.array(rec["eq"]), load_steps=np.array(rec["steps"]),
-            wall_time_s=np.array(rec["wall"]), meta=meta,
-            contact_y_mm=np.array(rec["contact_y"], float))
+            object_displacement_mm=np.array(rec["Uo"]),
+            object_von_mises_MPa=vmo,
+            min_gap_object_mm=np.array(rec["gap_obj"]),
+            min_gap_self_mm=np.array(rec["gap_self"]),
+            n_pairs_object=np.array(rec["n_obj"]),
+            n_pairs_self=np.array(rec["n_self"]),
+            newton_iterations=np.array(rec["iters"]),
+            residual_rel=np.array(rec["res"]),
+            equilibrium_rel_error=np.array(rec["eq"]),
+            load_steps=np.array(rec["steps"]),
+            wall_time_s=np.array(rec["wall"]),
+            meta=meta,
+            contact_y_mm=np.array(rec["contact_y"], float),
+        )
 
 
 def _force_limit(model: Model, opts: SimulationOptions, extrusion: float):
@@ -449,11 +534,19 @@ def _force_limit(model: Model, opts: SimulationOptions, extrusion: float):
     def limit(q):
         # the driving spring's force: the object's contact force at equilibrium, free
         return float(np.linalg.norm(model.driver_force(q))) * extrusion / opts.force_cap_N
+
     return limit
 
 
-def _push(scene: _Scene, frames: _Frames, opts: SimulationOptions, push: float,
-          direction: np.ndarray, extrusion: float, what: str) -> bool:
+def _push(
+    scene: _Scene,
+    frames: _Frames,
+    opts: SimulationOptions,
+    push: float,
+    direction: np.ndarray,
+    extrusion: float,
+    what: str,
+) -> bool:
     """Record the rest state, then move the object ``push`` mm in load steps, a frame
     every ``frame_step_mm``; whether the push stopped at ``force_cap_N``. A failed
     step's :class:`SimulationError` is told the displacement and the frames before it."""
@@ -471,42 +564,72 @@ def _push(scene: _Scene, frames: _Frames, opts: SimulationOptions, push: float,
         if info.get("stop"):
             stopped.append(s)
         q = frames.record(k + 1, s, q, info)
-        progress(k + 1, f"travel {frames.rec['displacement_mm'][-1]:.2f}/{push:g} mm, "
-                        f"{info.get('steps', 0)} load steps")
+        progress(
+            k + 1,
+            f"travel {frames.rec['displacement_mm'][-1]:.2f}/{push:g} mm, "
+            f"{info.get('steps', 0)} load steps",
+        )
         return q
 
-    so = StepOptions(initial_step=opts.initial_step_mm / push, max_step=opts.max_step_mm / push,
-                     min_step=opts.min_step_mm / push, max_retries=opts.max_retries,
-                     friction_lag_iterations=opts.friction_lag_iterations)
+    so = StepOptions(
+        initial_step=opts.initial_step_mm / push,
+        max_step=opts.max_step_mm / push,
+        min_step=opts.min_step_mm / push,
+        max_retries=opts.max_retries,
+        friction_lag_iterations=opts.friction_lag_iterations,
+    )
     limit = _force_limit(model, opts, extrusion)
     try:
-        march(model, q0, lambda s: s * push * direction, frames_s[1:], so, opts.newton,
-              on_frame=on_frame, friction=opts.contact.mu > 0, limit=limit)
+        march(
+            model,
+            q0,
+            lambda s: s * push * direction,
+            frames_s[1:],
+            so,
+            opts.newton,
+            on_frame=on_frame,
+            friction=opts.contact.mu > 0,
+            limit=limit,
+        )
     except SimulationError as e:
-        e.args = (f"{e.args[0]} at object displacement {e.load * push:.4f} mm "
-                  f"(push {push} mm)",)
+        e.args = (f"{e.args[0]} at object displacement {e.load * push:.4f} mm (push {push} mm)",)
         e.partial = frames.partial(extrusion)
         raise
     return bool(stopped)
 
 
-def _metadata(scene: _Scene, obj, material: NeoHookean, opts: SimulationOptions, push: float,
-              direction: np.ndarray, extrusion: float, stopped: bool, push_reached_mm: float,
-              t_start: float) -> dict:
+def _metadata(
+    scene: _Scene,
+    obj,
+    material: NeoHookean,
+    opts: SimulationOptions,
+    push: float,
+    direction: np.ndarray,
+    extrusion: float,
+    stopped: bool,
+    push_reached_mm: float,
+    t_start: float,
+) -> dict:
     """``SimulationResult.meta``: the scene's sizes and materials, the options, the
     solver's counters and timings, and why the push ended."""
     model = scene.model
     return {
-        "n_finger_nodes": scene.n_finger, "n_object_nodes": len(scene.points) - scene.n_finger,
+        "n_finger_nodes": scene.n_finger,
+        "n_object_nodes": len(scene.points) - scene.n_finger,
         "n_dofs": model.n,
         "object": getattr(obj, "name", type(obj).__name__),
         "object_kind": "rigid" if isinstance(obj, RigidObject) else "deformable",
         "finger_material": {"name": material.name, "E_MPa": material.E, "nu": material.nu},
-        "object_material": (None if isinstance(obj, RigidObject) else
-                            {"name": obj.material.name, "E_MPa": obj.material.E,
-                             "nu": obj.material.nu}),
-        "extrusion_mm": extrusion, "push_mm": push, "direction": direction.tolist(),
-        "contact": asdict(opts.contact), "driver_stiffness": opts.driver_stiffness,
+        "object_material": (
+            None
+            if isinstance(obj, RigidObject)
+            else {"name": obj.material.name, "E_MPa": obj.material.E, "nu": obj.material.nu}
+        ),
+        "extrusion_mm": extrusion,
+        "push_mm": push,
+        "direction": direction.tolist(),
+        "contact": asdict(opts.contact),
+        "driver_stiffness": opts.driver_stiffness,
         "linear_solver": model.linsolve.backend,
         "cholmod_mode": model.linsolve.mode,
         "n_ldl_fallbacks": model.linsolve.n_ldl_fallbacks,  # "hybrid": LL' failed, LDL'
@@ -519,17 +642,22 @@ def _metadata(scene: _Scene, obj, material: NeoHookean, opts: SimulationOptions,
         "gradient_fallbacks": model.counters["gradient_fallbacks"],
         "equilibrium_polishes": model.counters["equilibrium_polishes"],
         "residual_max_rel": model.counters["residual_max_rel"],
-        "residual_tol": opts.newton.tol_residual, "equilibrium_tol": opts.equilibrium_tol,
+        "residual_tol": opts.newton.tol_residual,
+        "equilibrium_tol": opts.equilibrium_tol,
         "n_analyses": model.linsolve.n_analyses,
-        "timings_s": {**{k: round(v, 4) for k, v in model.stats.items()},
-                      "factor": round(model.linsolve.time_factor, 4),
-                      "analyse": round(model.linsolve.time_analyse, 4),
-                      "total": round(time.perf_counter() - t_start, 4)},
+        "timings_s": {
+            **{k: round(v, 4) for k, v in model.stats.items()},
+            "factor": round(model.linsolve.time_factor, 4),
+            "analyse": round(model.linsolve.time_analyse, 4),
+            "total": round(time.perf_counter() - t_start, 4),
+        },
         "sign_convention": "force_*: finger on object; base_reaction_*: clamp on finger",
         # "complete": the whole push; "force_cap": ended at force_cap_N (frames kept)
-        "stop": {"reason": "force_cap" if stopped else "complete",
-                 "push_reached_mm": float(push_reached_mm),
-                 "force_cap_N": opts.force_cap_N},
+        "stop": {
+            "reason": "force_cap" if stopped else "complete",
+            "push_reached_mm": float(push_reached_mm),
+            "force_cap_N": opts.force_cap_N,
+        },
     }
 
 
@@ -546,8 +674,14 @@ def asdict_shallow(o) -> dict:
     return {f: getattr(o, f) for f in o.__dataclass_fields__}
 
 
-def front_contact_circle(params, height_mm: float, diameter_mm: float, gap_mm: float = 0.1,
-                         n: int | None = None, size_mm: float = 0.25) -> RigidObject:
+def front_contact_circle(
+    params,
+    height_mm: float,
+    diameter_mm: float,
+    gap_mm: float = 0.1,
+    n: int | None = None,
+    size_mm: float = 0.25,
+) -> RigidObject:
     """A rigid circle touching the finger's front face at ``height_mm`` with ``gap_mm``
     clearance (for benchmarks; the project's placement lives in the geometry stage)."""
     W, H = params.base_width_mm, params.apex_height_mm

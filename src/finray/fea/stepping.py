@@ -7,6 +7,7 @@ forces/tangents lagged at the step start and re-lagged ``friction_lag_iterations
 times within the step's Newton solve, at each convergence (or first once its step
 falls below ``friction_relag_dx``, off by default).
 """
+
 from __future__ import annotations
 
 import time
@@ -18,6 +19,7 @@ from ..errors import SimulationError
 from .newton import NewtonOptions, newton
 from .problem import Model
 from ..schema import schema_default
+
 
 @dataclass
 class StepOptions:
@@ -45,9 +47,17 @@ class StepOptions:
     limit_overshoot: float = 0.05
 
 
-def march(model: Model, q: np.ndarray, targets, frames: np.ndarray,
-          step_opts: StepOptions | None = None, newton_opts: NewtonOptions | None = None,
-          on_frame=None, friction: bool = True, limit=None):
+def march(
+    model: Model,
+    q: np.ndarray,
+    targets,
+    frames: np.ndarray,
+    step_opts: StepOptions | None = None,
+    newton_opts: NewtonOptions | None = None,
+    on_frame=None,
+    friction: bool = True,
+    limit=None,
+):
     """Advance the load factor s from its current 0 to each value in ``frames``.
 
     ``targets(s)`` gives the driver target (2,) at load factor s (also sets
@@ -90,16 +100,21 @@ def march(model: Model, q: np.ndarray, targets, frames: np.ndarray,
                 q_init = None
                 if so.predictor == "tangent":
                     q_init = _predict_tangent(model, q, s_new - s)
-                if (q_init is None and so.predictor in ("tangent", "secant")
-                        and q_prev is not None and s > s_prev):
+                if (
+                    q_init is None
+                    and so.predictor in ("tangent", "secant")
+                    and q_prev is not None
+                    and s > s_prev
+                ):
                     q_init = _cut(model, q, (q - q_prev) * ((s_new - s) / (s - s_prev)))
                 if q_init is None:
                     q_init = q
                 relag = None
                 if friction and model.contact is not None and model.contact.params.mu > 0:
                     relag = lambda q_: model.contact.update_friction(model.U(q_))  # noqa: E731
-                res = newton(model, q_init, no, relag, so.friction_lag_iterations,
-                             so.friction_relag_dx)
+                res = newton(
+                    model, q_init, no, relag, so.friction_lag_iterations, so.friction_relag_dx
+                )
                 iters = res.iterations
                 iters_frame += iters
                 if res.converged and model.has_driver and so.max_driver_lag is not None:
@@ -109,7 +124,10 @@ def march(model: Model, q: np.ndarray, targets, frames: np.ndarray,
                             f"load step {step} (load factor {s:.5f} -> {s_new:.5f}): the "
                             f"driven object lags its prescribed position by {lag:.3g} mm; it "
                             f"is blocked (e.g. pressed against the clamped base)",
-                            step=step, load=s_new, cause="object blocked")
+                            step=step,
+                            load=s_new,
+                            cause="object blocked",
+                        )
                 stop = False
                 if res.converged and limit is not None:
                     ratio = limit(res.q)
@@ -125,7 +143,11 @@ def march(model: Model, q: np.ndarray, targets, frames: np.ndarray,
                 if retries > so.max_retries or (s_new - s) / 2 < so.min_step:
                     raise SimulationError(
                         f"load step {step} (load factor {s:.5f} -> {s_new:.5f}) failed: "
-                        f"{res.cause}", step=step, load=s_new, cause=res.cause)
+                        f"{res.cause}",
+                        step=step,
+                        load=s_new,
+                        cause=res.cause,
+                    )
                 ds = (s_new - s) / 2
                 s_new = s + ds
             q_prev, s_prev = q, s
@@ -135,16 +157,32 @@ def march(model: Model, q: np.ndarray, targets, frames: np.ndarray,
                 ds = min(so.max_step, ds * so.grow)
             if stop:
                 if on_frame is not None:
-                    q_frame = on_frame(k, s, q, {"newton_iterations": iters_frame,
-                                                 "wall_time_s": time.perf_counter() - t_frame,
-                                                 "steps": step, "residual_rel": residual,
-                                                 "stop": True})
+                    q_frame = on_frame(
+                        k,
+                        s,
+                        q,
+                        {
+                            "newton_iterations": iters_frame,
+                            "wall_time_s": time.perf_counter() - t_frame,
+                            "steps": step,
+                            "residual_rel": residual,
+                            "stop": True,
+                        },
+                    )
                     q = q if q_frame is None else q_frame
                 return q
         if on_frame is not None:
-            q_frame = on_frame(k, s, q, {"newton_iterations": iters_frame,
-                                         "wall_time_s": time.perf_counter() - t_frame,
-                                         "steps": step, "residual_rel": residual})
+            q_frame = on_frame(
+                k,
+                s,
+                q,
+                {
+                    "newton_iterations": iters_frame,
+                    "wall_time_s": time.perf_counter() - t_frame,
+                    "steps": step,
+                    "residual_rel": residual,
+                },
+            )
             if q_frame is not None:  # e.g. polished to a tighter tolerance by the caller
                 q = q_frame
         iters_frame = 0

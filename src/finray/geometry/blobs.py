@@ -13,6 +13,7 @@ falls below 40 % of R, so the curve is simple (one radius per angle). The curve 
 so that its largest extent (Feret diameter) is ``diameter_mm``. Everything follows from
 the seed: the same seed gives the same outline on every machine (numpy's PCG64).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -50,8 +51,14 @@ def _check(seed, diameter_mm, harmonics, amplitude, key):
         raise GeometryError(f"{key}.amplitude", f"must be in [0, {MAX_AMPLITUDE}], got {amplitude}")
 
 
-def blob_outline(seed: int, diameter_mm: float, harmonics: int = 5, amplitude: float = 0.4,
-                 max_chord_mm: float = 0.5, key: str = "object") -> np.ndarray:
+def blob_outline(
+    seed: int,
+    diameter_mm: float,
+    harmonics: int = 5,
+    amplitude: float = 0.4,
+    max_chord_mm: float = 0.5,
+    key: str = "object",
+) -> np.ndarray:
     """Counter-clockwise vertices (K, 2) of the blob, first != last, in mm around the
     origin; chords of at most ``max_chord_mm`` (evenly spaced in arc length).
     :class:`GeometryError` (one line, naming ``key``) on bad parameters."""
@@ -100,12 +107,19 @@ def generated_objects(gen: dict) -> dict[str, dict]:
     section: ``count`` blobs with seeds ``seed`` .. ``seed + count - 1``."""
     lo, hi = gen["size_mm"]
     if not 0 < lo <= hi:
-        raise GeometryError("generated.size_mm", f"must be [min, max] with 0 < min <= max, got {[lo, hi]}")
+        raise GeometryError(
+            "generated.size_mm", f"must be [min, max] with 0 < min <= max, got {[lo, hi]}"
+        )
     out = {}
     for s in range(gen["seed"], gen["seed"] + gen["count"]):
         out[blob_name(s)] = {
-            "type": "blob", "seed": s, "diameter_mm": blob_diameter(s, (lo, hi)),
-            "harmonics": gen["harmonics"], "amplitude": gen["amplitude"], "angle_deg": 0.0,
-            "split": gen["split"], "materials": list(gen["materials"]),
+            "type": "blob",
+            "seed": s,
+            "diameter_mm": blob_diameter(s, (lo, hi)),
+            "harmonics": gen["harmonics"],
+            "amplitude": gen["amplitude"],
+            "angle_deg": 0.0,
+            "split": gen["split"],
+            "materials": list(gen["materials"]),
         }
     return out

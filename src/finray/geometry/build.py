@@ -8,6 +8,7 @@ Files (all lengths in mm):
   ``finger_surface.npz`` the same with ``node_map`` to the 2D nodes.
 - ``objects/<name>_h<height>.npz`` (+ ``.vtu``): the placed object.
 """
+
 from __future__ import annotations
 
 import json
@@ -46,22 +47,37 @@ def build_finger(cfg: dict, outdir: str | Path) -> dict:
     topo = check_watertight(surf)
     if not topo["watertight"] or topo["signed_volume_mm3"] <= 0:
         raise RuntimeError(f"extruded finger surface is not closed and outward: {topo}")
-    meshio.Mesh(surf.points, [("triangle", surf.faces.astype(np.int32))]).write(outdir / "finger_surface.ply")
-    np.savez_compressed(outdir / "finger_surface.npz", points=surf.points, faces=surf.faces,
-                        node_map=surf.node_map)
-    summary = {"params": cfg["finger"], "mesh": m, **{k: v for k, v in mesh.meta.items()
-                                                      if k not in ("tag_ids",)},
-               "surface": topo, "tag_ids": mesh.meta["tag_ids"]}
+    meshio.Mesh(surf.points, [("triangle", surf.faces.astype(np.int32))]).write(
+        outdir / "finger_surface.ply"
+    )
+    np.savez_compressed(
+        outdir / "finger_surface.npz", points=surf.points, faces=surf.faces, node_map=surf.node_map
+    )
+    summary = {
+        "params": cfg["finger"],
+        "mesh": m,
+        **{k: v for k, v in mesh.meta.items() if k not in ("tag_ids",)},
+        "surface": topo,
+        "tag_ids": mesh.meta["tag_ids"],
+    }
     (outdir / "finger.json").write_text(json.dumps(summary, indent=2))
     return summary
 
 
-def build_object(cfg: dict, name: str, height_mm: float, out_npz: str | Path,
-                 deformable: bool) -> TriMesh:
+def build_object(
+    cfg: dict, name: str, height_mm: float, out_npz: str | Path, deformable: bool
+) -> TriMesh:
     """Place object ``name`` at ``height_mm`` and write it to ``out_npz`` (+ ``.vtu``)."""
     m = cfg["mesh"]
-    obj = object_geometry(name, cfg["objects"][name], finger_from_config(cfg), height_mm,
-                          size_mm=m["size_mm"], deformable=deformable,
-                          gap_mm=cfg["placement"]["gap_mm"], min_angle_deg=m["min_angle_deg"])
+    obj = object_geometry(
+        name,
+        cfg["objects"][name],
+        finger_from_config(cfg),
+        height_mm,
+        size_mm=m["size_mm"],
+        deformable=deformable,
+        gap_mm=cfg["placement"]["gap_mm"],
+        min_angle_deg=m["min_angle_deg"],
+    )
     write_mesh(obj, out_npz)
     return obj

@@ -12,6 +12,7 @@ Its centre line meets the inner face of the back wall at
 makes it rise). The re-entrant corners of the cavities are filleted so that the
 stress and the contact stay regular.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -132,36 +133,57 @@ def check_ribs(p: FingerParams) -> None:
         a = np.radians(p.rib_angles_deg()[i])
         half = r.thickness_mm / (2 * np.cos(a))  # half-thickness measured vertically
         if b[1] + half + 2 * p.fillet_radius_mm >= tip_y:
-            raise GeometryError(f"{key}.spacing_mm", (
-                f"rib {i + 1} meets the back wall at y={b[1]:.2f} mm, above the cavity "
-                f"tip at y={tip_y:.2f} mm; use fewer ribs or a smaller spacing"))
+            raise GeometryError(
+                f"{key}.spacing_mm",
+                (
+                    f"rib {i + 1} meets the back wall at y={b[1]:.2f} mm, above the cavity "
+                    f"tip at y={tip_y:.2f} mm; use fewer ribs or a smaller spacing"
+                ),
+            )
         # width of the cavity at the rib's back end, along the horizontal
         width = b[0] - (t_wall - n[1] * b[1]) / n[0]  # inner front face: n . x = t
         if width < 2 * clearance + r.thickness_mm:
-            raise GeometryError(f"{key}.spacing_mm", (
-                f"rib {i + 1} meets the back wall at y={b[1]:.2f} mm, where the cavity "
-                f"is only {max(width, 0):.2f} mm wide; use fewer ribs or a smaller spacing"))
+            raise GeometryError(
+                f"{key}.spacing_mm",
+                (
+                    f"rib {i + 1} meets the back wall at y={b[1]:.2f} mm, where the cavity "
+                    f"is only {max(width, 0):.2f} mm wide; use fewer ribs or a smaller spacing"
+                ),
+            )
         if f[0] >= b[0] - 2 * clearance:
-            raise GeometryError(f"{key}.first_angle_deg", (
-                f"rib {i + 1} does not reach the front wall (angle "
-                f"{p.rib_angles_deg()[i]:.1f} deg is too steep)"))
+            raise GeometryError(
+                f"{key}.first_angle_deg",
+                (
+                    f"rib {i + 1} does not reach the front wall (angle "
+                    f"{p.rib_angles_deg()[i]:.1f} deg is too steep)"
+                ),
+            )
         floor = p.base_thickness_mm + 2 * p.fillet_radius_mm
         if min(f[1], b[1]) - half < floor:
-            raise GeometryError(f"{key}.first_height_mm", (
-                f"rib {i + 1} runs into the base plate (its lower edge reaches "
-                f"y={min(f[1], b[1]) - half:.2f} mm; it must stay above y={floor:.2f} mm, "
-                "the base plate plus two fillet radii)"))
+            raise GeometryError(
+                f"{key}.first_height_mm",
+                (
+                    f"rib {i + 1} runs into the base plate (its lower edge reaches "
+                    f"y={min(f[1], b[1]) - half:.2f} mm; it must stay above y={floor:.2f} mm, "
+                    "the base plate plus two fillet radii)"
+                ),
+            )
         if f[1] + half + 2 * p.fillet_radius_mm >= tip_y:
-            raise GeometryError(f"{key}.first_angle_deg", (
-                f"rib {i + 1} meets the front wall above the cavity tip"))
+            raise GeometryError(
+                f"{key}.first_angle_deg", (f"rib {i + 1} meets the front wall above the cavity tip")
+            )
     ends = rib_centrelines(p)
     for i in range(r.count - 1):
         (b0, f0), (b1, f1) = ends[i], ends[i + 1]
         gap = min(b1[1] - b0[1], f1[1] - f0[1]) - r.thickness_mm
         if gap < 2 * p.fillet_radius_mm + 0.1:
-            raise GeometryError(f"{key}.spacing_mm", (
-                f"ribs {i + 1} and {i + 2} touch or cross (vertical gap {gap:.2f} mm at "
-                f"the walls); increase spacing or reduce angle_step_deg"))
+            raise GeometryError(
+                f"{key}.spacing_mm",
+                (
+                    f"ribs {i + 1} and {i + 2} touch or cross (vertical gap {gap:.2f} mm at "
+                    f"the walls); increase spacing or reduce angle_step_deg"
+                ),
+            )
 
 
 def _inner_tip_height(p: FingerParams) -> float:
@@ -188,7 +210,8 @@ def cavities(p: FingerParams, arc_chord_mm: float = ARC_CHORD_MM) -> list[Polygo
     W, H, t = p.base_width_mm, p.apex_height_mm, p.wall_thickness_mm
     tri = Polygon([(0, 0), (W, 0), (W, H)])
     hollow = tri.buffer(-t, join_style="mitre").intersection(
-        box(-1, p.base_thickness_mm, W + 1, H + 1))
+        box(-1, p.base_thickness_mm, W + 1, H + 1)
+    )
     strips = []
     for b, f in rib_centrelines(p):
         d = (f - b) / np.linalg.norm(f - b)
@@ -197,18 +220,26 @@ def cavities(p: FingerParams, arc_chord_mm: float = ARC_CHORD_MM) -> list[Polygo
     cells = hollow.difference(shapely.union_all(strips))
     parts = list(cells.geoms) if isinstance(cells, MultiPolygon) else [cells]
     if len(parts) != p.ribs.count + 1:
-        raise GeometryError("finger.ribs", (
-            f"the ribs split the cavity into {len(parts)} cells, expected "
-            f"{p.ribs.count + 1}; check spacing_mm and the angles"))
+        raise GeometryError(
+            "finger.ribs",
+            (
+                f"the ribs split the cavity into {len(parts)} cells, expected "
+                f"{p.ribs.count + 1}; check spacing_mm and the angles"
+            ),
+        )
     r = p.fillet_radius_mm
     q = _arc_segments(r, arc_chord_mm)
     out = []
     for i, c in enumerate(sorted(parts, key=lambda c: c.centroid.y)):
         rc = c.buffer(-r, quad_segs=q).buffer(r, quad_segs=q) if r > 0 else c
         if not isinstance(rc, Polygon) or rc.is_empty or rc.area < 0.5 * c.area:
-            raise GeometryError("finger.fillet_radius_mm", (
-                f"a {r} mm fillet does not fit in cavity {i + 1} (area {c.area:.2f} mm^2, "
-                f"below rib {i + 1}); reduce the fillet, the number of ribs or angle_step_deg"))
+            raise GeometryError(
+                "finger.fillet_radius_mm",
+                (
+                    f"a {r} mm fillet does not fit in cavity {i + 1} (area {c.area:.2f} mm^2, "
+                    f"below rib {i + 1}); reduce the fillet, the number of ribs or angle_step_deg"
+                ),
+            )
         out.append(shapely.set_precision(rc, 1e-9))
     return out
 
@@ -217,8 +248,7 @@ def finger_polygon(p: FingerParams, arc_chord_mm: float = ARC_CHORD_MM) -> Polyg
     """Material region of the finger profile; arcs drawn with chords <= ``arc_chord_mm``
     (mm), whatever the element size."""
     check_ribs(p)
-    poly = outer_polygon(p, arc_chord_mm).difference(
-        shapely.union_all(cavities(p, arc_chord_mm)))
+    poly = outer_polygon(p, arc_chord_mm).difference(shapely.union_all(cavities(p, arc_chord_mm)))
     poly = poly.simplify(1e-4)  # drop collinear points left by the boolean operations
     if not isinstance(poly, Polygon) or not poly.is_valid:
         raise GeometryError("finger", "the finger profile is not a single valid polygon")
@@ -242,8 +272,13 @@ def tag_finger_boundary(mesh: TriMesh, poly: Polygon, p: FingerParams) -> None:
     mesh.boundary_tags = tags
 
 
-def mesh_finger(p: FingerParams, size_mm: float = 0.5, min_angle_deg: float = 25.0,
-                order: int = 2, arc_chord_mm: float = ARC_CHORD_MM) -> TriMesh:
+def mesh_finger(
+    p: FingerParams,
+    size_mm: float = 0.5,
+    min_angle_deg: float = 25.0,
+    order: int = 2,
+    arc_chord_mm: float = ARC_CHORD_MM,
+) -> TriMesh:
     """Quadratic triangle mesh of the finger with tagged boundaries.
 
     ``size_mm``: element edge length (mm) away from the arcs; ``arc_chord_mm``: longest
@@ -252,14 +287,19 @@ def mesh_finger(p: FingerParams, size_mm: float = 0.5, min_angle_deg: float = 25
     poly = finger_polygon(p, arc_chord_mm)
     mesh, _ = triangulate_polygon(poly, size_mm, min_angle_deg, order)
     tag_finger_boundary(mesh, poly, p)
-    mesh.meta.update({
-        "kind": "finger", "size_mm": size_mm, "min_angle_deg": min_angle_deg,
-        "arc_chord_mm": arc_chord_mm,
-        "front_angle_deg": p.front_angle_deg,
-        "rib_angles_deg": p.rib_angles_deg().tolist(),
-        "rib_back_heights_mm": p.rib_back_heights_mm().tolist(),
-        "extrusion_mm": p.extrusion_mm, "area_mm2": poly.area,
-        "tag_ids": BOUNDARY_TAGS,
-    })
+    mesh.meta.update(
+        {
+            "kind": "finger",
+            "size_mm": size_mm,
+            "min_angle_deg": min_angle_deg,
+            "arc_chord_mm": arc_chord_mm,
+            "front_angle_deg": p.front_angle_deg,
+            "rib_angles_deg": p.rib_angles_deg().tolist(),
+            "rib_back_heights_mm": p.rib_back_heights_mm().tolist(),
+            "extrusion_mm": p.extrusion_mm,
+            "area_mm2": poly.area,
+            "tag_ids": BOUNDARY_TAGS,
+        }
+    )
     mesh.meta["quality"] = quality(mesh)
     return mesh

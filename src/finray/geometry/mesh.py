@@ -9,6 +9,7 @@ Boundary edges are stored as ``[a, b, mid]`` (``mid = -1`` for linear meshes),
 oriented so that the material lies on the left of ``a -> b``: exterior rings run
 counter-clockwise, hole rings clockwise.
 """
+
 from __future__ import annotations
 
 import json
@@ -25,8 +26,15 @@ if TYPE_CHECKING:  # shapely (40 ms of import) only where polygons are meshed
 #: Boundary tag ids. ``cavity`` are the surfaces inside the finger (rib faces,
 #: inner faces of the walls and the base), which touch each other when the ribs jam.
 #: ``object_inner`` are the hole boundaries of an object (the bore of the ring).
-BOUNDARY_TAGS = {"base": 1, "front": 2, "back": 3, "tip": 4, "cavity": 5, "object": 6,
-                 "object_inner": 7}
+BOUNDARY_TAGS = {
+    "base": 1,
+    "front": 2,
+    "back": 3,
+    "tip": 4,
+    "cavity": 5,
+    "object": 6,
+    "object_inner": 7,
+}
 
 
 @dataclass
@@ -56,24 +64,35 @@ class TriMesh:
 
     def save(self, path: str | Path) -> None:
         np.savez_compressed(
-            path, points=self.points, triangles=self.triangles,
-            boundary_edges=self.boundary_edges, boundary_tags=self.boundary_tags,
+            path,
+            points=self.points,
+            triangles=self.triangles,
+            boundary_edges=self.boundary_edges,
+            boundary_tags=self.boundary_tags,
             meta=json.dumps(self.meta),
         )
 
     @classmethod
     def load(cls, path: str | Path) -> "TriMesh":
         with np.load(path) as f:
-            return cls(f["points"], f["triangles"], f["boundary_edges"],
-                       f["boundary_tags"], json.loads(str(f["meta"])))
+            return cls(
+                f["points"],
+                f["triangles"],
+                f["boundary_edges"],
+                f["boundary_tags"],
+                json.loads(str(f["meta"])),
+            )
 
     def to_meshio(self):
         import meshio
 
         pts3 = np.column_stack([self.points, np.zeros(len(self.points))])
         if len(self.triangles) == 0:  # rigid object: its boundary loops only
-            return meshio.Mesh(pts3, [("line", self.boundary_edges[:, :2])],
-                               cell_data={"tag": [self.boundary_tags]})
+            return meshio.Mesh(
+                pts3,
+                [("line", self.boundary_edges[:, :2])],
+                cell_data={"tag": [self.boundary_tags]},
+            )
         ctype = "triangle6" if self.order == 2 else "triangle"
         return meshio.Mesh(pts3, [(ctype, self.triangles)])
 
@@ -90,8 +109,9 @@ def split_p2_edges(edges: np.ndarray) -> np.ndarray:
 def signed_areas(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
     """Signed area (mm^2) of each triangle from its first three nodes."""
     a, b, c = (points[tri[:, i]] for i in range(3))
-    return 0.5 * ((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1])
-                  - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
+    return 0.5 * (
+        (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+    )
 
 
 def triangle_angles_deg(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
@@ -113,11 +133,16 @@ def quality(mesh: TriMesh) -> dict:
     edge = np.linalg.norm(p - np.roll(p, -1, axis=1), axis=2)
     area = signed_areas(mesh.points, mesh.triangles)
     return {
-        "n_nodes": int(len(mesh.points)), "n_triangles": int(len(mesh.triangles)),
-        "order": mesh.order, "min_angle_deg": float(ang.min()),
-        "max_angle_deg": float(ang.max()), "min_edge_mm": float(edge.min()),
-        "max_edge_mm": float(edge.max()), "mean_edge_mm": float(edge.mean()),
-        "n_inverted": int((area <= 0).sum()), "area_mm2": float(area.sum()),
+        "n_nodes": int(len(mesh.points)),
+        "n_triangles": int(len(mesh.triangles)),
+        "order": mesh.order,
+        "min_angle_deg": float(ang.min()),
+        "max_angle_deg": float(ang.max()),
+        "min_edge_mm": float(edge.min()),
+        "max_edge_mm": float(edge.max()),
+        "mean_edge_mm": float(edge.mean()),
+        "n_inverted": int((area <= 0).sum()),
+        "area_mm2": float(area.sum()),
     }
 
 
@@ -140,8 +165,9 @@ def polygon_rings(poly: Polygon, max_len: float) -> list[np.ndarray]:
     return [resample_ring(np.asarray(r.coords)[:-1], max_len) for r in rings]
 
 
-def triangulate_polygon(poly: Polygon, size_mm: float, min_angle_deg: float = 25.0,
-                        order: int = 2) -> tuple[TriMesh, list[np.ndarray]]:
+def triangulate_polygon(
+    poly: Polygon, size_mm: float, min_angle_deg: float = 25.0, order: int = 2
+) -> tuple[TriMesh, list[np.ndarray]]:
     """Quality-triangulate a (multiply connected) polygon.
 
     Returns the mesh (boundary tags left 0 for the caller to classify) and the
@@ -174,8 +200,9 @@ def triangulate_polygon(poly: Polygon, size_mm: float, min_angle_deg: float = 25
     key = np.sort(e, axis=1)
     _, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
     bedges = e[cnt[inv.ravel()] == 1]
-    mesh = TriMesh(pts, tris, np.column_stack([bedges, -np.ones(len(bedges), int)]),
-                   np.zeros(len(bedges), int))
+    mesh = TriMesh(
+        pts, tris, np.column_stack([bedges, -np.ones(len(bedges), int)]), np.zeros(len(bedges), int)
+    )
     if order == 2:
         mesh = elevate_to_p2(mesh)
     return mesh, rings
@@ -191,11 +218,16 @@ def elevate_to_p2(mesh: TriMesh) -> TriMesh:
     inv = inv.ravel()
     mids = 0.5 * (mesh.points[uniq[:, 0]] + mesh.points[uniq[:, 1]])
     m = len(tri)
-    tri6 = np.column_stack([tri, n + inv[:m], n + inv[m:2 * m], n + inv[2 * m:]])
+    tri6 = np.column_stack([tri, n + inv[:m], n + inv[m : 2 * m], n + inv[2 * m :]])
     be = mesh.boundary_edges[:, :2]
     # locate each boundary edge among the unique (lexicographically sorted) edges
     bkey = np.sort(be, axis=1)
     code = uniq[:, 0] * n + uniq[:, 1]
     bmid = np.searchsorted(code, bkey[:, 0] * n + bkey[:, 1]) + n
-    return TriMesh(np.vstack([mesh.points, mids]), tri6,
-                   np.column_stack([be, bmid]), mesh.boundary_tags.copy(), dict(mesh.meta))
+    return TriMesh(
+        np.vstack([mesh.points, mids]),
+        tri6,
+        np.column_stack([be, bmid]),
+        mesh.boundary_tags.copy(),
+        dict(mesh.meta),
+    )

@@ -5,6 +5,7 @@ placed at the contact height and moved by the load), then placed left of the
 front face at the height of the contact with a gap of ``gap_mm`` to the finger.
 Rigid objects are boundaries only; deformable ones are meshed.
 """
+
 from __future__ import annotations
 
 import json
@@ -80,10 +81,13 @@ def object_shape(spec: dict, size_mm: float = 0.5, key: str = "object") -> Polyg
     elif kind == "ring":
         wall = spec["wall_mm"]
         if 2 * wall >= spec["diameter_mm"]:
-            raise GeometryError(f"{key}.wall_mm", (
-                f"a {wall} mm wall does not fit in a {spec['diameter_mm']} mm ring"))
+            raise GeometryError(
+                f"{key}.wall_mm",
+                (f"a {wall} mm wall does not fit in a {spec['diameter_mm']} mm ring"),
+            )
         shape = _circle(spec["diameter_mm"], size_mm).difference(
-            _circle(spec["diameter_mm"] - 2 * wall, size_mm))
+            _circle(spec["diameter_mm"] - 2 * wall, size_mm)
+        )
     elif kind == "square":
         s = spec["side_mm"]
         f = spec.get("fillet_mm", 0.5)
@@ -104,19 +108,29 @@ def object_shape(spec: dict, size_mm: float = 0.5, key: str = "object") -> Polyg
         if not isinstance(shape, Polygon) or shape.is_empty:
             raise GeometryError(f"{key}.fillet_mm", "the fillet removes the whole polygon")
     elif kind == "blob":  # seeded smooth random polygon (finray.geometry.blobs)
-        shape = Polygon(blob_outline(spec["seed"], spec["diameter_mm"], spec.get("harmonics", 5),
-                                     spec.get("amplitude", 0.4), 0.5 * size_mm, key))
+        shape = Polygon(
+            blob_outline(
+                spec["seed"],
+                spec["diameter_mm"],
+                spec.get("harmonics", 5),
+                spec.get("amplitude", 0.4),
+                0.5 * size_mm,
+                key,
+            )
+        )
     else:
-        raise GeometryError(f"{key}.type", (
-            f"unknown object type '{kind}' (one of {', '.join(OBJECT_TYPES)})"))
+        raise GeometryError(
+            f"{key}.type", (f"unknown object type '{kind}' (one of {', '.join(OBJECT_TYPES)})")
+        )
     angle = spec.get("angle_deg", 0.0)
     if angle:
         shape = affinity.rotate(shape, angle, origin=(0, 0))
     return shapely.geometry.polygon.orient(shape, 1.0)
 
 
-def place_object(shape: Polygon, finger: FingerParams, height_mm: float,
-                 gap_mm: float = 0.1, key: str = "object") -> tuple[Polygon, np.ndarray]:
+def place_object(
+    shape: Polygon, finger: FingerParams, height_mm: float, gap_mm: float = 0.1, key: str = "object"
+) -> tuple[Polygon, np.ndarray]:
     """Translate ``shape`` to contact height ``height_mm``, ``gap_mm`` left of the finger.
 
     The x offset is found by bisection on the distance to the finger outline, which
@@ -125,13 +139,19 @@ def place_object(shape: Polygon, finger: FingerParams, height_mm: float,
     """
     outline = outer_polygon(finger)
     if not 0 < height_mm < finger.height_mm:
-        raise GeometryError("heights_mm", (
-            f"contact height {height_mm} mm is outside the finger (0, {finger.height_mm}) mm"))
+        raise GeometryError(
+            "heights_mm",
+            (f"contact height {height_mm} mm is outside the finger (0, {finger.height_mm}) mm"),
+        )
     s = affinity.translate(shape, 0.0, height_mm)
     if s.bounds[1] < 0:
-        raise GeometryError(key, (
-            f"at contact height {height_mm} mm the object reaches y={s.bounds[1]:.2f} mm, "
-            "below the clamped base"))
+        raise GeometryError(
+            key,
+            (
+                f"at contact height {height_mm} mm the object reaches y={s.bounds[1]:.2f} mm, "
+                "below the clamped base"
+            ),
+        )
     width = s.bounds[2] - s.bounds[0]
     lo = -(width + 10.0) - s.bounds[2]  # fully left of the finger: positive distance
     hi = finger.base_width_mm - s.bounds[0]  # right of the finger's left edge
@@ -148,9 +168,16 @@ def place_object(shape: Polygon, finger: FingerParams, height_mm: float,
     return placed, ref
 
 
-def object_geometry(name: str, spec: dict, finger: FingerParams, height_mm: float,
-                    size_mm: float = 0.5, deformable: bool = False,
-                    gap_mm: float = 0.1, min_angle_deg: float = 25.0) -> TriMesh:
+def object_geometry(
+    name: str,
+    spec: dict,
+    finger: FingerParams,
+    height_mm: float,
+    size_mm: float = 0.5,
+    deformable: bool = False,
+    gap_mm: float = 0.1,
+    min_angle_deg: float = 25.0,
+) -> TriMesh:
     """Placed object as a :class:`TriMesh`.
 
     Rigid objects carry no triangles: ``points`` are their boundary vertices and
@@ -162,10 +189,13 @@ def object_geometry(name: str, spec: dict, finger: FingerParams, height_mm: floa
     placed, ref = place_object(shape, finger, height_mm, gap_mm, key)
     if deformable:
         mesh, _ = triangulate_polygon(placed, size_mm, min_angle_deg, order=2)
-        mid = 0.5 * (mesh.points[mesh.boundary_edges[:, 0]] + mesh.points[mesh.boundary_edges[:, 1]])
+        mid = 0.5 * (
+            mesh.points[mesh.boundary_edges[:, 0]] + mesh.points[mesh.boundary_edges[:, 1]]
+        )
         on_outer = shapely.distance(placed.exterior, shapely.points(mid)) < 1e-6
-        mesh.boundary_tags = np.where(on_outer, BOUNDARY_TAGS["object"],
-                                      BOUNDARY_TAGS["object_inner"])
+        mesh.boundary_tags = np.where(
+            on_outer, BOUNDARY_TAGS["object"], BOUNDARY_TAGS["object_inner"]
+        )
     else:
         rings = polygon_rings(placed, size_mm)
         pts, edges, tags, off = [], [], [], 0
@@ -175,13 +205,23 @@ def object_geometry(name: str, spec: dict, finger: FingerParams, height_mm: floa
             edges.append(np.column_stack([idx, np.roll(idx, -1), -np.ones(len(r), int)]))
             tags.append(np.full(len(r), BOUNDARY_TAGS["object" if k == 0 else "object_inner"]))
             off += len(r)
-        mesh = TriMesh(np.vstack(pts), np.zeros((0, 3), np.int64), np.vstack(edges),
-                       np.concatenate(tags))
-    mesh.meta.update({
-        "kind": "object", "name": name, "spec": spec, "rigid": not deformable,
-        "height_mm": height_mm, "reference_point_mm": ref.tolist(), "gap_mm": gap_mm,
-        "area_mm2": placed.area, "size_mm": size_mm, "tag_ids": BOUNDARY_TAGS,
-    })
+        mesh = TriMesh(
+            np.vstack(pts), np.zeros((0, 3), np.int64), np.vstack(edges), np.concatenate(tags)
+        )
+    mesh.meta.update(
+        {
+            "kind": "object",
+            "name": name,
+            "spec": spec,
+            "rigid": not deformable,
+            "height_mm": height_mm,
+            "reference_point_mm": ref.tolist(),
+            "gap_mm": gap_mm,
+            "area_mm2": placed.area,
+            "size_mm": size_mm,
+            "tag_ids": BOUNDARY_TAGS,
+        }
+    )
     if deformable:
         mesh.meta["quality"] = quality(mesh)
     return mesh

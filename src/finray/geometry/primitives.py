@@ -4,6 +4,7 @@ problems, the benchmarks and the rigid objects of a scene.
 Structured (optionally graded) rectangle meshes of linear or quadratic
 triangles, and polylines for rigid bodies (circles, segments).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -11,8 +12,9 @@ import numpy as np
 from .mesh import TriMesh, elevate_to_p2
 
 
-def graded_coords(a: float, b: float, n: int, grading: float = 1.0,
-                  towards: str = "a") -> np.ndarray:
+def graded_coords(
+    a: float, b: float, n: int, grading: float = 1.0, towards: str = "a"
+) -> np.ndarray:
     """n + 1 coordinates from a to b; cells shrink geometrically by ``grading`` per
     cell towards ``a``, ``b`` or "both" ends (grading 1: uniform)."""
     if grading == 1.0:
@@ -66,8 +68,9 @@ def circle_polyline(center, radius: float, n: int) -> tuple[np.ndarray, np.ndarr
     return pts, edges
 
 
-def arc_polyline(center, radius: float, theta0: float, theta1: float,
-                 n: int) -> tuple[np.ndarray, np.ndarray]:
+def arc_polyline(
+    center, radius: float, theta0: float, theta1: float, n: int
+) -> tuple[np.ndarray, np.ndarray]:
     """Open arc polyline (n segments) from angle theta0 to theta1 (radians)."""
     th = np.linspace(theta0, theta1, n + 1)
     pts = np.asarray(center, float) + radius * np.column_stack([np.cos(th), np.sin(th)])

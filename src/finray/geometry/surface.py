@@ -4,6 +4,7 @@ The 2D mesh is extruded symmetrically to ``z = +-extrusion/2``. Every node of th
 2D mesh appears once on each cap, so a deformed frame is rendered by updating the
 surface points from the 2D displacements through ``node_map`` (no re-meshing).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -48,10 +49,12 @@ def extrude(mesh: TriMesh, extrusion_mm: float) -> Surface:
     remap[used] = np.arange(len(used))
     k = len(used)
     half = 0.5 * extrusion_mm
-    pts = np.vstack([
-        np.column_stack([mesh.points[used], np.full(k, half)]),
-        np.column_stack([mesh.points[used], np.full(k, -half)]),
-    ])
+    pts = np.vstack(
+        [
+            np.column_stack([mesh.points[used], np.full(k, half)]),
+            np.column_stack([mesh.points[used], np.full(k, -half)]),
+        ]
+    )
     tri = remap[linear_triangles(mesh)]
     seg = remap[split_p2_edges(mesh.boundary_edges)]
     top = tri  # counter-clockwise seen from +z: normal +z

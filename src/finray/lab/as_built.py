@@ -4,6 +4,7 @@
 ``youngs_modulus_scale`` times as stiff, the rig's friction; the object starts
 ``lab.motion.gap_mm`` off the finger and travels ``lab.motion.push_mm``.
 """
+
 from __future__ import annotations
 
 import copy
@@ -21,7 +22,9 @@ def as_built_finger(finger: dict, as_built: dict) -> dict:
 def as_built_material(material: dict, as_built: dict) -> dict:
     """The finger material's constants as printed (``source`` dropped)."""
     out = {k: v for k, v in material.items() if k != "source"}
-    out["youngs_modulus_MPa"] = material["youngs_modulus_MPa"] * float(as_built["youngs_modulus_scale"])
+    out["youngs_modulus_MPa"] = material["youngs_modulus_MPa"] * float(
+        as_built["youngs_modulus_scale"]
+    )
     return out
 
 

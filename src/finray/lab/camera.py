@@ -4,6 +4,7 @@ The pinhole and its conventions (world mm, OpenCV pixels, the inverse Brown-Conr
 distortion) are :class:`finray.render.camera.PinholeCamera`'s, re-exported here; this
 module adds what a real camera does to the pinhole image.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -31,19 +32,24 @@ class LensDistortion:
         ci = [np.clip(c0 + k, 0, W - 1).astype(np.int64) for k in (0, 1)]
         # flat indices of the four neighbours (faster to gather than 2D fancy indexing)
         self.idx = [[ri[a] * W + ci[b] for b in (0, 1)] for a in (0, 1)]
-        self.near = (np.clip(np.rint(rows), 0, H - 1).astype(np.int64) * W
-                     + np.clip(np.rint(cols), 0, W - 1).astype(np.int64))
+        self.near = np.clip(np.rint(rows), 0, H - 1).astype(np.int64) * W + np.clip(
+            np.rint(cols), 0, W - 1
+        ).astype(np.int64)
 
     def box_reading(self, r0: int, r1: int, c0: int, c1: int, margin: int = 0):
         """The smallest output box (rows, cols; end exclusive) whose pixels sample the
         pinhole image's box [r0, r1) x [c0, c1), grown by ``margin`` and clipped."""
-        inside = ((self.rows > r0 - 1) & (self.rows < r1) & (self.cols > c0 - 1) & (self.cols < c1))
+        inside = (self.rows > r0 - 1) & (self.rows < r1) & (self.cols > c0 - 1) & (self.cols < c1)
         rr, cc = np.flatnonzero(inside.any(axis=1)), np.flatnonzero(inside.any(axis=0))
         H, W = self.shape
         if not len(rr):
             return 0, 0, 0, 0
-        return (max(int(rr[0]) - margin, 0), min(int(rr[-1]) + 1 + margin, H),
-                max(int(cc[0]) - margin, 0), min(int(cc[-1]) + 1 + margin, W))
+        return (
+            max(int(rr[0]) - margin, 0),
+            min(int(rr[-1]) + 1 + margin, H),
+            max(int(cc[0]) - margin, 0),
+            min(int(cc[-1]) + 1 + margin, W),
+        )
 
     def image(self, img: np.ndarray, box=None) -> np.ndarray:
         """Colour (H, W, 3) float32 pinhole image -> the distorted image, or the
@@ -84,7 +90,7 @@ class SensorNoise:
     def apply(self, img: np.ndarray, sigma: np.ndarray) -> np.ndarray:
         """``img`` plus noise of ``sigma`` (same shape, float32) -> uint8."""
         off = int(self.rng.integers(0, 3 * self.n))
-        out = self.bank[off:off + self.n].reshape(self.shape) * sigma
+        out = self.bank[off : off + self.n].reshape(self.shape) * sigma
         out += img
         np.rint(out, out=out)
         np.clip(out, 0, 255, out=out)

@@ -17,6 +17,7 @@ interpolated linearly in the push between solver frames); the camera integrates
 ``exposure_ms`` (sub-frames averaged while the gripper moves: motion blur), then lens
 distortion, the optics' blur (Gaussian PSF), shot and read noise, 8 bits, H.264.
 """
+
 from __future__ import annotations
 
 import json
@@ -36,10 +37,17 @@ from .sensor import ForceSensor, write_forces_csv
 
 def camera_from_config(cam: dict, target_mm) -> PinholeCamera:
     return PinholeCamera.looking_at(
-        target_mm, width=cam["size_px"][0], height=cam["size_px"][1], hfov_deg=cam["hfov_deg"],
-        distance_mm=cam["distance_mm"], yaw_deg=cam["yaw_deg"], pitch_deg=cam["pitch_deg"],
-        roll_deg=cam["roll_deg"], principal_offset_px=cam["principal_offset_px"],
-        distortion=cam["distortion"])
+        target_mm,
+        width=cam["size_px"][0],
+        height=cam["size_px"][1],
+        hfov_deg=cam["hfov_deg"],
+        distance_mm=cam["distance_mm"],
+        yaw_deg=cam["yaw_deg"],
+        pitch_deg=cam["pitch_deg"],
+        roll_deg=cam["roll_deg"],
+        principal_offset_px=cam["principal_offset_px"],
+        distortion=cam["distortion"],
+    )
 
 
 class _Interpolator:
@@ -63,8 +71,17 @@ class _Interpolator:
         return np.interp(d, self.d, self.res.fx_N), np.interp(d, self.d, self.res.fy_N)
 
 
-def emulate_take(result_npz, take_dir, lab: dict, *, object_name: str, height_mm: float,
-                 extrusion_mm: float, seed: int = 0, log=print) -> dict:
+def emulate_take(
+    result_npz,
+    take_dir,
+    lab: dict,
+    *,
+    object_name: str,
+    height_mm: float,
+    extrusion_mm: float,
+    seed: int = 0,
+    log=print,
+) -> dict:
     """Write one take (see the module's text); returns ``truth.json``'s content.
     ``lab``: the config's ``lab`` section."""
     t_wall = time.perf_counter()
@@ -80,8 +97,10 @@ def emulate_take(result_npz, take_dir, lab: dict, *, object_name: str, height_mm
         # the FEA stopped at its physical limit (fea.force_cap_N; a scene that failed
         # writes no result): a force-limited gripper stops there too, at the same speed
         motion = replace(motion, push_mm=reach)
-        log(f"the FEA stopped at {reach:.3f} mm of lab.motion.push_mm's "
-            f"{lab['motion']['push_mm']:g} mm: the take pushes {reach:.3f} mm")
+        log(
+            f"the FEA stopped at {reach:.3f} mm of lab.motion.push_mm's "
+            f"{lab['motion']['push_mm']:g} mm: the take pushes {reach:.3f} mm"
+        )
     cam_cfg, look = lab["camera"], lab["scene"]
     target = (float(look["target_mm"][0]), float(look["target_mm"][1]), 0.0)
     camera = camera_from_config(cam_cfg, target)
@@ -98,9 +117,16 @@ def emulate_take(result_npz, take_dir, lab: dict, *, object_name: str, height_mm
     H, W = camera.height, camera.width
     push_mid = motion.push(t)
     bits, mask_px = np.zeros((n, H, (W + 7) // 8), np.uint8), np.zeros(n, np.int64)
-    with LabScene(res.mesh, outline, camera, look, extrusion_mm, seed=seed) as scene, \
-            VideoWriter(take_dir / "take.mp4", fps, (W, H), crf=cam_cfg["video_crf"],
-                        pix_fmt=cam_cfg["video_pix_fmt"]) as video:
+    with (
+        LabScene(res.mesh, outline, camera, look, extrusion_mm, seed=seed) as scene,
+        VideoWriter(
+            take_dir / "take.mp4",
+            fps,
+            (W, H),
+            crf=cam_cfg["video_crf"],
+            pix_fmt=cam_cfg["video_pix_fmt"],
+        ) as video,
+    ):
         # Only the finger and the clamp move: the full frame is rendered and processed
         # once, and each frame re-renders and re-processes only the box they can reach.
         pin = scene.render_colour().astype(np.float32)  # the pinhole image, full frame
@@ -127,7 +153,7 @@ def emulate_take(result_npz, take_dir, lab: dict, *, object_name: str, height_mm
             pushes = motion.push(subs)
             key = None
             if np.ptp(pushes) < 1e-3:  # still: one render
-                pushes = pushes[len(pushes) // 2:len(pushes) // 2 + 1]
+                pushes = pushes[len(pushes) // 2 : len(pushes) // 2 + 1]
                 key = (float(pushes[0]), float(push_mid[k]))
             if key in seen:
                 box_img, box_mask, box_sig = seen[key]
@@ -145,7 +171,7 @@ def emulate_take(result_npz, take_dir, lab: dict, *, object_name: str, height_mm
                 if key is not None:
                     seen[key] = (box_img, box_mask, box_sig)
             mask = np.zeros((H, W), bool)
-            mask[b1[0]:b1[1], b1[2]:b1[3]] = box_mask
+            mask[b1[0] : b1[1], b1[2] : b1[3]] = box_mask
             bits[k], mask_px[k] = np.packbits(mask, axis=-1), mask.sum()
             frame[box], sig[box] = box_img, box_sig
             video.write(noise.apply(frame, sig))
@@ -167,10 +193,14 @@ def emulate_take(result_npz, take_dir, lab: dict, *, object_name: str, height_mm
     # camera = sensor + offset(t): offset(t) = offset (1 + drift) - drift t (see sensor)
     offset_mid = offset * (1 + drift) - drift * 0.5 * motion.duration_s
 
-    meta = {"object": object_name, "contact_height_mm": float(height_mm), "push_axis": "-fz",
-            "camera": {"intrinsics": camera.intrinsics(), "model": cam_cfg["model"]},
-            "video": "take.mp4",
-            "emulated": "finray.lab: an emulated rig, not a recording (see truth/truth.json)"}
+    meta = {
+        "object": object_name,
+        "contact_height_mm": float(height_mm),
+        "push_axis": "-fz",
+        "camera": {"intrinsics": camera.intrinsics(), "model": cam_cfg["model"]},
+        "video": "take.mp4",
+        "emulated": "finray.lab: an emulated rig, not a recording (see truth/truth.json)",
+    }
     if look.get("finger_colour"):
         meta["finger_colour"] = look["finger_colour"]
     (take_dir / "take.json").write_text(json.dumps(meta, indent=1))
@@ -180,23 +210,46 @@ def emulate_take(result_npz, take_dir, lab: dict, *, object_name: str, height_mm
     f_frame = force_at((t[:, None] + fine[None, :]).ravel())[0].reshape(n, -1).mean(axis=1)
     import pandas as pd
 
-    pd.DataFrame({"frame": np.arange(n), "t_s": t, "push_mm": push_mid, "force_N": f_frame,
-                  "mask_px": mask_px}).to_csv(
-        take_dir / "truth" / "frames.csv", index=False, float_format="%.6g")
-    truth = {"offset_s": offset_mid, "offset_start_s": offset * (1 + drift),
-             "offset_end_s": offset * (1 + drift) - drift * motion.duration_s,
-             "frame_interval_s": 1.0 / fps, "n_frames": n,
-             "sensor": {"gain": 1.0 + sensor.gain_error, "bias_N": list(sensor.bias_N),
-                        "noise_N": list(sensor.noise_N), "rate_hz": sensor.rate_hz},
-             "camera": {"intrinsics": camera.intrinsics(), "position_mm": list(camera.position),
-                        "target_mm": list(camera.target), "up": list(camera.up)},
-             "force_max_N": float(f_frame.max()), "fea_result": str(result_npz),
-             "push_mm": motion.push_mm, "force_limited": force_limited,
-             "seed": seed, "wall_s": time.perf_counter() - t_wall}
+    pd.DataFrame(
+        {
+            "frame": np.arange(n),
+            "t_s": t,
+            "push_mm": push_mid,
+            "force_N": f_frame,
+            "mask_px": mask_px,
+        }
+    ).to_csv(take_dir / "truth" / "frames.csv", index=False, float_format="%.6g")
+    truth = {
+        "offset_s": offset_mid,
+        "offset_start_s": offset * (1 + drift),
+        "offset_end_s": offset * (1 + drift) - drift * motion.duration_s,
+        "frame_interval_s": 1.0 / fps,
+        "n_frames": n,
+        "sensor": {
+            "gain": 1.0 + sensor.gain_error,
+            "bias_N": list(sensor.bias_N),
+            "noise_N": list(sensor.noise_N),
+            "rate_hz": sensor.rate_hz,
+        },
+        "camera": {
+            "intrinsics": camera.intrinsics(),
+            "position_mm": list(camera.position),
+            "target_mm": list(camera.target),
+            "up": list(camera.up),
+        },
+        "force_max_N": float(f_frame.max()),
+        "fea_result": str(result_npz),
+        "push_mm": motion.push_mm,
+        "force_limited": force_limited,
+        "seed": seed,
+        "wall_s": time.perf_counter() - t_wall,
+    }
     (take_dir / "truth" / "truth.json").write_text(json.dumps(truth, indent=1))
-    log(f"{take_dir.name}: {n} frames {camera.width}x{camera.height} at {fps:g} FPS, "
+    log(
+        f"{take_dir.name}: {n} frames {camera.width}x{camera.height} at {fps:g} FPS, "
         f"{len(flog['t_s'])} sensor samples, offset {offset_mid:+.4f} s, "
-        f"largest force {truth['force_max_N']:.2f} N ({truth['wall_s']:.1f} s)")
+        f"largest force {truth['force_max_N']:.2f} N ({truth['wall_s']:.1f} s)"
+    )
     return truth
 
 
@@ -214,8 +267,10 @@ def _grow(box, r: int, H: int, W: int):
 def _moving_box(scene: LabScene, fea: _Interpolator, camera: PinholeCamera, margin: int = 3):
     """The pinhole image's box (rows, cols; end exclusive) that holds the finger and the
     clamp in every FEA state, each at its shift (-push along x), plus ``margin`` px."""
-    pts = [scene.surface.deformed(fea.res.points + fea.res.u_mm[i]) - [d, 0.0, 0.0]
-           for i, d in enumerate(fea.d)]
+    pts = [
+        scene.surface.deformed(fea.res.points + fea.res.u_mm[i]) - [d, 0.0, 0.0]
+        for i, d in enumerate(fea.d)
+    ]
     pts += [scene.clamp_ref.points - [d, 0.0, 0.0] for d in (fea.d[0], fea.d[-1])]
     uv = camera.project(np.vstack(pts))
     c0, r0 = np.floor(uv.min(axis=0)).astype(int) - margin

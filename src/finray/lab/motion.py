@@ -7,6 +7,7 @@ controlled linear axis makes it: zero speed and acceleration at both ends, mean 
 ``speed_mm_s``. The finger is quasi-static in the FEA, so lowering and raising pass
 through the same states (TPU's viscoelastic hysteresis is not modelled).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -30,9 +31,13 @@ class GripperMotion:
 
     @classmethod
     def from_config(cls, m: dict) -> "GripperMotion":
-        return cls(push_mm=float(m["push_mm"]), speed_mm_s=float(m["speed_mm_s"]),
-                   hold_s=float(m["hold_s"]), starts_s=tuple(float(s) for s in m["starts_s"]),
-                   duration_s=float(m["duration_s"]))
+        return cls(
+            push_mm=float(m["push_mm"]),
+            speed_mm_s=float(m["speed_mm_s"]),
+            hold_s=float(m["hold_s"]),
+            starts_s=tuple(float(s) for s in m["starts_s"]),
+            duration_s=float(m["duration_s"]),
+        )
 
     @property
     def ramp_s(self) -> float:
@@ -40,11 +45,14 @@ class GripperMotion:
 
     def __post_init__(self):
         ends = [s + 2 * self.ramp_s + self.hold_s for s in self.starts_s]
-        if any(b > a for a, b in zip(self.starts_s[1:], ends[:-1])) or \
-                (ends and (ends[-1] > self.duration_s or self.starts_s[0] < 0)):
-            raise ValueError(f"lab.motion: cycles at {list(self.starts_s)} s of "
-                             f"{2 * self.ramp_s + self.hold_s:g} s each overlap or leave the "
-                             f"{self.duration_s:g} s take")
+        if any(b > a for a, b in zip(self.starts_s[1:], ends[:-1])) or (
+            ends and (ends[-1] > self.duration_s or self.starts_s[0] < 0)
+        ):
+            raise ValueError(
+                f"lab.motion: cycles at {list(self.starts_s)} s of "
+                f"{2 * self.ramp_s + self.hold_s:g} s each overlap or leave the "
+                f"{self.duration_s:g} s take"
+            )
 
     def push(self, t) -> np.ndarray:
         """Travel d(t) (mm) at times ``t`` (s)."""

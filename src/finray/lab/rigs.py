@@ -20,6 +20,7 @@ configured one with these drawn (from a generator seeded by ``seed`` and ``i``):
 
 Every drawn rig is emulated: its ``camera.model`` says so and which draw it is.
 """
+
 from __future__ import annotations
 
 import colorsys
@@ -44,8 +45,10 @@ def span_heights(rng: np.random.Generator, objects: dict, span_mm, n: int) -> li
     a = np.ceil(edges[:-1]).astype(int)
     b = np.r_[np.ceil(edges[1:-1]).astype(int) - 1, int(np.floor(hi))]
     if np.any(b < a):
-        raise ValueError(f"lab.rigs.height_span_mm {list(span_mm)}: from {lo:.1f} mm (where every "
-                         f"object clears the base) it holds fewer than {n} whole-mm heights")
+        raise ValueError(
+            f"lab.rigs.height_span_mm {list(span_mm)}: from {lo:.1f} mm (where every "
+            f"object clears the base) it holds fewer than {n} whole-mm heights"
+        )
     return [float(rng.integers(x, y + 1)) for x, y in zip(a, b)]
 
 
@@ -98,7 +101,9 @@ def _scale_object(spec: dict, s: float) -> dict:
         if key in out:
             out[key] = round(float(out[key]) * s, 2)
     if "vertices_mm" in out:
-        out["vertices_mm"] = [[round(float(x) * s, 2), round(float(y) * s, 2)] for x, y in out["vertices_mm"]]
+        out["vertices_mm"] = [
+            [round(float(x) * s, 2), round(float(y) * s, 2)] for x, y in out["vertices_mm"]
+        ]
     return out
 
 
@@ -115,8 +120,11 @@ def draw_rig(lab: dict, index: int) -> dict:
     out["seed"] = int(lab.get("seed", 0)) + 1000 * index  # the takes' noise: the rig's own
     for path, (lo, hi) in sorted(spec.get("uniform", {}).items()):
         old = _get(out, path)
-        value = (rng.uniform(lo, hi, len(old)).round(4).tolist() if isinstance(old, list)
-                 else round(float(rng.uniform(lo, hi)), 4))
+        value = (
+            rng.uniform(lo, hi, len(old)).round(4).tolist()
+            if isinstance(old, list)
+            else round(float(rng.uniform(lo, hi)), 4)
+        )
         _set(out, path, value)
     for path, options in sorted(spec.get("choice", {}).items()):
         _set(out, path, copy.deepcopy(options[int(rng.integers(len(options)))]))
@@ -130,12 +138,15 @@ def draw_rig(lab: dict, index: int) -> dict:
         grey = float(rng.uniform(*col["background_grey"]))
         scene["background_rgb"] = [round(grey, 4)] * 3
     if spec.get("object_scale"):
-        out["objects"] = {name: _scale_object(o, float(rng.uniform(*spec["object_scale"])))
-                          for name, o in sorted(out["objects"].items())}
+        out["objects"] = {
+            name: _scale_object(o, float(rng.uniform(*spec["object_scale"])))
+            for name, o in sorted(out["objects"].items())
+        }
     jitter = int(spec.get("height_jitter_mm", 0))
     if spec.get("height_span_mm"):
-        out["heights_mm"] = span_heights(rng, out["objects"], spec["height_span_mm"],
-                                         len(out["heights_mm"]))
+        out["heights_mm"] = span_heights(
+            rng, out["objects"], spec["height_span_mm"], len(out["heights_mm"])
+        )
     elif jitter:
         heights = [float(h) + int(rng.integers(-jitter, jitter + 1)) for h in out["heights_mm"]]
         if len(set(heights)) < len(heights):

@@ -19,6 +19,7 @@ The VTK camera is set from :class:`~finray.render.camera.PinholeCamera` by
 principal point by the window centre, so that a world point lands on
 :meth:`~finray.render.camera.PinholeCamera.project`'s pixel (tested).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -34,8 +35,9 @@ def prism(outline_xy: np.ndarray, z0: float, z1: float):
     import pyvista as pv
 
     n = len(outline_xy)
-    face = pv.PolyData(np.column_stack([outline_xy, np.full(n, z0)]),
-                       faces=np.concatenate([[n], np.arange(n)]))
+    face = pv.PolyData(
+        np.column_stack([outline_xy, np.full(n, z0)]), faces=np.concatenate([[n], np.arange(n)])
+    )
     return face.extrude((0.0, 0.0, z1 - z0), capping=True).triangulate().clean()
 
 
@@ -75,8 +77,15 @@ def wall_texture(shape=(256, 384), seed=0, base_rgb=(0.62, 0.60, 0.56)) -> np.nd
 class LabScene:
     """The scene of one take; :meth:`render` gives the colour and label images."""
 
-    def __init__(self, finger: TriMesh, object_outline: np.ndarray, camera: PinholeCamera,
-                 look: dict, extrusion_mm: float, seed: int = 0):
+    def __init__(
+        self,
+        finger: TriMesh,
+        object_outline: np.ndarray,
+        camera: PinholeCamera,
+        look: dict,
+        extrusion_mm: float,
+        seed: int = 0,
+    ):
         import pyvista as pv
 
         pv.OFF_SCREEN = True
@@ -100,8 +109,13 @@ class LabScene:
         oy = 0.5 * (object_outline[:, 1].min() + object_outline[:, 1].max())
         obj = prism(object_outline, -0.5 * look["object_length_mm"], 0.5 * look["object_length_mm"])
         s = look["sensor_mm"]  # diameter, thickness: a disc along x, left of the object
-        sensor = pv.Cylinder(center=(ox - 0.5 * s[1], oy, 0.0), direction=(1.0, 0.0, 0.0),
-                             radius=0.5 * s[0], height=s[1], resolution=64).triangulate()
+        sensor = pv.Cylinder(
+            center=(ox - 0.5 * s[1], oy, 0.0),
+            direction=(1.0, 0.0, 0.0),
+            radius=0.5 * s[0],
+            height=s[1],
+            resolution=64,
+        ).triangulate()
         wz, ww, wh = look["wall_z_mm"], look["wall_size_mm"][0], look["wall_size_mm"][1]
         tx, ty, _ = camera.target
         wall = pv.Plane(center=(tx, ty, wz), direction=(0, 0, 1), i_size=ww, j_size=wh)
@@ -119,8 +133,14 @@ class LabScene:
         for mesh, rgb in clutter:
             self.colour.add_mesh(mesh, color=rgb, **shade)
         for light in look["lights"]:
-            self.colour.add_light(pv.Light(position=light["position_mm"], focal_point=camera.target,
-                                           intensity=light["intensity"], light_type="scene light"))
+            self.colour.add_light(
+                pv.Light(
+                    position=light["position_mm"],
+                    focal_point=camera.target,
+                    intensity=light["intensity"],
+                    light_type="scene light",
+                )
+            )
         flat = dict(ambient=1.0, diffuse=0.0, specular=0.0, lighting=False)
         a = self.label.add_mesh(self.finger, color=(1.0, 1.0, 1.0), **flat)
         a.GetProperty().BackfaceCullingOn()

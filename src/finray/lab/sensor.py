@@ -9,6 +9,7 @@ offset is the logger's start before the camera plus a latency, so that
 ``camera time = sensor time + offset_s`` holds to the drift (as
 :mod:`finray.recording.sync` defines it).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -33,11 +34,16 @@ class ForceSensor:
 
     @classmethod
     def from_config(cls, s: dict) -> "ForceSensor":
-        return cls(rate_hz=float(s["rate_hz"]), noise_N=tuple(map(float, s["noise_N"])),
-                   bias_N=tuple(map(float, s["bias_N"])), gain_error=float(s["gain_error"]),
-                   clock_start_s=float(s["clock_start_s"]),
-                   latency_s=tuple(map(float, s["latency_s"])), drift_ppm=float(s["drift_ppm"]),
-                   margin_s=float(s["margin_s"]))
+        return cls(
+            rate_hz=float(s["rate_hz"]),
+            noise_N=tuple(map(float, s["noise_N"])),
+            bias_N=tuple(map(float, s["bias_N"])),
+            gain_error=float(s["gain_error"]),
+            clock_start_s=float(s["clock_start_s"]),
+            latency_s=tuple(map(float, s["latency_s"])),
+            drift_ppm=float(s["drift_ppm"]),
+            margin_s=float(s["margin_s"]),
+        )
 
     def draw_offset(self, rng: np.random.Generator) -> float:
         """The take's clock offset (s): ``camera time = sensor time + offset``."""
@@ -53,14 +59,19 @@ class ForceSensor:
         g = 1.0 + self.gain_error
         noise = rng.normal(0.0, 1.0, (n, 3)) * np.asarray(self.noise_N)
         b = np.asarray(self.bias_N)
-        return {"t_s": t_sensor, "fx_N": g * along + b[0] + noise[:, 0],
-                "fy_N": b[1] + noise[:, 1], "fz_N": -g * push + b[2] + noise[:, 2]}
+        return {
+            "t_s": t_sensor,
+            "fx_N": g * along + b[0] + noise[:, 0],
+            "fy_N": b[1] + noise[:, 1],
+            "fz_N": -g * push + b[2] + noise[:, 2],
+        }
 
 
 def write_forces_csv(path, log: dict) -> None:
     """``forces.csv`` as the logger writes it (``t_s`` to the microsecond, N to 0.1 mN)."""
     import pandas as pd
 
-    df = pd.DataFrame({"t_s": log["t_s"], "fx_N": log["fx_N"], "fy_N": log["fy_N"],
-                       "fz_N": log["fz_N"]})
+    df = pd.DataFrame(
+        {"t_s": log["t_s"], "fx_N": log["fx_N"], "fy_N": log["fy_N"], "fz_N": log["fz_N"]}
+    )
     df.to_csv(path, index=False, float_format="%.6f")

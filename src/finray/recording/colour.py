@@ -23,6 +23,7 @@ frame is the largest is the finger's: an ``"hcv"`` range, chroma from Otsu's
 threshold up, value >= 0.1. Give ``finger_colour`` when something else in
 view is more colourful and larger than the finger.
 """
+
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
@@ -33,9 +34,16 @@ from scipy import ndimage as ndi
 from ..dataset.imageops import clean_mask
 
 #: Named colours: hue ranges (deg) with saturation >= 0.35 and value >= 0.2.
-NAMED_HUES = {"red": (345.0, 15.0), "orange": (15.0, 45.0), "yellow": (45.0, 70.0),
-              "green": (75.0, 165.0), "cyan": (165.0, 200.0), "blue": (200.0, 260.0),
-              "purple": (260.0, 300.0), "magenta": (300.0, 345.0)}
+NAMED_HUES = {
+    "red": (345.0, 15.0),
+    "orange": (15.0, 45.0),
+    "yellow": (45.0, 70.0),
+    "green": (75.0, 165.0),
+    "cyan": (165.0, 200.0),
+    "blue": (200.0, 260.0),
+    "purple": (260.0, 300.0),
+    "magenta": (300.0, 345.0),
+}
 
 
 @dataclass(frozen=True)
@@ -64,8 +72,10 @@ class ColourRange:
     def describe(self) -> str:
         if self.space in ("hsv", "hcv"):
             what = "saturation" if self.space == "hsv" else "chroma"
-            return (f"hue {self.lo[0]:g}-{self.hi[0]:g} deg, {what} {self.lo[1]:.2f}-"
-                    f"{self.hi[1]:.2f}, value {self.lo[2]:.2f}-{self.hi[2]:.2f}")
+            return (
+                f"hue {self.lo[0]:g}-{self.hi[0]:g} deg, {what} {self.lo[1]:.2f}-"
+                f"{self.hi[1]:.2f}, value {self.lo[2]:.2f}-{self.hi[2]:.2f}"
+            )
         return f"Lab {list(self.lo)} to {list(self.hi)}"
 
     def contains(self, rgb: np.ndarray) -> np.ndarray:
@@ -96,8 +106,14 @@ def hsv(rgb: np.ndarray, chroma: bool = False) -> tuple[np.ndarray, np.ndarray, 
     mn = np.minimum(np.minimum(r, g), b)
     d = mx - mn
     dd = np.maximum(d, 1e-6)
-    h = np.where(mx == r, np.mod((g - b) / dd, 6.0),
-                 np.where(mx == g, (b - r) / dd + 2.0, (r - g) / dd + 4.0)) * 60.0
+    h = (
+        np.where(
+            mx == r,
+            np.mod((g - b) / dd, 6.0),
+            np.where(mx == g, (b - r) / dd + 2.0, (r - g) / dd + 4.0),
+        )
+        * 60.0
+    )
     s = d / 255.0 if chroma else d / np.maximum(mx, 1e-6)
     return h, s, mx / 255.0
 
@@ -122,8 +138,9 @@ def learn_colour(frames: list[np.ndarray], stride: int = 4) -> ColourRange | Non
     from skimage.filters import threshold_otsu
 
     subs = [f[::stride, ::stride] for f in frames]
-    h, s, v = (np.concatenate([c.ravel() for c in p])
-               for p in zip(*(hsv(f, chroma=True) for f in subs)))
+    h, s, v = (
+        np.concatenate([c.ravel() for c in p]) for p in zip(*(hsv(f, chroma=True) for f in subs))
+    )
     if s.max() - s.min() < 1e-3:
         return None
     s_min = float(np.clip(threshold_otsu(s), 0.08, 0.5))
@@ -132,8 +149,11 @@ def learn_colour(frames: list[np.ndarray], stride: int = 4) -> ColourRange | Non
         return None
     hist = np.bincount((h[coloured] // 5).astype(int) % 72, minlength=72).astype(float)
     hist = (np.roll(hist, 1) + 2 * hist + np.roll(hist, -1)) / 4  # circular smoothing
-    peaks = [k for k in range(72) if hist[k] >= max(hist[k - 1], hist[(k + 1) % 72])
-             and hist[k] >= 0.02 * coloured.sum()]
+    peaks = [
+        k
+        for k in range(72)
+        if hist[k] >= max(hist[k - 1], hist[(k + 1) % 72]) and hist[k] >= 0.02 * coloured.sum()
+    ]
     best, best_size = None, 0
     for k in peaks:
         lo = hi = k
@@ -141,17 +161,24 @@ def learn_colour(frames: list[np.ndarray], stride: int = 4) -> ColourRange | Non
             lo -= 1
         while hist[(hi + 1) % 72] >= 0.1 * hist[k] and (hi - k) < 8:
             hi += 1
-        cand = ColourRange("hcv", ((lo * 5) % 360, s_min, 0.1),
-                           (((hi + 1) * 5) % 360, 1.0, 1.0), "learned")
+        cand = ColourRange(
+            "hcv", ((lo * 5) % 360, s_min, 0.1), (((hi + 1) * 5) % 360, 1.0, 1.0), "learned"
+        )
         _, size = _largest_blob(cand.contains(subs[0]))
         if size > best_size:
             best, best_size = cand, size
     return best
 
 
-def segment_finger(rgb: np.ndarray, colour: ColourRange, stride: int = 4,
-                   min_object_frac: float = 1e-3, max_hole_frac: float = 2e-4,
-                   margin_px: int = 8, stats: dict | None = None) -> np.ndarray | None:
+def segment_finger(
+    rgb: np.ndarray,
+    colour: ColourRange,
+    stride: int = 4,
+    min_object_frac: float = 1e-3,
+    max_hole_frac: float = 2e-4,
+    margin_px: int = 8,
+    stats: dict | None = None,
+) -> np.ndarray | None:
     """Finger mask (H, W) bool of a frame, or None when no pixel has the finger's colour.
 
     The largest blob of the colour on the ``stride``-subsampled frame gives the box;

@@ -24,6 +24,7 @@ Each frame's mask comes with a confidence in [0, 1]: the share of the frame's pi
 of the finger's colour (or grey side) that the kept finger holds. Clutter of the
 finger's colour, or a background on the finger's side of the threshold, lowers it.
 """
+
 from __future__ import annotations
 
 import json
@@ -68,11 +69,18 @@ class FingerFinder:
             raise ValueError("a colour finger finder needs its colour range")
 
     @classmethod
-    def grey(cls, segment_kw: dict | None = None, stride: int = 1, source: str = "") -> "FingerFinder":
+    def grey(
+        cls, segment_kw: dict | None = None, stride: int = 1, source: str = ""
+    ) -> "FingerFinder":
         """The grey-level threshold with the model's settings (``segment_kw``: threshold,
         foreground, min_object_frac, max_hole_frac, keep_largest)."""
-        return cls("grey", None, dict(segment_kw or {}), int(stride),
-                   source=source or "grey-level threshold (the renders' segmentation)")
+        return cls(
+            "grey",
+            None,
+            dict(segment_kw or {}),
+            int(stride),
+            source=source or "grey-level threshold (the renders' segmentation)",
+        )
 
     def find(self, frame: np.ndarray) -> tuple[np.ndarray | None, float]:
         """The finger's mask (H, W) bool, or None where it is not found, and the mask's
@@ -86,8 +94,14 @@ class FingerFinder:
         else:
             if frame.ndim != 3 or frame.shape[2] < 3:
                 raise FrameError(f"expected an (H, W, 3) colour frame, got shape {frame.shape}")
-            mask = segment_finger(frame[..., :3], self.colour, self.stride, self.min_object_frac,
-                                  self.max_hole_frac, stats=stats)
+            mask = segment_finger(
+                frame[..., :3],
+                self.colour,
+                self.stride,
+                self.min_object_frac,
+                self.max_hole_frac,
+                stats=stats,
+            )
             if mask is None:
                 return None, 0.0
         kept = np.count_nonzero(mask)
@@ -111,22 +125,42 @@ class FingerFinder:
         """What ``segmentation.json`` keeps (read back by :func:`finder_from_spec`)."""
         out = {"mode": self.mode, "stride": self.stride, "source": self.source}
         if self.mode == "colour":
-            out.update(colour=self.colour.to_dict(), min_object_frac=self.min_object_frac,
-                       max_hole_frac=self.max_hole_frac)
+            out.update(
+                colour=self.colour.to_dict(),
+                min_object_frac=self.min_object_frac,
+                max_hole_frac=self.max_hole_frac,
+            )
         else:
             out["segment"] = self.segment_kw
         return out
 
 
-def colour_finder(colour: ColourRange, stride: int = 4, min_object_frac: float = 1e-3,
-                  max_hole_frac: float = 1e-5, source: str = "") -> FingerFinder:
+def colour_finder(
+    colour: ColourRange,
+    stride: int = 4,
+    min_object_frac: float = 1e-3,
+    max_hole_frac: float = 1e-5,
+    source: str = "",
+) -> FingerFinder:
     """A colour finder with ``finray ingest``'s sizes by default."""
-    return FingerFinder("colour", colour, {}, int(stride), float(min_object_frac),
-                        float(max_hole_frac), source or colour.source)
+    return FingerFinder(
+        "colour",
+        colour,
+        {},
+        int(stride),
+        float(min_object_frac),
+        float(max_hole_frac),
+        source or colour.source,
+    )
 
 
-def learn_finder(frames, grey: FingerFinder, stride: int = 4, min_object_frac: float = 1e-3,
-                 max_hole_frac: float = 1e-5) -> FingerFinder:
+def learn_finder(
+    frames,
+    grey: FingerFinder,
+    stride: int = 4,
+    min_object_frac: float = 1e-3,
+    max_hole_frac: float = 1e-5,
+) -> FingerFinder:
     """``auto``: the finder for a take or stream from its first frames (see the
     module's text); ``grey``: the model's grey-level finder."""
     colours = [np.asarray(f)[..., :3] for f in frames if np.asarray(f).ndim == 3]
@@ -134,10 +168,18 @@ def learn_finder(frames, grey: FingerFinder, stride: int = 4, min_object_frac: f
         return grey
     learned = learn_colour(colours, stride)
     if learned is None:
-        return FingerFinder.grey(grey.segment_kw, grey.stride,
-                                 "grey-level threshold (nothing coloured in the first frames)")
-    by_colour = colour_finder(learned, stride, min_object_frac, max_hole_frac,
-                              f"learned from the first {len(colours)} frames")
+        return FingerFinder.grey(
+            grey.segment_kw,
+            grey.stride,
+            "grey-level threshold (nothing coloured in the first frames)",
+        )
+    by_colour = colour_finder(
+        learned,
+        stride,
+        min_object_frac,
+        max_hole_frac,
+        f"learned from the first {len(colours)} frames",
+    )
     a, _ = by_colour.find(colours[0])
     # everything on the finger's side of the threshold, not only its largest part: an
     # object apart now may touch the finger later, and the threshold would then join them
@@ -145,9 +187,11 @@ def learn_finder(frames, grey: FingerFinder, stride: int = 4, min_object_frac: f
     if a is not None and b.any():
         iou = np.count_nonzero(a & b) / max(np.count_nonzero(a | b), 1)
         if iou >= AGREE_IOU:
-            return FingerFinder.grey(grey.segment_kw, grey.stride,
-                                     f"grey-level threshold (the same finger as its learned "
-                                     f"colour, IoU {iou:.2f})")
+            return FingerFinder.grey(
+                grey.segment_kw,
+                grey.stride,
+                f"grey-level threshold (the same finger as its learned colour, IoU {iou:.2f})",
+            )
     return by_colour
 
 
@@ -174,9 +218,11 @@ def finder_from_spec(spec, stride: int = 4) -> FingerFinder:
             return _from_saved(json.loads(path.read_text()), str(path), stride)
         except (json.JSONDecodeError, UnicodeDecodeError):
             raise BadInput(f"{path} is not a JSON file of a segmentation") from None
-    raise BadInput(f"finger colour {text!r}: not a colour name ({', '.join(NAMED_HUES)}), a "
-                   "JSON range or a segmentation file (segmentation.json, ingest.json, "
-                   "calibration.json)")
+    raise BadInput(
+        f"finger colour {text!r}: not a colour name ({', '.join(NAMED_HUES)}), a "
+        "JSON range or a segmentation file (segmentation.json, ingest.json, "
+        "calibration.json)"
+    )
 
 
 def _from_saved(d: dict, where: str, stride: int) -> FingerFinder:
@@ -188,9 +234,13 @@ def _from_saved(d: dict, where: str, stride: int) -> FingerFinder:
             return FingerFinder.grey(d.get("segment"), int(d.get("stride", 1)), f"saved: {where}")
         if "colour" in d:  # segmentation.json, ingest.json, calibration.json's segment
             colour = ColourRange.from_take(d["colour"])
-            return colour_finder(colour, int(d.get("stride", stride)),
-                                 float(d.get("min_object_frac", 1e-3)),
-                                 float(d.get("max_hole_frac", 1e-5)), f"saved: {where}")
+            return colour_finder(
+                colour,
+                int(d.get("stride", stride)),
+                float(d.get("min_object_frac", 1e-3)),
+                float(d.get("max_hole_frac", 1e-5)),
+                f"saved: {where}",
+            )
         if {"space", "lo", "hi"} <= set(d):
             return colour_finder(ColourRange.from_take(d), stride, source=f"given: {where}")
     except (KeyError, TypeError, ValueError) as exc:

@@ -18,6 +18,7 @@ Outputs in ``out_dir``: ``shard.npz`` (training format, no stress map:
 overlaid after alignment) and, with ``write_masks``, ``masks.npz`` (every frame's
 finger mask, to check the segmentation).
 """
+
 from __future__ import annotations
 
 import itertools
@@ -85,16 +86,19 @@ def check_take(take: str | Path):
     return meta, t_force, force, open_frames(take, meta)
 
 
-def ingest(take: str | Path, out_dir: str | Path, params: IngestParams | None = None,
-           log=print) -> dict:
+def ingest(
+    take: str | Path, out_dir: str | Path, params: IngestParams | None = None, log=print
+) -> dict:
     """Ingest the take folder ``take`` into ``out_dir`` (see the module's text); returns
     the summary written to ``ingest.json``. Bad input raises :class:`TakeError`."""
     t_wall, t_cpu = time.perf_counter(), time.process_time()
     p = params or IngestParams()
     take = Path(take)
     meta, t_force, force, src = check_take(take)
-    log(f"{take.name}: {src.kind} {src.path.name}, {src.n_frames} frames at {src.rate_hz:.4g} FPS; "
-        f"forces.csv: {len(t_force)} samples at {(len(t_force) - 1) / (t_force[-1] - t_force[0]):.4g} Hz")
+    log(
+        f"{take.name}: {src.kind} {src.path.name}, {src.n_frames} frames at {src.rate_hz:.4g} FPS; "
+        f"forces.csv: {len(t_force)} samples at {(len(t_force) - 1) / (t_force[-1] - t_force[0]):.4g} Hz"
+    )
 
     frames = iter(src)
     head = []  # the first frames, for a learned colour
@@ -105,11 +109,16 @@ def ingest(take: str | Path, out_dir: str | Path, params: IngestParams | None = 
     if "finger_colour" in meta:
         colour = ColourRange.from_take(meta["finger_colour"])
     else:
-        colour = learn_colour([rgb for _, _, rgb in head if rgb is not None], p.stride) \
-            if any(rgb is not None for _, _, rgb in head) else None
+        colour = (
+            learn_colour([rgb for _, _, rgb in head if rgb is not None], p.stride)
+            if any(rgb is not None for _, _, rgb in head)
+            else None
+        )
         if colour is None:
-            raise TakeError(f"no finger found: nothing coloured in the first frames of {src.path} "
-                            "(give finger_colour in take.json)")
+            raise TakeError(
+                f"no finger found: nothing coloured in the first frames of {src.path} "
+                "(give finger_colour in take.json)"
+            )
     log(f"finger colour ({colour.source}): {colour.describe()}")
     # the one way the finger is found (finray predict's, with ingest's sizes)
     finder = colour_finder(colour, p.stride, p.min_object_frac, p.max_hole_frac)
@@ -123,8 +132,16 @@ def ingest(take: str | Path, out_dir: str | Path, params: IngestParams | None = 
     thumb_every = max(1, n_total // 60)
     next_report = 0.1
     for k, t, rgb in itertools.chain(head, frames):
-        row = {"frame": k, "t_s": t, "status": "ok", "mask_area_px": 0, "base_px_per_mm": np.nan,
-               "shape_change_px": np.nan, "edge_shift_mm": np.nan, "centroid_dx_mm": np.nan}
+        row = {
+            "frame": k,
+            "t_s": t,
+            "status": "ok",
+            "mask_area_px": 0,
+            "base_px_per_mm": np.nan,
+            "shape_change_px": np.nan,
+            "edge_shift_mm": np.nan,
+            "centroid_dx_mm": np.nan,
+        }
         mask = None
         if rgb is None:
             row["status"] = "unreadable"
@@ -133,11 +150,19 @@ def ingest(take: str | Path, out_dir: str | Path, params: IngestParams | None = 
             if mask is None:
                 row["status"] = "no_finger"
         if p.write_masks and rgb is not None:
-            packed.append((k, np.packbits(mask if mask is not None else
-                                          np.zeros(rgb.shape[:2], bool), axis=-1), rgb.shape[:2]))
+            packed.append(
+                (
+                    k,
+                    np.packbits(
+                        mask if mask is not None else np.zeros(rgb.shape[:2], bool), axis=-1
+                    ),
+                    rgb.shape[:2],
+                )
+            )
         if mask is not None:
-            box = base_anchored_box(mask, p.base_width_mm, p.crop_x_mm, p.crop_y_mm, p.base_rows,
-                                    p.base_band)
+            box = base_anchored_box(
+                mask, p.base_width_mm, p.crop_x_mm, p.crop_y_mm, p.base_rows, p.base_band
+            )
             ins = {size_key(s): silhouette_input(mask, box, s) for s in p.sizes}
             ppm = (box[2] - box[0]) / crop_w_mm
             left, base_edge = box[0] - p.crop_x_mm[0] * ppm, box[3] + p.crop_y_mm[0] * ppm
@@ -145,23 +170,40 @@ def ingest(take: str | Path, out_dir: str | Path, params: IngestParams | None = 
                 ppm0 = ppm
             # the image signal's window: anchored on this frame's base, at the first
             # frame's scale (a pixel more or less of base width must not read as bending)
-            sig_box = (left + p.crop_x_mm[0] * ppm0, base_edge - p.crop_y_mm[1] * ppm0,
-                       left + p.crop_x_mm[1] * ppm0, base_edge - p.crop_y_mm[0] * ppm0)
+            sig_box = (
+                left + p.crop_x_mm[0] * ppm0,
+                base_edge - p.crop_y_mm[1] * ppm0,
+                left + p.crop_x_mm[1] * ppm0,
+                base_edge - p.crop_y_mm[0] * ppm0,
+            )
             x = silhouette_input(mask, sig_box, big).astype(np.float32)
             edges = side_edges(x)
             if ref is None:
                 ref, ref_edges = x, edges
             both = np.isfinite(edges) & np.isfinite(ref_edges)
-            edge_mm = (float(np.abs(edges - ref_edges)[both].sum() / max(both.sum() / 2, 1))
-                       * crop_w_mm / big[1]) if both.any() else np.nan
+            edge_mm = (
+                (
+                    float(np.abs(edges - ref_edges)[both].sum() / max(both.sum() / 2, 1))
+                    * crop_w_mm
+                    / big[1]
+                )
+                if both.any()
+                else np.nan
+            )
             w = x.sum(axis=0)
-            cx_mm = p.crop_x_mm[0] + crop_w_mm * float((w * (np.arange(big[1]) + 0.5)).sum()
-                                                       / max(w.sum(), 1e-9)) / big[1]
-            row.update(mask_area_px=int(mask.sum()),
-                       base_px_per_mm=ppm,
-                       shape_change_px=float(np.abs(x - ref).sum() / 255.0),
-                       edge_shift_mm=edge_mm,
-                       centroid_dx_mm=cx_mm)
+            cx_mm = (
+                p.crop_x_mm[0]
+                + crop_w_mm
+                * float((w * (np.arange(big[1]) + 0.5)).sum() / max(w.sum(), 1e-9))
+                / big[1]
+            )
+            row.update(
+                mask_area_px=int(mask.sum()),
+                base_px_per_mm=ppm,
+                shape_change_px=float(np.abs(x - ref).sum() / 255.0),
+                edge_shift_mm=edge_mm,
+                centroid_dx_mm=cx_mm,
+            )
             for key, v in ins.items():
                 inputs[key].append(v)
             boxes.append(box)
@@ -170,8 +212,10 @@ def ingest(take: str | Path, out_dir: str | Path, params: IngestParams | None = 
         rows.append(row)
         if (k + 1) / n_total >= next_report:
             n_ok = sum(r["status"] == "ok" for r in rows)
-            log(f"  frame {k + 1}/{src.n_frames}: {n_ok} with the finger "
-                f"({time.perf_counter() - t_wall:.1f} s)")
+            log(
+                f"  frame {k + 1}/{src.n_frames}: {n_ok} with the finger "
+                f"({time.perf_counter() - t_wall:.1f} s)"
+            )
             next_report += 0.1
 
     import pandas as pd
@@ -179,11 +223,14 @@ def ingest(take: str | Path, out_dir: str | Path, params: IngestParams | None = 
     table = pd.DataFrame(rows)
     ok = (table["status"] == "ok").to_numpy()
     if not ok.any():
-        raise TakeError(f"no finger found in any of the {len(table)} frames of {src.path} "
-                        f"({colour.describe()})")
+        raise TakeError(
+            f"no finger found in any of the {len(table)} frames of {src.path} ({colour.describe()})"
+        )
     if ok.sum() < MIN_SAMPLES:
-        raise TakeError(f"{src.path}: too few frames with the finger ({int(ok.sum())} of "
-                        f"{len(table)}; at least {MIN_SAMPLES})")
+        raise TakeError(
+            f"{src.path}: too few frames with the finger ({int(ok.sum())} of "
+            f"{len(table)}; at least {MIN_SAMPLES})"
+        )
     # the base's width is the finger's: a frame whose measured scale is off the take's
     # median by more than ``max_scale_dev`` had its base mis-segmented (its crop would be wrong)
     had = ok.copy()
@@ -192,16 +239,28 @@ def ingest(take: str | Path, out_dir: str | Path, params: IngestParams | None = 
     table.loc[bad_base, "status"] = "bad_base"
     ok = (table["status"] == "ok").to_numpy()
     if ok.sum() < MIN_SAMPLES:
-        raise TakeError(f"{src.path}: too few frames with the finger's base found ({int(ok.sum())} "
-                        f"of {len(table)}; at least {MIN_SAMPLES})")
+        raise TakeError(
+            f"{src.path}: too few frames with the finger's base found ({int(ok.sum())} "
+            f"of {len(table)}; at least {MIN_SAMPLES})"
+        )
     if table["centroid_dx_mm"].notna().any():
         table["centroid_dx_mm"] -= table.loc[ok, "centroid_dx_mm"].iloc[0]
     t_frames = table["t_s"].to_numpy(dtype=np.float64)
     frame_dt = float(np.median(np.diff(t_frames))) if len(t_frames) > 1 else 1.0 / src.rate_hz
-    sync = align_clocks(t_frames[ok], table.loc[ok, "edge_shift_mm"].to_numpy(), t_force, force,
-                        frame_dt, min_r=p.min_r, alpha=p.alpha, seed=p.seed)
-    log(f"clock offset {sync['offset_s']:+.4f} s +- {sync['uncertainty_s']:.4f} s "
-        f"(camera = sensor + offset; r {sync['pearson_r']:.3f}, p {sync['p_value']:.3f})")
+    sync = align_clocks(
+        t_frames[ok],
+        table.loc[ok, "edge_shift_mm"].to_numpy(),
+        t_force,
+        force,
+        frame_dt,
+        min_r=p.min_r,
+        alpha=p.alpha,
+        seed=p.seed,
+    )
+    log(
+        f"clock offset {sync['offset_s']:+.4f} s +- {sync['uncertainty_s']:.4f} s "
+        f"(camera = sensor + offset; r {sync['pearson_r']:.3f}, p {sync['p_value']:.3f})"
+    )
     table["force_N"] = force_at_frames(t_frames, t_force, force, sync["offset_s"], frame_dt)
     no_force = ok & ~np.isfinite(table["force_N"].to_numpy())
     table.loc[no_force, "status"] = "no_force"
@@ -210,26 +269,48 @@ def ingest(take: str | Path, out_dir: str | Path, params: IngestParams | None = 
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    scene = {"object": meta["object"], "material": "lab", "height_mm": float(meta["contact_height_mm"]),
-             "split": "lab", "splits": ["lab"], "pitch_deg": 0.0}
+    scene = {
+        "object": meta["object"],
+        "material": "lab",
+        "height_mm": float(meta["contact_height_mm"]),
+        "split": "lab",
+        "splits": ["lab"],
+        "pitch_deg": 0.0,
+    }
     scene["scene_id"] = f"{scene_id(scene)}_{take.name}"
     px_mm = table.loc[ok, "base_px_per_mm"].to_numpy()
-    scale = {"measured_px_per_mm_median": float(np.median(px_mm)),
-             "measured_px_per_mm_spread": float(np.percentile(px_mm, 95) - np.percentile(px_mm, 5))}
+    scale = {
+        "measured_px_per_mm_median": float(np.median(px_mm)),
+        "measured_px_per_mm_spread": float(np.percentile(px_mm, 95) - np.percentile(px_mm, 5)),
+    }
     if "px_per_mm" in meta["camera"]:
         scale["given_px_per_mm"] = float(meta["camera"]["px_per_mm"])
-        scale["ratio_measured_to_given"] = scale["measured_px_per_mm_median"] / scale["given_px_per_mm"]
+        scale["ratio_measured_to_given"] = (
+            scale["measured_px_per_mm_median"] / scale["given_px_per_mm"]
+        )
     shard_meta = {
-        "scene": scene, "source": "recording", "take": str(take), "has_stress": False,
+        "scene": scene,
+        "source": "recording",
+        "take": str(take),
+        "has_stress": False,
         "stress": "absent: a lab recording has no stress map",
         "force_label": f"the sensor's push force ({meta['push_axis']}, N), mean over each "
-                       "frame's interval after clock alignment, not tared",
-        "sizes": [list(s) for s in p.sizes], "crop_box_px": "per frame: crop_box_px array",
-        "dataset": {"sizes": [list(s) for s in p.sizes], "crop_x_mm": list(p.crop_x_mm),
-                    "crop_y_mm": list(p.crop_y_mm)},
-        "base_width_mm": p.base_width_mm, "camera": meta["camera"], "colour": colour.to_dict(),
-        "sync": sync, "n_frames": int(labelled.sum()), "n_frames_take": len(table),
-        "scale": scale, "support_iou_min": None,
+        "frame's interval after clock alignment, not tared",
+        "sizes": [list(s) for s in p.sizes],
+        "crop_box_px": "per frame: crop_box_px array",
+        "dataset": {
+            "sizes": [list(s) for s in p.sizes],
+            "crop_x_mm": list(p.crop_x_mm),
+            "crop_y_mm": list(p.crop_y_mm),
+        },
+        "base_width_mm": p.base_width_mm,
+        "camera": meta["camera"],
+        "colour": colour.to_dict(),
+        "sync": sync,
+        "n_frames": int(labelled.sum()),
+        "n_frames_take": len(table),
+        "scale": scale,
+        "support_iou_min": None,
     }
     arrays = {}
     for key, v in inputs.items():
@@ -239,37 +320,63 @@ def ingest(take: str | Path, out_dir: str | Path, params: IngestParams | None = 
     sel = table[labelled]
     n = len(sel)
     arrays.update(
-        frame=sel["frame"].to_numpy(dtype=np.int32), t_s=sel["t_s"].to_numpy(dtype=np.float64),
-        fea_frame=np.full(n, np.nan), displacement_mm=np.full(n, np.nan),
-        fx_N=sel["force_N"].to_numpy(dtype=np.float64), fy_N=np.full(n, np.nan),
+        frame=sel["frame"].to_numpy(dtype=np.int32),
+        t_s=sel["t_s"].to_numpy(dtype=np.float64),
+        fea_frame=np.full(n, np.nan),
+        displacement_mm=np.full(n, np.nan),
+        fx_N=sel["force_N"].to_numpy(dtype=np.float64),
+        fy_N=np.full(n, np.nan),
         contact_y_mm=np.full(n, np.nan),  # the contact height: not measured on a rig
         crop_box_px=np.asarray(boxes, dtype=np.float64)[keep],
-        meta=np.array(json.dumps(shard_meta)))
+        meta=np.array(json.dumps(shard_meta)),
+    )
     save_npz(out_dir / "shard.npz", arrays)
-    cols = ["frame", "t_s", "status", "force_N", "mask_area_px", "base_px_per_mm",
-            "edge_shift_mm", "shape_change_px", "centroid_dx_mm"]
+    cols = [
+        "frame",
+        "t_s",
+        "status",
+        "force_N",
+        "mask_area_px",
+        "base_px_per_mm",
+        "edge_shift_mm",
+        "shape_change_px",
+        "centroid_dx_mm",
+    ]
     table[cols].to_csv(out_dir / "frames.csv", index=False, float_format="%.6g")
     (out_dir / "sync.json").write_text(json.dumps(sync, indent=1))
     if p.write_masks:
-        np.savez_compressed(out_dir / "masks.npz", bits=np.stack([b for _, b, _ in packed]),
-                            frame=np.array([k for k, _, _ in packed], np.int32),
-                            shape=np.array([len(packed), *packed[0][2]]))
+        np.savez_compressed(
+            out_dir / "masks.npz",
+            bits=np.stack([b for _, b, _ in packed]),
+            frame=np.array([k for k, _, _ in packed], np.int32),
+            shape=np.array([len(packed), *packed[0][2]]),
+        )
     qa_figure(out_dir / "qa.png", table, t_force, force, sync, thumbs, p.qa_frames, take.name)
     counts = {s: int((table["status"] == s).sum()) for s in STATUSES}
-    summary = {"take": str(take), "video": str(src.path), "kind": src.kind,
-               "frame_rate_hz": src.rate_hz, "frames": counts, "colour": colour.to_dict(),
-               "sync": sync, "scale": scale, "lost": src.lost,
-               "wall_s": time.perf_counter() - t_wall,
-               "cpu_s": time.process_time() - t_cpu}
+    summary = {
+        "take": str(take),
+        "video": str(src.path),
+        "kind": src.kind,
+        "frame_rate_hz": src.rate_hz,
+        "frames": counts,
+        "colour": colour.to_dict(),
+        "sync": sync,
+        "scale": scale,
+        "lost": src.lost,
+        "wall_s": time.perf_counter() - t_wall,
+        "cpu_s": time.process_time() - t_cpu,
+    }
     (out_dir / "ingest.json").write_text(json.dumps(summary, indent=1))
     for why in src.lost[:5]:
         log(f"lost: {why}")
     if len(src.lost) > 5:
         log(f"lost: {len(src.lost) - 5} more (ingest.json)")
-    log(f"{counts['ok']} frames -> {out_dir / 'shard.npz'} ({counts['no_finger']} without the "
+    log(
+        f"{counts['ok']} frames -> {out_dir / 'shard.npz'} ({counts['no_finger']} without the "
         f"finger, {counts['bad_base']} with a mis-segmented base, {counts['unreadable']} unreadable, "
         f"{counts['no_force']} outside the force log); "
-        f"{summary['wall_s']:.1f} s")
+        f"{summary['wall_s']:.1f} s"
+    )
     return summary
 
 
@@ -314,7 +421,9 @@ def qa_figure(path, table, t_force, force, sync, thumbs, n_show: int, title: str
     ok = (table["status"] == "ok").to_numpy()
     sig = table["edge_shift_mm"].to_numpy()
     if thumbs:
-        pick = np.unique(np.linspace(0, len(thumbs) - 1, min(n_show, len(thumbs))).round().astype(int))
+        pick = np.unique(
+            np.linspace(0, len(thumbs) - 1, min(n_show, len(thumbs))).round().astype(int)
+        )
         strongest = int(np.argmax([sig[k] if np.isfinite(sig[k]) else -1 for k, _, _ in thumbs]))
         if strongest not in pick:
             pick[np.argmin(np.abs(pick - strongest))] = strongest
@@ -336,17 +445,27 @@ def qa_figure(path, table, t_force, force, sync, thumbs, n_show: int, title: str
     ax.plot(t_force + sync["offset_s"], force, color="0.6", lw=0.6, label="sensor (aligned)")
     lab = ok & np.isfinite(table["force_N"].to_numpy())
     t = table["t_s"].to_numpy()
-    ax.plot(t[lab], table["force_N"].to_numpy()[lab], ".", ms=3, color="C0",
-            label="force label per frame")
+    ax.plot(
+        t[lab],
+        table["force_N"].to_numpy()[lab],
+        ".",
+        ms=3,
+        color="C0",
+        label="force label per frame",
+    )
     if lab.sum() >= 2:
         a, b = np.polyfit(sig[lab], table["force_N"].to_numpy()[lab], 1)
-        ax.plot(t[ok], a * sig[ok] + b, color="C3", lw=1.2,
-                label="image signal (edge shift, fitted)")
+        ax.plot(
+            t[ok], a * sig[ok] + b, color="C3", lw=1.2, label="image signal (edge shift, fitted)"
+        )
     ax.set_xlim(t.min() - 0.05 * np.ptp(t), t.max() + 0.05 * np.ptp(t))
     ax.set_xlabel("camera time (s)")
     ax.set_ylabel("push force (N)")
-    ax.set_title(f"{title}: offset {sync['offset_s']:+.4f} s +- {sync['uncertainty_s']:.4f} s, "
-                 f"r {sync['pearson_r']:.3f}", fontsize=9)
+    ax.set_title(
+        f"{title}: offset {sync['offset_s']:+.4f} s +- {sync['uncertainty_s']:.4f} s, "
+        f"r {sync['pearson_r']:.3f}",
+        fontsize=9,
+    )
     ax.legend(fontsize=7, loc="upper right")
     fig.tight_layout()
     fig.savefig(path, dpi=110)

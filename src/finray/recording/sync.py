@@ -24,6 +24,7 @@ Uncertainty: a block bootstrap over ``n_blocks`` consecutive segments of the ove
 refitting the parabola gives the spread of the offset), combined with the grid's
 rounding (step / sqrt 12). The peak's half width at half height is reported too.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -69,10 +70,21 @@ def _parabola(c_m: float, c_0: float, c_p: float) -> float:
     return 0.0 if den >= 0 else float(np.clip(0.5 * (c_m - c_p) / den, -0.5, 0.5))
 
 
-def align_clocks(t_img: np.ndarray, s_img: np.ndarray, t_force: np.ndarray, f: np.ndarray,
-                 frame_dt: float, *, min_overlap: float = 0.5, min_r: float = 0.5,
-                 alpha: float = 0.05, n_surrogates: int = 199, n_blocks: int = 10,
-                 n_boot: int = 200, seed: int = 0) -> dict:
+def align_clocks(
+    t_img: np.ndarray,
+    s_img: np.ndarray,
+    t_force: np.ndarray,
+    f: np.ndarray,
+    frame_dt: float,
+    *,
+    min_overlap: float = 0.5,
+    min_r: float = 0.5,
+    alpha: float = 0.05,
+    n_surrogates: int = 199,
+    n_blocks: int = 10,
+    n_boot: int = 200,
+    seed: int = 0,
+) -> dict:
     """Clock offset (s) of the sensor to the camera: ``t_img`` (s, camera) and ``s_img``
     the image signal of the frames; ``t_force`` (s, sensor) and ``f`` (N) the push
     force; ``frame_dt`` (s) the frame interval. Returns ``offset_s``,
@@ -84,15 +96,18 @@ def align_clocks(t_img: np.ndarray, s_img: np.ndarray, t_force: np.ndarray, f: n
     x = np.interp(gi, t_img, s_img)
     gf = np.arange(t_force[0] + half, t_force[-1] - half + 1e-12, dt)
     if len(gf) < 10 or len(gi) < 10:
-        raise TakeError("clocks cannot be aligned: the force log or the video is shorter "
-                        "than a few frames")
+        raise TakeError(
+            "clocks cannot be aligned: the force log or the video is shorter than a few frames"
+        )
     y = frame_average(t_force, f, gf, half)
     if not np.isfinite(y).all():  # rounding at the ends
         ok = np.isfinite(y)
         gf, y = gf[ok], y[ok]
     if x.std() < 1e-9 * max(1.0, abs(x).max()):
-        raise TakeError("clocks cannot be aligned: the image signal is constant "
-                        "(the finger does not deform in the video)")
+        raise TakeError(
+            "clocks cannot be aligned: the image signal is constant "
+            "(the finger does not deform in the video)"
+        )
     if y.std() < 1e-9 * max(1.0, abs(y).max()):
         raise TakeError("clocks cannot be aligned: the push force is constant")
     x, y = _standardise(x), _standardise(y)
@@ -107,14 +122,17 @@ def align_clocks(t_img: np.ndarray, s_img: np.ndarray, t_force: np.ndarray, f: n
     lag = int(lags[k])
     # Pearson r over the overlap at the peak
     n0, n1 = max(0, -lag), min(ny, nx - lag)
-    r = float(np.corrcoef(x[n0 + lag:n1 + lag], y[n0:n1])[0, 1])
+    r = float(np.corrcoef(x[n0 + lag : n1 + lag], y[n0:n1])[0, 1])
     # significance: the best (mean-free) coefficient over the allowed lags against
     # those of phase-randomised copies of the force (same spectrum, so as smooth)
     xm, ym = x - x.mean(), y - y.mean()
     scale = 1.0 / (n_min * xm.std() * ym.std())
 
     def best(yy):
-        return float(np.max(np.where(allowed, signal.correlate(xm, yy, method="fft"), -np.inf))) * scale
+        return (
+            float(np.max(np.where(allowed, signal.correlate(xm, yy, method="fft"), -np.inf)))
+            * scale
+        )
 
     rng = np.random.default_rng(seed)
     spec = np.fft.rfft(ym)
@@ -127,11 +145,16 @@ def align_clocks(t_img: np.ndarray, s_img: np.ndarray, t_force: np.ndarray, f: n
     p = float((1 + np.sum(null >= observed)) / (1 + n_surrogates))
     base = float(t_img[0] - gf[0])  # offset at lag 0: gi[0] <-> gf[0]
     if not (r >= min_r and p <= alpha):
-        hint = (" (the force anti-correlates: is push_axis's sign right?)"
-                if best(-ym) > max(observed, min_r) else "")
-        raise TakeError(f"clocks cannot be aligned: the force and the finger's deformation "
-                        f"do not match at any offset (best Pearson r {r:.2f}, needs >= {min_r}; "
-                        f"p-value {p:.3f} against shuffled forces, needs <= {alpha}){hint}")
+        hint = (
+            " (the force anti-correlates: is push_axis's sign right?)"
+            if best(-ym) > max(observed, min_r)
+            else ""
+        )
+        raise TakeError(
+            f"clocks cannot be aligned: the force and the finger's deformation "
+            f"do not match at any offset (best Pearson r {r:.2f}, needs >= {min_r}; "
+            f"p-value {p:.3f} against shuffled forces, needs <= {alpha}){hint}"
+        )
     sub = _parabola(c[k - 1], c[k], c[k + 1]) if 0 < k < len(c) - 1 else 0.0
     offset = base + (lag + sub) * dt
     # half width at half height of the peak (s)
@@ -159,25 +182,35 @@ def align_clocks(t_img: np.ndarray, s_img: np.ndarray, t_force: np.ndarray, f: n
         j = np.clip(np.argmax(cb, axis=1), 1, 2 * w - 1)
         rows = np.arange(n_boot)
         den = cb[rows, j - 1] - 2 * cb[rows, j] + cb[rows, j + 1]
-        frac = np.where(den < 0, 0.5 * (cb[rows, j - 1] - cb[rows, j + 1]) / np.where(den < 0, den, -1),
-                        0.0)
+        frac = np.where(
+            den < 0, 0.5 * (cb[rows, j - 1] - cb[rows, j + 1]) / np.where(den < 0, den, -1), 0.0
+        )
         boot = (win[j] + np.clip(frac, -0.5, 0.5)) * dt
         boot_std = float(np.std(boot))
     else:
         boot_std = float("nan")
     unc = float(np.hypot(boot_std if np.isfinite(boot_std) else halfwidth, dt / np.sqrt(12)))
-    return {"offset_s": float(offset), "uncertainty_s": unc, "bootstrap_std_s": boot_std,
-            "peak_halfwidth_s": float(halfwidth), "peak_coefficient": float(c[k]),
-            "pearson_r": r, "p_value": p, "n_surrogates": n_surrogates, "grid_step_s": dt,
-            "convention": "camera time = sensor time + offset_s",
-            "method": "cross-correlation of the frame-averaged push force with the image "
-                      "signal (shift of the finger's edges in the base-anchored window), parabolic sub-sample peak, "
-                      "phase-randomised surrogates for significance, block bootstrap "
-                      f"({n_blocks} segments, {n_boot} resamples) for the uncertainty"}
+    return {
+        "offset_s": float(offset),
+        "uncertainty_s": unc,
+        "bootstrap_std_s": boot_std,
+        "peak_halfwidth_s": float(halfwidth),
+        "peak_coefficient": float(c[k]),
+        "pearson_r": r,
+        "p_value": p,
+        "n_surrogates": n_surrogates,
+        "grid_step_s": dt,
+        "convention": "camera time = sensor time + offset_s",
+        "method": "cross-correlation of the frame-averaged push force with the image "
+        "signal (shift of the finger's edges in the base-anchored window), parabolic sub-sample peak, "
+        "phase-randomised surrogates for significance, block bootstrap "
+        f"({n_blocks} segments, {n_boot} resamples) for the uncertainty",
+    }
 
 
-def force_at_frames(t_frames: np.ndarray, t_force: np.ndarray, f: np.ndarray, offset_s: float,
-                    frame_dt: float) -> np.ndarray:
+def force_at_frames(
+    t_frames: np.ndarray, t_force: np.ndarray, f: np.ndarray, offset_s: float, frame_dt: float
+) -> np.ndarray:
     """The push force (N) at each frame (camera time, s) after alignment: the sensor's
     mean over the frame interval centred on ``t - offset_s``; NaN outside its log."""
     return frame_average(t_force, f, np.asarray(t_frames) - offset_s, frame_dt / 2.0)

@@ -17,6 +17,7 @@ One folder per take:
 
 Every check fails with :class:`TakeError`, whose text is one line naming the file.
 """
+
 from __future__ import annotations
 
 import json
@@ -49,18 +50,28 @@ TAKE_SCHEMA = {
             "properties": {
                 "px_per_mm": {"type": "number", "exclusiveMinimum": 0},
                 "intrinsics": {
-                    "type": "object", "required": ["fx", "fy", "cx", "cy"],
+                    "type": "object",
+                    "required": ["fx", "fy", "cx", "cy"],
                     "properties": {k: _NUMBER for k in ("fx", "fy", "cx", "cy")},
                 },
             },
             "additionalProperties": True,
         },
-        "finger_colour": {"oneOf": [
-            {"type": "string", "enum": list(COLOUR_NAMES)},
-            {"type": "object", "required": ["space", "lo", "hi"],
-             "properties": {"space": {"enum": ["hsv", "hcv", "lab"]}, "lo": _RANGE3, "hi": _RANGE3},
-             "additionalProperties": False},
-        ]},
+        "finger_colour": {
+            "oneOf": [
+                {"type": "string", "enum": list(COLOUR_NAMES)},
+                {
+                    "type": "object",
+                    "required": ["space", "lo", "hi"],
+                    "properties": {
+                        "space": {"enum": ["hsv", "hcv", "lab"]},
+                        "lo": _RANGE3,
+                        "hi": _RANGE3,
+                    },
+                    "additionalProperties": False,
+                },
+            ]
+        },
         "video": {"type": "string", "minLength": 1},
         "rotate_deg": {"enum": [0, 90, 180, 270]},
     },
@@ -78,8 +89,9 @@ def read_take_json(path: Path) -> dict:
         meta = json.loads(path.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise TakeError(f"{path} is not JSON ({one_line(exc)})") from None
-    err = jsonschema.exceptions.best_match(jsonschema.Draft202012Validator(TAKE_SCHEMA)
-                                           .iter_errors(meta))
+    err = jsonschema.exceptions.best_match(
+        jsonschema.Draft202012Validator(TAKE_SCHEMA).iter_errors(meta)
+    )
     if err is not None:
         where = "/".join(str(p) for p in err.absolute_path) or "top level"
         raise TakeError(f"{path}: {where}: {err.message}")
@@ -98,8 +110,9 @@ def _times(values: np.ndarray, name: str) -> np.ndarray:
     back = np.flatnonzero(step <= 0)
     if len(back):
         i = back[0] + 1
-        raise TakeError(f"{name}: time is not increasing at line {i + 2} "
-                        f"(t_s {t[i]:g} after {t[i - 1]:g})")
+        raise TakeError(
+            f"{name}: time is not increasing at line {i + 2} (t_s {t[i]:g} after {t[i - 1]:g})"
+        )
     return t
 
 
@@ -161,8 +174,10 @@ class FrameSource:
         turns = (int(self.rotate_deg) // 90) % 4
         if not turns:
             return frames
-        return ((k, t, None if rgb is None else np.ascontiguousarray(np.rot90(rgb, turns)))
-                for k, t, rgb in frames)
+        return (
+            (k, t, None if rgb is None else np.ascontiguousarray(np.rot90(rgb, turns)))
+            for k, t, rgb in frames
+        )
 
     def _folder(self):
         for k, (t, f) in enumerate(zip(self._times, self._files)):
@@ -198,8 +213,10 @@ def open_frames(take: Path, meta: dict) -> FrameSource:
     else:
         videos = sorted(p for p in take.iterdir() if p.suffix.lower() in VIDEO_SUFFIXES)
     if len(videos) > 1:
-        raise TakeError(f"{take}: {len(videos)} videos ({', '.join(p.name for p in videos)}); "
-                        "name the take's in take.json under 'video'")
+        raise TakeError(
+            f"{take}: {len(videos)} videos ({', '.join(p.name for p in videos)}); "
+            "name the take's in take.json under 'video'"
+        )
     if videos:
         try:
             info = video_info(videos[0])
@@ -207,8 +224,13 @@ def open_frames(take: Path, meta: dict) -> FrameSource:
             raise TakeError(str(exc)) from None
         if not info.rate_hz:
             raise TakeError(f"{videos[0]}: the video stream has no frame rate")
-        return FrameSource("video", videos[0], info.n_frames, info.rate_hz,
-                           rotate_deg=int(meta.get("rotate_deg", 0)))
+        return FrameSource(
+            "video",
+            videos[0],
+            info.n_frames,
+            info.rate_hz,
+            rotate_deg=int(meta.get("rotate_deg", 0)),
+        )
     folder = take / "frames"
     if not folder.is_dir():
         raise TakeError(f"{take}: no video ({', '.join(VIDEO_SUFFIXES)}) and no frames/ folder")
@@ -219,7 +241,15 @@ def open_frames(take: Path, meta: dict) -> FrameSource:
     files = [folder / str(name).strip() for name in df["frame"]]
     missing = [f.name for f in files if not f.is_file()]
     if missing:
-        raise TakeError(f"{take / 'frames.csv'}: {len(missing)} frames not in {folder} "
-                        f"(first {missing[0]})")
-    return FrameSource("frames", folder, len(files), float(1.0 / np.median(np.diff(t))), t, files,
-                       rotate_deg=int(meta.get("rotate_deg", 0)))
+        raise TakeError(
+            f"{take / 'frames.csv'}: {len(missing)} frames not in {folder} (first {missing[0]})"
+        )
+    return FrameSource(
+        "frames",
+        folder,
+        len(files),
+        float(1.0 / np.median(np.diff(t))),
+        t,
+        files,
+        rotate_deg=int(meta.get("rotate_deg", 0)),
+    )

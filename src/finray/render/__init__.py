@@ -18,6 +18,7 @@ The names below load their module on first use (PEP 562, as :mod:`finray.train`)
 a reader of one module (the dataset's shard reader: ``render.camera_views``,
 ``render.params``) does not load the rasterisers, the meshing library or VTK.
 """
+
 from __future__ import annotations
 
 from ..lazy import lazy_exports

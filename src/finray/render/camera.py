@@ -12,6 +12,7 @@ each output pixel samples the pinhole render at one point (no iteration). The
 renderers here draw the pinhole image; the lab applies the distortion afterwards
 (:class:`finray.lab.camera.LensDistortion`).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
@@ -35,10 +36,20 @@ class PinholeCamera:
     distortion: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
 
     @classmethod
-    def looking_at(cls, target_mm, *, width: int, height: int, hfov_deg: float,
-                   distance_mm: float, yaw_deg: float = 0.0, pitch_deg: float = 0.0,
-                   roll_deg: float = 0.0, principal_offset_px=(0.0, 0.0),
-                   distortion=(0.0, 0.0, 0.0, 0.0, 0.0)) -> "PinholeCamera":
+    def looking_at(
+        cls,
+        target_mm,
+        *,
+        width: int,
+        height: int,
+        hfov_deg: float,
+        distance_mm: float,
+        yaw_deg: float = 0.0,
+        pitch_deg: float = 0.0,
+        roll_deg: float = 0.0,
+        principal_offset_px=(0.0, 0.0),
+        distortion=(0.0, 0.0, 0.0, 0.0, 0.0),
+    ) -> "PinholeCamera":
         """A camera ``distance_mm`` from ``target_mm`` on the finger's front side (+z),
         turned ``yaw_deg`` about y (towards +x), raised ``pitch_deg`` (looking down)
         and rolled ``roll_deg`` about its axis; square pixels from the horizontal FOV."""
@@ -50,19 +61,32 @@ class PinholeCamera:
         right /= np.linalg.norm(right)
         up = np.cross(back, right)
         up = np.cos(roll) * up - np.sin(roll) * right
-        return cls(int(width), int(height), float(f), float(f),
-                   0.5 * (width - 1) + float(principal_offset_px[0]),
-                   0.5 * (height - 1) + float(principal_offset_px[1]),
-                   tuple(target + distance_mm * back), tuple(target), tuple(up),
-                   tuple(float(c) for c in distortion))
+        return cls(
+            int(width),
+            int(height),
+            float(f),
+            float(f),
+            0.5 * (width - 1) + float(principal_offset_px[0]),
+            0.5 * (height - 1) + float(principal_offset_px[1]),
+            tuple(target + distance_mm * back),
+            tuple(target),
+            tuple(up),
+            tuple(float(c) for c in distortion),
+        )
 
     def scaled(self, factor: int) -> "PinholeCamera":
         """The same camera at ``factor`` x the resolution: the same rays, each pixel
         split into factor x factor (pixel centres: ``c' = (c + 0.5) factor - 0.5``)."""
         s = int(factor)
-        return replace(self, width=self.width * s, height=self.height * s,
-                       fx=self.fx * s, fy=self.fy * s,
-                       cx=(self.cx + 0.5) * s - 0.5, cy=(self.cy + 0.5) * s - 0.5)
+        return replace(
+            self,
+            width=self.width * s,
+            height=self.height * s,
+            fx=self.fx * s,
+            fy=self.fy * s,
+            cx=(self.cx + 0.5) * s - 0.5,
+            cy=(self.cy + 0.5) * s - 0.5,
+        )
 
     # ---------------------------------------------------------------- geometry
     def rotation(self) -> np.ndarray:
@@ -77,13 +101,16 @@ class PinholeCamera:
 
     def to_camera(self, points_mm: np.ndarray) -> np.ndarray:
         """World points (N, 3) in the camera's frame (N, 3) mm: x right, y down, z forward."""
-        return (np.asarray(points_mm, dtype=np.float64) - np.asarray(self.position)) @ self.rotation().T
+        return (
+            np.asarray(points_mm, dtype=np.float64) - np.asarray(self.position)
+        ) @ self.rotation().T
 
     def project(self, points_mm: np.ndarray) -> np.ndarray:
         """Undistorted pixel coordinates (N, 2) ``(u, v)`` of world points (N, 3)."""
         pc = self.to_camera(points_mm)
-        return np.column_stack([self.fx * pc[:, 0] / pc[:, 2] + self.cx,
-                                self.fy * pc[:, 1] / pc[:, 2] + self.cy])
+        return np.column_stack(
+            [self.fx * pc[:, 0] / pc[:, 2] + self.cx, self.fy * pc[:, 1] / pc[:, 2] + self.cy]
+        )
 
     def view_angle_deg(self) -> float:
         """The vertical field of view of the pinhole (deg)."""
@@ -93,7 +120,7 @@ class PinholeCamera:
         """Where each pixel (H, W) of the distorted image samples the pinhole image:
         row and column coordinates (float64), for ``scipy.ndimage.map_coordinates``."""
         k1, k2, p1, p2, k3 = self.distortion
-        v, u = np.mgrid[0:self.height, 0:self.width].astype(np.float64)
+        v, u = np.mgrid[0 : self.height, 0 : self.width].astype(np.float64)
         x, y = (u - self.cx) / self.fx, (v - self.cy) / self.fy
         r2 = x * x + y * y
         radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
@@ -103,13 +130,21 @@ class PinholeCamera:
 
     def intrinsics(self) -> dict:
         """What a RealSense reports of its colour stream (for ``take.json``)."""
-        return {"width": self.width, "height": self.height, "fx": self.fx, "fy": self.fy,
-                "cx": self.cx, "cy": self.cy, "model": "inverse_brown_conrady",
-                "coeffs": list(self.distortion)}
+        return {
+            "width": self.width,
+            "height": self.height,
+            "fx": self.fx,
+            "fy": self.fy,
+            "cx": self.cx,
+            "cy": self.cy,
+            "model": "inverse_brown_conrady",
+            "coeffs": list(self.distortion),
+        }
 
 
-def set_vtk_camera(vtk_camera, pinhole: PinholeCamera, window=None,
-                   clipping: tuple[float, float] = (10.0, 1000.0)) -> None:
+def set_vtk_camera(
+    vtk_camera, pinhole: PinholeCamera, window=None, clipping: tuple[float, float] = (10.0, 1000.0)
+) -> None:
     """Set a VTK camera so that a render window of the ``window`` box
     ``(u0, v0, width, height)`` (px; default: the whole frame) shows exactly the
     pinhole's pixels of that box: a world point lands on

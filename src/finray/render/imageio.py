@@ -1,4 +1,5 @@
 """Image files of the render stage: RGB PNG (8 bit) and float32 OpenEXR (lossless)."""
+
 from __future__ import annotations
 
 import json
@@ -18,7 +19,9 @@ def write_png(path: str | Path, rgb: np.ndarray) -> None:
     rgb = np.asarray(rgb)
     if rgb.dtype != np.uint8 or rgb.ndim != 3 or rgb.shape[2] != 3:
         raise ValueError(f"expected an (H, W, 3) uint8 image, got {rgb.shape} {rgb.dtype}")
-    Image.fromarray(np.ascontiguousarray(rgb), mode="RGB").save(path, optimize=False, compress_level=6)
+    Image.fromarray(np.ascontiguousarray(rgb), mode="RGB").save(
+        path, optimize=False, compress_level=6
+    )
 
 
 def read_png(path: str | Path) -> np.ndarray:
@@ -60,8 +63,9 @@ def read_exr(path: str | Path) -> tuple[dict[str, np.ndarray], dict]:
         # copy while the file's channel objects are alive: their pixel arrays are
         # views into memory the binding frees with them
         channels = f.channels()
-        chans = {name: np.array(c.pixels, dtype=np.float32, copy=True)
-                 for name, c in channels.items()}
+        chans = {
+            name: np.array(c.pixels, dtype=np.float32, copy=True) for name, c in channels.items()
+        }
         hdr = f.header()
         meta = json.loads(hdr["finray"]) if "finray" in hdr else {}
     return chans, meta

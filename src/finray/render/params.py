@@ -29,6 +29,7 @@ mean of ``s`` over the material inside it where the finger covers at least half
 of the pixel, and 0 elsewhere (background); the area average with background 0
 (premultiplied by coverage) is kept alongside. See :func:`stress_transform`.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
@@ -99,7 +100,8 @@ class RenderParams:
             if abs(n - round(n)) > 1e-6:
                 raise ValueError(
                     f"render.{key}: the window ({hi - lo:g} mm) is not a whole number of "
-                    f"pixels at px_per_mm={self.px_per_mm:g} ({n:g})")
+                    f"pixels at px_per_mm={self.px_per_mm:g} ({n:g})"
+                )
         if self.stress_ref_MPa <= 0:
             raise ValueError("render.stress_ref_MPa must be > 0")
         if self.frames_per_scene is not None and self.frames_per_scene < 1:
@@ -135,8 +137,10 @@ class RenderParams:
 
     @property
     def centre_mm(self) -> tuple[float, float]:
-        return (0.5 * (self.window_x_mm[0] + self.window_x_mm[1]),
-                0.5 * (self.window_y_mm[0] + self.window_y_mm[1]))
+        return (
+            0.5 * (self.window_x_mm[0] + self.window_x_mm[1]),
+            0.5 * (self.window_y_mm[0] + self.window_y_mm[1]),
+        )
 
     def project(self, xyz: np.ndarray, pitch_deg: float = 0.0) -> np.ndarray:
         """Image-plane coordinates (u, v) in mm of 3D points (..., 3) at a pitch."""
@@ -153,13 +157,17 @@ class RenderParams:
         row = (self.window_y_mm[1] - uv[..., 1]) * self.px_per_mm - 0.5
         return np.stack([col, row], axis=-1)
 
-    def box_px(self, x_mm: tuple[float, float], y_mm: tuple[float, float]) -> tuple[float, float, float, float]:
+    def box_px(
+        self, x_mm: tuple[float, float], y_mm: tuple[float, float]
+    ) -> tuple[float, float, float, float]:
         """A window in mm as pixel edges ``(col0, row0, col1, row1)`` (floats; the
         pixel grid's edges sit at integers)."""
-        return ((x_mm[0] - self.window_x_mm[0]) * self.px_per_mm,
-                (self.window_y_mm[1] - y_mm[1]) * self.px_per_mm,
-                (x_mm[1] - self.window_x_mm[0]) * self.px_per_mm,
-                (self.window_y_mm[1] - y_mm[0]) * self.px_per_mm)
+        return (
+            (x_mm[0] - self.window_x_mm[0]) * self.px_per_mm,
+            (self.window_y_mm[1] - y_mm[1]) * self.px_per_mm,
+            (x_mm[1] - self.window_x_mm[0]) * self.px_per_mm,
+            (self.window_y_mm[1] - y_mm[0]) * self.px_per_mm,
+        )
 
     def written_frames(self, n_frames: int) -> np.ndarray:
         """Indices (sorted, unique) of the frames of an ``n_frames`` scene written as
@@ -180,4 +188,3 @@ class RenderParams:
             out[f.name] = list(v) if isinstance(v, tuple) else v
         out["width_px"], out["height_px"] = self.width, self.height
         return out
-

@@ -29,6 +29,7 @@ Camera-facing walls overlap often (a rib's top face behind the outer wall at a p
 painting them in any order without the depth test shades a fifth of a pitched view's
 pixels wrongly.
 """
+
 from __future__ import annotations
 
 import math
@@ -86,8 +87,7 @@ def _cover_kernel(su, sv, faces, buf):
             r2 = B2 * sy + C2
             for i in range(x0, x1 + 1):
                 sx = float(i)
-                inside = ((A0 * sx + r0 >= 0.0) & (A1 * sx + r1 >= 0.0)
-                          & (A2 * sx + r2 >= 0.0))
+                inside = (A0 * sx + r0 >= 0.0) & (A1 * sx + r1 >= 0.0) & (A2 * sx + r2 >= 0.0)
                 buf[j, i] |= inside
 
 
@@ -203,8 +203,13 @@ def _colour_kernel(owner, ss, face_rgb, bg, out):
 class PerspectiveRaster:
     """Coverage of one finger mesh, extruded, through any pinhole camera (reuse per job)."""
 
-    def __init__(self, mesh: TriMesh, extrusion_mm: float = 20.0, supersample: int = 3,
-                 corners_only: bool = False):
+    def __init__(
+        self,
+        mesh: TriMesh,
+        extrusion_mm: float = 20.0,
+        supersample: int = 3,
+        corners_only: bool = False,
+    ):
         """``corners_only``: quadratic elements drawn as their corner triangles (and the
         boundary as chords between corner nodes): a fourth of the triangles; a rib's
         mid-side node lies off the chord by ~chord^2 / (8 R), microns for 1 mm elements,
@@ -214,16 +219,21 @@ class PerspectiveRaster:
             raise ValueError(f"supersample must be >= 1, got {supersample}")
         if corners_only and mesh.order == 2:
             be = mesh.boundary_edges
-            mesh = TriMesh(mesh.points, mesh.triangles[:, :3],
-                           np.column_stack([be[:, 0], be[:, 1], np.full(len(be), -1)]),
-                           mesh.boundary_tags)
+            mesh = TriMesh(
+                mesh.points,
+                mesh.triangles[:, :3],
+                np.column_stack([be[:, 0], be[:, 1], np.full(len(be), -1)]),
+                mesh.boundary_tags,
+            )
         self.surface = extrude(mesh, extrusion_mm)
         self.faces = np.ascontiguousarray(self.surface.faces, dtype=np.int64)
         self.n_nodes = len(mesh.points)
         self.supersample = int(supersample)
         self._buf = np.zeros(0, dtype=np.uint8)  # the sample buffer, grown as needed
 
-    def coverage(self, points2d: np.ndarray, camera: PinholeCamera) -> tuple[np.ndarray, tuple[int, int]]:
+    def coverage(
+        self, points2d: np.ndarray, camera: PinholeCamera
+    ) -> tuple[np.ndarray, tuple[int, int]]:
         """``(cov, (row0, col0))``: ``cov`` (h, w) float32 in [0, 1] is the fraction of each
         camera pixel covered by the extruded finger of deformed 2D nodes (N, 2) mm, over
         the smallest pixel window holding the whole projected surface plus a 1 px margin,
@@ -250,8 +260,10 @@ class PerspectiveRaster:
         pc = camera.to_camera(pts)
         z = pc[:, 2]
         if not z.min() > 0.0:
-            raise ValueError(f"the finger reaches behind the camera (nearest point {z.min():.1f} mm "
-                             "along its axis); move the camera away")
+            raise ValueError(
+                f"the finger reaches behind the camera (nearest point {z.min():.1f} mm "
+                "along its axis); move the camera away"
+            )
         u = camera.fx * pc[:, 0] / z + camera.cx
         v = camera.fy * pc[:, 1] / z + camera.cy
         col0, col1 = int(np.floor(u.min() + 0.5)) - 1, int(np.floor(u.max() + 0.5)) + 1
@@ -259,13 +271,17 @@ class PerspectiveRaster:
         h, w = row1 - row0 + 1, col1 - col0 + 1
         ss = self.supersample
         if h * w * ss * ss > MAX_SAMPLES:
-            raise ValueError(f"the finger spans {h} x {w} px in this camera's view "
-                             f"(over {MAX_SAMPLES} samples at supersample {ss}); move the camera away")
+            raise ValueError(
+                f"the finger spans {h} x {w} px in this camera's view "
+                f"(over {MAX_SAMPLES} samples at supersample {ss}); move the camera away"
+            )
         su = (u - col0 + 0.5) * ss - 0.5
         sv = (v - row0 + 0.5) * ss - 0.5
         return pts, z, su, sv, (row0, col0, h, w)
 
-    def image(self, points2d: np.ndarray, camera: PinholeCamera, params) -> tuple[np.ndarray, tuple[int, int]]:
+    def image(
+        self, points2d: np.ndarray, camera: PinholeCamera, params
+    ) -> tuple[np.ndarray, tuple[int, int]]:
         """``(rgb, (row0, col0))``: the finger as :class:`~finray.render.pvrender.PyVistaPerspective`
         draws it, over the window of :meth:`coverage`, (h, w, 3) uint8: at each sample
         the nearest camera-facing face (a depth test), flat-shaded by the
@@ -283,9 +299,15 @@ class PerspectiveRaster:
         _depth_kernel(su, sv, 1.0 / z, self.faces, depth, owner)
         face_rgb = np.empty((len(self.faces), 3))
         # the headlight shines along the view direction
-        _face_colours(pts, self.faces, np.ascontiguousarray(camera.rotation()[2]),
-                      np.asarray(params.finger_rgb, dtype=np.float64), float(params.ambient),
-                      float(params.diffuse), face_rgb)
+        _face_colours(
+            pts,
+            self.faces,
+            np.ascontiguousarray(camera.rotation()[2]),
+            np.asarray(params.finger_rgb, dtype=np.float64),
+            float(params.ambient),
+            float(params.diffuse),
+            face_rgb,
+        )
         bg = to_uint8(np.asarray(params.background_rgb)).astype(np.float64)
         out = np.empty((h, w, 3), dtype=np.uint8)
         _colour_kernel(owner, ss, face_rgb, bg, out)
@@ -300,5 +322,5 @@ class PerspectiveRaster:
         r1 = min(row0 + cov.shape[0], camera.height)
         c1 = min(col0 + cov.shape[1], camera.width)
         if r1 > r0 and c1 > c0:
-            out[r0:r1, c0:c1] = cov[r0 - row0:r1 - row0, c0 - col0:c1 - col0]
+            out[r0:r1, c0:c1] = cov[r0 - row0 : r1 - row0, c0 - col0 : c1 - col0]
         return out

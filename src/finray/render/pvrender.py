@@ -17,6 +17,7 @@ Mesa's software renderer (llvmpipe) starts one thread per core unless
 before the first plotter is created to change it), so one job uses one core. Without
 an X display, VTK is pointed at EGL (``VTK_DEFAULT_OPENGL_WINDOW``), unless set.
 """
+
 from __future__ import annotations
 
 import os
@@ -44,7 +45,6 @@ def vtk_cells(tri: np.ndarray) -> np.ndarray:
     return np.column_stack([np.full(len(tri), tri.shape[1]), tri]).ravel()
 
 
-
 def _finger_plotter(surface, p: RenderParams, size: tuple[int, int]):
     """An off-screen plotter of ``size`` (W, H) px with the extruded finger ``surface``
     in its colour, a headlight, no multisampling and back faces culled (the renderers'
@@ -56,10 +56,18 @@ def _finger_plotter(surface, p: RenderParams, size: tuple[int, int]):
     pl.set_background(p.background_rgb)
     pl.add_light(pv.Light(light_type="headlight", intensity=1.0))
     poly = pv.PolyData(surface.points.copy(), vtk_cells(surface.faces))
-    actor = pl.add_mesh(poly, color=p.finger_rgb, ambient=p.ambient, diffuse=p.diffuse,
-                        specular=0.0, smooth_shading=False, show_edges=False)
+    actor = pl.add_mesh(
+        poly,
+        color=p.finger_rgb,
+        ambient=p.ambient,
+        diffuse=p.diffuse,
+        specular=0.0,
+        smooth_shading=False,
+        show_edges=False,
+    )
     actor.GetProperty().BackfaceCullingOn()
     return pl, poly
+
 
 class _Plotted:
     """A renderer that owns ``self.plotter`` (window ``self.size``, W x H px): renders
@@ -96,9 +104,15 @@ class PyVistaRenderer(_Plotted):
     frame at the current pitch (:meth:`set_pitch`).
     """
 
-    def __init__(self, mesh: TriMesh, params: RenderParams | None = None,
-                 extrusion_mm: float = 20.0, pitch_deg: float = 0.0,
-                 object_edges: np.ndarray | None = None, n_object_points: int = 0):
+    def __init__(
+        self,
+        mesh: TriMesh,
+        params: RenderParams | None = None,
+        extrusion_mm: float = 20.0,
+        pitch_deg: float = 0.0,
+        object_edges: np.ndarray | None = None,
+        n_object_points: int = 0,
+    ):
         import pyvista as pv
 
         pv.OFF_SCREEN = True
@@ -120,11 +134,17 @@ class PyVistaRenderer(_Plotted):
             a, b = object_edges[:, 0], object_edges[:, 1]
             quads = np.column_stack([a, b, b + k, a + k])
             self.object_poly = pv.PolyData(pts, vtk_cells(quads))
-            pl.add_mesh(self.object_poly, color=p.object_rgb, ambient=p.ambient,
-                        diffuse=p.diffuse, specular=0.0)
+            pl.add_mesh(
+                self.object_poly,
+                color=p.object_rgb,
+                ambient=p.ambient,
+                diffuse=p.diffuse,
+                specular=0.0,
+            )
             self.object_lines = pv.PolyData(pts[:k].copy(), lines=vtk_cells(object_edges))
-            pl.add_mesh(self.object_lines, color=p.object_rgb, line_width=2 * self.ss,
-                        lighting=False)
+            pl.add_mesh(
+                self.object_lines, color=p.object_rgb, line_width=2 * self.ss, lighting=False
+            )
         pl.enable_parallel_projection()
         # the first show() sets up the render window (and may reset the camera);
         # frames after it only call render()
@@ -144,11 +164,15 @@ class PyVistaRenderer(_Plotted):
         cam.up = (0.0, np.cos(t), -np.sin(t))
         cam.parallel_scale = 0.5 * (p.window_y_mm[1] - p.window_y_mm[0])
         span = max(p.window_y_mm[1] - p.window_y_mm[0], p.window_x_mm[1] - p.window_x_mm[0])
-        cam.clipping_range = (CAMERA_DISTANCE_MM - 2 * span - self.extrusion_mm,
-                              CAMERA_DISTANCE_MM + 2 * span + self.extrusion_mm)
+        cam.clipping_range = (
+            CAMERA_DISTANCE_MM - 2 * span - self.extrusion_mm,
+            CAMERA_DISTANCE_MM + 2 * span + self.extrusion_mm,
+        )
         self.pitch_deg = float(pitch_deg)
 
-    def render_fine(self, points2d: np.ndarray, object_points2d: np.ndarray | None = None) -> np.ndarray:
+    def render_fine(
+        self, points2d: np.ndarray, object_points2d: np.ndarray | None = None
+    ) -> np.ndarray:
         """The supersampled RGB frame (H*ss, W*ss, 3) uint8, row 0 at the top."""
         self.poly.points = self.surface.deformed(np.asarray(points2d, dtype=np.float64))
         if self.object_poly is not None and object_points2d is not None:
@@ -177,8 +201,13 @@ class PyVistaPerspective(_Plotted):
     :meth:`~finray.render.camera.PinholeCamera.scaled`, then area-averaged down.
     """
 
-    def __init__(self, mesh: TriMesh, params: RenderParams | None = None,
-                 extrusion_mm: float = 20.0, supersample: int | None = None):
+    def __init__(
+        self,
+        mesh: TriMesh,
+        params: RenderParams | None = None,
+        extrusion_mm: float = 20.0,
+        supersample: int | None = None,
+    ):
         import pyvista as pv
 
         pv.OFF_SCREEN = True
@@ -202,8 +231,10 @@ class PyVistaPerspective(_Plotted):
         pts = self.surface.deformed(points2d)
         z = camera.to_camera(pts)[:, 2]
         if not z.min() > 0.0:
-            raise ValueError(f"the finger reaches behind the camera (nearest point {z.min():.1f} mm "
-                             "along its axis); move the camera away")
+            raise ValueError(
+                f"the finger reaches behind the camera (nearest point {z.min():.1f} mm "
+                "along its axis); move the camera away"
+            )
         fine = camera.scaled(self.ss)
         size = (fine.width, fine.height)
         if size != self.size:
@@ -225,9 +256,9 @@ def block_mean_u8(img: np.ndarray, k: int) -> np.ndarray:
     strided rows, then columns -- no overflow for k <= 16 -- and one division),
     ~8x faster than the float reduction."""
     h, w = img.shape[0] // k, img.shape[1] // k
-    rows = img[0:h * k:k, :w * k].astype(np.uint16)
+    rows = img[0 : h * k : k, : w * k].astype(np.uint16)
     for i in range(1, k):
-        rows += img[i:h * k:k, :w * k]
+        rows += img[i : h * k : k, : w * k]
     rows = rows.reshape(h, w, k, *img.shape[2:])
     out = rows[:, :, 0].copy()
     for i in range(1, k):

@@ -19,6 +19,7 @@ The samples are accumulated straight into the output-resolution buffers, so the
 cost grows with the finger's area in samples, not with the window. The result
 matches pyvista's front view (same window, same pixel centres; tested).
 """
+
 from __future__ import annotations
 
 import math
@@ -109,9 +110,11 @@ def _raster_kernel(px, py, tris, vals, ss, count, acc):
                 w0 = A0 * sx + r0
                 w1 = A1 * sx + r1
                 w2 = A2 * sx + r2
-                inside = (((w0 > 0.0) | ((w0 == 0.0) & o0))
-                          & ((w1 > 0.0) | ((w1 == 0.0) & o1))
-                          & ((w2 > 0.0) | ((w2 == 0.0) & o2)))
+                inside = (
+                    ((w0 > 0.0) | ((w0 == 0.0) & o0))
+                    & ((w1 > 0.0) | ((w1 == 0.0) & o1))
+                    & ((w2 > 0.0) | ((w2 == 0.0) & o2))
+                )
                 q = cell[i]
                 count[r, q] += inside
                 acc[r, q] += inside * (w0 * va + w1 * vb + w2 * vc)
@@ -183,10 +186,13 @@ class Rasterizer:
         p = self.params
         px = (xy[:, 0] - p.window_x_mm[0]) * self._scale - 0.5
         py = (p.window_y_mm[1] - xy[:, 1]) * self._scale - 0.5
-        return np.ascontiguousarray(px, dtype=np.float64), np.ascontiguousarray(py, dtype=np.float64)
+        return np.ascontiguousarray(px, dtype=np.float64), np.ascontiguousarray(
+            py, dtype=np.float64
+        )
 
-    def render(self, points2d: np.ndarray, von_mises_MPa: np.ndarray | None = None
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def render(
+        self, points2d: np.ndarray, von_mises_MPa: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(coverage, stress, stress_area)``, each (H, W) float32, of deformed nodes (N, 2) mm.
 
         - ``coverage``: fraction of the pixel covered by the finger;
@@ -203,19 +209,25 @@ class Rasterizer:
         if len(points2d) != self.n_nodes:
             raise ValueError(f"expected {self.n_nodes} nodes, got {len(points2d)}")
         px, py = self._sample_coords(points2d)
-        vals = (np.zeros(self.n_nodes) if von_mises_MPa is None
-                else stress_transform(np.asarray(von_mises_MPa, dtype=np.float64),
-                                      self.params.stress_ref_MPa))
+        vals = (
+            np.zeros(self.n_nodes)
+            if von_mises_MPa is None
+            else stress_transform(
+                np.asarray(von_mises_MPa, dtype=np.float64), self.params.stress_ref_MPa
+            )
+        )
         self._count.fill(0)
         self._acc.fill(0.0)
-        _raster_kernel(px, py, self.tris, vals, int(self.params.supersample),
-                       self._count, self._acc)
+        _raster_kernel(
+            px, py, self.tris, vals, int(self.params.supersample), self._count, self._acc
+        )
         shape = self.params.shape
         coverage = np.empty(shape, np.float32)
         stress = np.empty(shape, np.float32)
         stress_area = np.empty(shape, np.float32)
-        _finalise_kernel(self._count, self._acc, int(self.params.supersample) ** 2,
-                         coverage, stress, stress_area)
+        _finalise_kernel(
+            self._count, self._acc, int(self.params.supersample) ** 2, coverage, stress, stress_area
+        )
         return coverage, stress, stress_area
 
     def polygon_coverage(self, points2d: np.ndarray, edges: np.ndarray) -> np.ndarray:
@@ -223,14 +235,20 @@ class Rasterizer:
         px, py = self._sample_coords(np.asarray(points2d, dtype=np.float64))
         count = np.zeros(self.params.shape, dtype=np.int32)
         if len(edges):
-            _polygon_kernel(px, py, np.ascontiguousarray(edges, dtype=np.int64),
-                            int(self.params.supersample), count)
-        n = self.params.supersample ** 2
+            _polygon_kernel(
+                px,
+                py,
+                np.ascontiguousarray(edges, dtype=np.int64),
+                int(self.params.supersample),
+                count,
+            )
+        n = self.params.supersample**2
         return (np.minimum(count, n) / n).astype(np.float32)
 
 
-def composite(coverage: np.ndarray, params: RenderParams,
-              object_coverage: np.ndarray | None = None) -> np.ndarray:
+def composite(
+    coverage: np.ndarray, params: RenderParams, object_coverage: np.ndarray | None = None
+) -> np.ndarray:
     """RGB uint8 image (H, W, 3): finger colour over the background by coverage
     (and the object's colour on top, for figures).
 

@@ -21,6 +21,7 @@ contact_y_mm        (F,) float      optional: height y (mm, clamped base at y=0)
                                     without it reads as all NaN)
 ==================  ==============  ====================================================
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
@@ -32,8 +33,18 @@ import numpy as np
 from ..geometry.mesh import TriMesh
 from ..errors import ResultError
 
-REQUIRED_KEYS = ("points", "triangles", "boundary_edges", "displacement_mm", "u_mm",
-                 "von_mises_MPa", "fx_N", "fy_N", "object_points_mm", "object_edges")
+REQUIRED_KEYS = (
+    "points",
+    "triangles",
+    "boundary_edges",
+    "displacement_mm",
+    "u_mm",
+    "von_mises_MPa",
+    "fx_N",
+    "fy_N",
+    "object_points_mm",
+    "object_edges",
+)
 
 
 @dataclass
@@ -67,8 +78,12 @@ class FEAResult:
     @property
     def mesh(self) -> TriMesh:
         """The finger's reference mesh (boundary tags unknown: all 0)."""
-        return TriMesh(self.points, self.triangles, self.boundary_edges,
-                       np.zeros(len(self.boundary_edges), dtype=np.int64))
+        return TriMesh(
+            self.points,
+            self.triangles,
+            self.boundary_edges,
+            np.zeros(len(self.boundary_edges), dtype=np.int64),
+        )
 
     def deformed_points(self, frame: int) -> np.ndarray:
         """Deformed node positions (N, 2) mm of one frame."""
@@ -77,10 +92,17 @@ class FEAResult:
     def frames(self, index) -> "FEAResult":
         """A result restricted to the given frame indices."""
         idx = np.asarray(index)
-        return replace(self, displacement_mm=self.displacement_mm[idx], u_mm=self.u_mm[idx],
-                       von_mises_MPa=self.von_mises_MPa[idx], fx_N=self.fx_N[idx],
-                       fy_N=self.fy_N[idx], object_points_mm=self.object_points_mm[idx],
-                       fea_frame=self.fea_frame[idx], contact_y_mm=self.contact_y_mm[idx])
+        return replace(
+            self,
+            displacement_mm=self.displacement_mm[idx],
+            u_mm=self.u_mm[idx],
+            von_mises_MPa=self.von_mises_MPa[idx],
+            fx_N=self.fx_N[idx],
+            fy_N=self.fy_N[idx],
+            object_points_mm=self.object_points_mm[idx],
+            fea_frame=self.fea_frame[idx],
+            contact_y_mm=self.contact_y_mm[idx],
+        )
 
 
 def _check(res: FEAResult, path) -> None:
@@ -90,27 +112,49 @@ def _check(res: FEAResult, path) -> None:
         if not cond:
             raise ResultError(f"{path}: {msg}")
 
-    need(res.points.ndim == 2 and res.points.shape[1] == 2, f"points has shape {res.points.shape}, expected (N, 2)")
-    need(res.triangles.ndim == 2 and res.triangles.shape[1] in (3, 6),
-         f"triangles has shape {res.triangles.shape}, expected (M, 6) or (M, 3)")
+    need(
+        res.points.ndim == 2 and res.points.shape[1] == 2,
+        f"points has shape {res.points.shape}, expected (N, 2)",
+    )
+    need(
+        res.triangles.ndim == 2 and res.triangles.shape[1] in (3, 6),
+        f"triangles has shape {res.triangles.shape}, expected (M, 6) or (M, 3)",
+    )
     need(res.triangles.min() >= 0 and res.triangles.max() < n, "triangles index outside points")
-    need(res.boundary_edges.ndim == 2 and res.boundary_edges.shape[1] == 3,
-         f"boundary_edges has shape {res.boundary_edges.shape}, expected (E, 3)")
+    need(
+        res.boundary_edges.ndim == 2 and res.boundary_edges.shape[1] == 3,
+        f"boundary_edges has shape {res.boundary_edges.shape}, expected (E, 3)",
+    )
     need(f >= 1, "no frames")
     need(res.u_mm.shape == (f, n, 2), f"u_mm has shape {res.u_mm.shape}, expected {(f, n, 2)}")
-    need(res.von_mises_MPa.shape == (f, n),
-         f"von_mises_MPa has shape {res.von_mises_MPa.shape}, expected {(f, n)}")
-    need(res.fx_N.shape == (f,) and res.fy_N.shape == (f,), "fx_N and fy_N need one value per frame")
+    need(
+        res.von_mises_MPa.shape == (f, n),
+        f"von_mises_MPa has shape {res.von_mises_MPa.shape}, expected {(f, n)}",
+    )
+    need(
+        res.fx_N.shape == (f,) and res.fy_N.shape == (f,), "fx_N and fy_N need one value per frame"
+    )
     need(res.contact_y_mm.shape == (f,), "contact_y_mm needs one value per frame")
-    need(res.object_points_mm.ndim == 3 and res.object_points_mm.shape[0] == f
-         and res.object_points_mm.shape[2] == 2,
-         f"object_points_mm has shape {res.object_points_mm.shape}, expected ({f}, K, 2)")
+    need(
+        res.object_points_mm.ndim == 3
+        and res.object_points_mm.shape[0] == f
+        and res.object_points_mm.shape[2] == 2,
+        f"object_points_mm has shape {res.object_points_mm.shape}, expected ({f}, K, 2)",
+    )
     k = res.object_points_mm.shape[1]
-    need(res.object_edges.ndim == 2 and res.object_edges.shape[1] == 2
-         and (len(res.object_edges) == 0 or (res.object_edges.min() >= 0 and res.object_edges.max() < k)),
-         "object_edges must be (E_o, 2) indices into object_points_mm")
-    need(np.all(np.isfinite(res.u_mm)) and np.all(np.isfinite(res.von_mises_MPa)),
-         "u_mm or von_mises_MPa holds NaN or inf")
+    need(
+        res.object_edges.ndim == 2
+        and res.object_edges.shape[1] == 2
+        and (
+            len(res.object_edges) == 0
+            or (res.object_edges.min() >= 0 and res.object_edges.max() < k)
+        ),
+        "object_edges must be (E_o, 2) indices into object_points_mm",
+    )
+    need(
+        np.all(np.isfinite(res.u_mm)) and np.all(np.isfinite(res.von_mises_MPa)),
+        "u_mm or von_mises_MPa holds NaN or inf",
+    )
     need(np.all(np.diff(res.displacement_mm) >= 0), "displacement_mm must be non-decreasing")
 
 
@@ -121,14 +165,18 @@ def load_fea_result(path: str | Path) -> FEAResult:
         if missing:
             raise ResultError(f"{path}: missing keys {missing}")
         d = {k: f[k] for k in REQUIRED_KEYS}
-        contact_y = f["contact_y_mm"].astype(np.float64).ravel() if "contact_y_mm" in f.files else None
+        contact_y = (
+            f["contact_y_mm"].astype(np.float64).ravel() if "contact_y_mm" in f.files else None
+        )
     res = FEAResult(
-        points=d["points"].astype(np.float64), triangles=d["triangles"].astype(np.int64),
+        points=d["points"].astype(np.float64),
+        triangles=d["triangles"].astype(np.int64),
         boundary_edges=d["boundary_edges"].astype(np.int64),
         displacement_mm=d["displacement_mm"].astype(np.float64).ravel(),
         u_mm=d["u_mm"].astype(np.float32, copy=False),
         von_mises_MPa=d["von_mises_MPa"].astype(np.float32, copy=False),
-        fx_N=d["fx_N"].astype(np.float64).ravel(), fy_N=d["fy_N"].astype(np.float64).ravel(),
+        fx_N=d["fx_N"].astype(np.float64).ravel(),
+        fy_N=d["fy_N"].astype(np.float64).ravel(),
         object_points_mm=d["object_points_mm"].astype(np.float64),
         object_edges=d["object_edges"].astype(np.int64).reshape(-1, 2),
         contact_y_mm=contact_y,
@@ -174,10 +222,17 @@ def resample_frames(res: FEAResult, n_frames: int | None) -> FEAResult:
         """lerp, a frame met exactly (w 0 or 1) kept even where its neighbour is NaN."""
         return np.where(w <= 0, a[i], np.where(w >= 1, a[i + 1], (1 - w) * a[i] + w * a[i + 1]))
 
-    return replace(res, displacement_mm=target, u_mm=lerp(res.u_mm),
-                   von_mises_MPa=lerp(res.von_mises_MPa), fx_N=lerp(res.fx_N), fy_N=lerp(res.fy_N),
-                   object_points_mm=lerp(res.object_points_mm), contact_y_mm=lerp_nan(res.contact_y_mm),
-                   fea_frame=(1 - w) * res.fea_frame[i] + w * res.fea_frame[i + 1])
+    return replace(
+        res,
+        displacement_mm=target,
+        u_mm=lerp(res.u_mm),
+        von_mises_MPa=lerp(res.von_mises_MPa),
+        fx_N=lerp(res.fx_N),
+        fy_N=lerp(res.fy_N),
+        object_points_mm=lerp(res.object_points_mm),
+        contact_y_mm=lerp_nan(res.contact_y_mm),
+        fea_frame=(1 - w) * res.fea_frame[i] + w * res.fea_frame[i + 1],
+    )
 
 
 @nb.njit(cache=True)

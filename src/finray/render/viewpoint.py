@@ -13,6 +13,7 @@ Output directory::
     index.json                         written last: scene, camera settings, and per
                                        image its distance, pitch, frame, FEA forces
 """
+
 from __future__ import annotations
 
 import json
@@ -39,10 +40,17 @@ def viewpoint_camera(view: dict, pitch_deg: float, distance_mm: float) -> Pinhol
     tan_h = np.tan(np.radians(0.5 * float(view["hfov_deg"])))
     hfov_portrait = 2 * np.degrees(np.arctan(w / h * tan_h))
     tx, ty = view["target_mm"]
-    return PinholeCamera.looking_at((tx, ty, 0.0), width=w, height=h, hfov_deg=hfov_portrait,
-                                    distance_mm=float(distance_mm), yaw_deg=float(view["yaw_deg"]),
-                                    pitch_deg=float(pitch_deg), roll_deg=float(view["roll_deg"]),
-                                    principal_offset_px=tuple(view["principal_offset_px"]))
+    return PinholeCamera.looking_at(
+        (tx, ty, 0.0),
+        width=w,
+        height=h,
+        hfov_deg=hfov_portrait,
+        distance_mm=float(distance_mm),
+        yaw_deg=float(view["yaw_deg"]),
+        pitch_deg=float(pitch_deg),
+        roll_deg=float(view["roll_deg"]),
+        principal_offset_px=tuple(view["principal_offset_px"]),
+    )
 
 
 def viewpoint_frames(n_frames: int, k: int) -> np.ndarray:
@@ -50,9 +58,17 @@ def viewpoint_frames(n_frames: int, k: int) -> np.ndarray:
     return np.unique(np.rint(np.linspace(0, n_frames - 1, k + 1)[1:]).astype(int))
 
 
-def render_viewpoint(result_npz, out_dir, view: dict, pitches_deg, *,
-                     params: RenderParams | None = None, extrusion_mm: float = 20.0,
-                     scene: dict | None = None, log_every_s: float = 30.0) -> dict:
+def render_viewpoint(
+    result_npz,
+    out_dir,
+    view: dict,
+    pitches_deg,
+    *,
+    params: RenderParams | None = None,
+    extrusion_mm: float = 20.0,
+    scene: dict | None = None,
+    log_every_s: float = 30.0,
+) -> dict:
     """Render ``view["frames_per_scene"]`` frames of a solver result at every pitch and
     every ``view["distances_mm"]``; returns the index (also written)."""
     from .pvrender import PyVistaPerspective
@@ -68,8 +84,12 @@ def render_viewpoint(result_npz, out_dir, view: dict, pitches_deg, *,
     views = [(float(d), float(p)) for d in view["distances_mm"] for p in pitches_deg]
     t0 = time.perf_counter()
     rows = []
-    progress = Progress(log, f"viewpoint renders of {Path(result_npz).parent}",
-                        len(views) * len(frames), log_every_s)
+    progress = Progress(
+        log,
+        f"viewpoint renders of {Path(result_npz).parent}",
+        len(views) * len(frames),
+        log_every_s,
+    )
     renderer = PyVistaPerspective(res.mesh, params, extrusion_mm, int(view["supersample"]))
     try:
         for d, p in views:
@@ -77,15 +97,30 @@ def render_viewpoint(result_npz, out_dir, view: dict, pitches_deg, *,
             for k in frames:
                 name = f"d{d:g}_p{p:g}_{k:04d}.png"
                 write_png(out_dir / name, renderer.render(res.deformed_points(int(k)), cam))
-                rows.append({"image": name, "distance_mm": d, "pitch_deg": p, "frame": int(k),
-                             "displacement_mm": float(res.displacement_mm[k]),
-                             "fx_N": float(res.fx_N[k]), "fy_N": float(res.fy_N[k]),
-                             "contact_y_mm": float(res.contact_y_mm[k])})
+                rows.append(
+                    {
+                        "image": name,
+                        "distance_mm": d,
+                        "pitch_deg": p,
+                        "frame": int(k),
+                        "displacement_mm": float(res.displacement_mm[k]),
+                        "fx_N": float(res.fx_N[k]),
+                        "fy_N": float(res.fy_N[k]),
+                        "contact_y_mm": float(res.contact_y_mm[k]),
+                    }
+                )
                 progress(len(rows), f"{d:g} mm, pitch {p:g} deg")
     finally:
         renderer.close()
-    index = {"result": str(result_npz), "scene": dict(scene or {}), "view": dict(view),
-             "pitches_deg": [float(p) for p in pitches_deg], "n_frames": res.n_frames,
-             "frames": rows, "renderer": "pyvista perspective", "seconds": time.perf_counter() - t0}
+    index = {
+        "result": str(result_npz),
+        "scene": dict(scene or {}),
+        "view": dict(view),
+        "pitches_deg": [float(p) for p in pitches_deg],
+        "n_frames": res.n_frames,
+        "frames": rows,
+        "renderer": "pyvista perspective",
+        "seconds": time.perf_counter() - t0,
+    }
     (out_dir / "index.json").write_text(json.dumps(index, indent=1))
     return index

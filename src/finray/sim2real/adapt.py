@@ -17,6 +17,7 @@ per-frame uncertainty of the network (:mod:`finray.sim2real.calibration` adds th
   ``members`` (each head's, N); :func:`export_ensemble` writes it for
   :class:`finray.predict.Predictor`
 """
+
 from __future__ import annotations
 
 import copy
@@ -74,7 +75,9 @@ class HeadFit:
 
     def n_steps(self, frames: int) -> int:
         """The Adam steps of one head fitted on ``frames`` frames."""
-        return max(1, math.ceil(self.epochs * frames / self.batch)) if self.epochs > 0 else self.steps
+        return (
+            max(1, math.ceil(self.epochs * frames / self.batch)) if self.epochs > 0 else self.steps
+        )
 
 
 def encoder_features(model: FinRayNet, images, batch: int = 256) -> torch.Tensor:
@@ -82,8 +85,13 @@ def encoder_features(model: FinRayNet, images, batch: int = 256) -> torch.Tensor
     model.eval()
     x = torch.tensor(np.asarray(images, dtype=np.float32))
     with torch.inference_mode():
-        return torch.cat([model.encode(x[i:i + batch])[0].flatten(1)
-                          for i in range(0, len(x), batch)]) if len(x) else torch.zeros(0)
+        return (
+            torch.cat(
+                [model.encode(x[i : i + batch])[0].flatten(1) for i in range(0, len(x), batch)]
+            )
+            if len(x)
+            else torch.zeros(0)
+        )
 
 
 @dataclass(frozen=True)
@@ -117,15 +125,22 @@ class SimAnchor:
             return None
         saved = torch.load(path, weights_only=True)
         if "anchor" not in saved:
-            raise CalibrationError(f"{path}: no simulated frames (written before sim_replay_frames); "
-                                   "run the no-context fit again")
+            raise CalibrationError(
+                f"{path}: no simulated frames (written before sim_replay_frames); "
+                "run the no-context fit again"
+            )
         if saved["anchor"]["features"].shape[1] != model.force_head[1].in_features:
             raise CalibrationError(f"{path}: its simulated frames are not of this model's encoder")
-        return cls(saved["anchor"]["features"].float(), saved["anchor"]["force_N"].numpy(),
-                   tuple(head_from_state(model, state) for state in saved["heads"]), int(frames))
+        return cls(
+            saved["anchor"]["features"].float(),
+            saved["anchor"]["force_N"].numpy(),
+            tuple(head_from_state(model, state) for state in saved["heads"]),
+            int(frames),
+        )
 
-    def with_context(self, model: FinRayNet, features: torch.Tensor, force_N,
-                     seed: int) -> tuple[torch.Tensor, np.ndarray]:
+    def with_context(
+        self, model: FinRayNet, features: torch.Tensor, force_N, seed: int
+    ) -> tuple[torch.Tensor, np.ndarray]:
         """The context frames followed by ``frames`` simulated ones (drawn with
         ``seed``), their force the rig's sensor's by the context's gain and offset."""
         y = np.asarray(force_N, dtype=np.float64)
@@ -134,12 +149,20 @@ class SimAnchor:
         pool = len(self.force_N)
         pick = np.random.default_rng(seed).choice(pool, self.frames, replace=self.frames > pool)
         sim_y = gain * np.asarray(self.force_N, dtype=np.float64)[pick] + offset
-        return (torch.cat([features, self.features[pick].to(features.dtype)]),
-                np.concatenate([y, sim_y]))
+        return (
+            torch.cat([features, self.features[pick].to(features.dtype)]),
+            np.concatenate([y, sim_y]),
+        )
 
 
-def fit_heads(model: FinRayNet, features: torch.Tensor, force_N, fit: HeadFit,
-              component: int = 0, anchor: SimAnchor | None = None) -> list[nn.Module]:
+def fit_heads(
+    model: FinRayNet,
+    features: torch.Tensor,
+    force_N,
+    fit: HeadFit,
+    component: int = 0,
+    anchor: SimAnchor | None = None,
+) -> list[nn.Module]:
     """``fit.members`` copies of the model's force head, reduced to output
     ``component`` (0: along the push), each fitted to ``force_N`` (N,) on
     ``features`` (N, F): its last ``fit.layers`` linear layers (all where 0), the
@@ -165,8 +188,9 @@ def fit_heads(model: FinRayNet, features: torch.Tensor, force_N, fit: HeadFit,
         z = frozen(features) if start else features.clone()  # (not an inference tensor)
     n, b = len(y), min(fit.batch, len(y))
     gens = [torch.Generator().manual_seed(fit.seed * 1000 + m) for m in range(fit.members)]
-    pools = torch.stack([torch.randint(0, n, (n,), generator=g) if fit.bootstrap else torch.arange(n)
-                         for g in gens])
+    pools = torch.stack(
+        [torch.randint(0, n, (n,), generator=g) if fit.bootstrap else torch.arange(n) for g in gens]
+    )
     ops, params = _stacked_tail(template[start:], fit.members)
     opt = torch.optim.Adam(params, lr=fit.lr)
     decay = torch.optim.lr_scheduler.CosineAnnealingLR(opt, steps) if fit.lr_decay else None
@@ -205,8 +229,15 @@ def _stacked_tail(tail: nn.Sequential, members: int) -> tuple[list, list[torch.T
         if isinstance(mod, nn.Linear):
             ops.append(("linear", stack(mod.weight), stack(mod.bias)))
         elif isinstance(mod, nn.BatchNorm1d):
-            ops.append(("norm", stack(mod.weight), stack(mod.bias), mod.running_mean.clone(),
-                        torch.sqrt(mod.running_var + mod.eps)))
+            ops.append(
+                (
+                    "norm",
+                    stack(mod.weight),
+                    stack(mod.bias),
+                    mod.running_mean.clone(),
+                    torch.sqrt(mod.running_var + mod.eps),
+                )
+            )
         elif isinstance(mod, (nn.ReLU, nn.Sigmoid, nn.Identity)):
             ops.append(("act", mod))
             continue
@@ -256,14 +287,15 @@ def _single_output(head: nn.Sequential, component: int) -> nn.Sequential:
     last = head[-1]
     one = nn.Linear(last.in_features, 1)
     with torch.no_grad():
-        one.weight.copy_(last.weight[component:component + 1])
-        one.bias.copy_(last.bias[component:component + 1])
+        one.weight.copy_(last.weight[component : component + 1])
+        one.bias.copy_(last.bias[component : component + 1])
     head[-1] = one
     return head
 
 
-def head_forces(model: FinRayNet, heads: list[nn.Module], features: torch.Tensor,
-                component: int = 0) -> np.ndarray:
+def head_forces(
+    model: FinRayNet, heads: list[nn.Module], features: torch.Tensor, component: int = 0
+) -> np.ndarray:
     """Each head's force (M, N) in N on features (N, F)."""
     mean, scale = model.force_mean_N[component], model.force_scale_N[component]
     with torch.inference_mode():
@@ -297,8 +329,13 @@ class HeadEnsemble(nn.Module):
         return self.model.decode(h, skips), self._members(h).mean(dim=1, keepdim=True)
 
 
-def export_ensemble(ensemble: HeadEnsemble, path: str | Path, preprocess: dict,
-                    info: dict | None = None, base_meta: dict | None = None) -> None:
+def export_ensemble(
+    ensemble: HeadEnsemble,
+    path: str | Path,
+    preprocess: dict,
+    info: dict | None = None,
+    base_meta: dict | None = None,
+) -> None:
     """Trace the ensemble to TorchScript at ``path`` (``forward``, ``force``, ``members``)
     with ``path + '.json'`` as :func:`finray.train.export_torchscript` writes it, plus
     ``ensemble`` (the number of heads) and ``adapted`` (``info``); the base model's
@@ -307,12 +344,22 @@ def export_ensemble(ensemble: HeadEnsemble, path: str | Path, preprocess: dict,
     c = ens.model.cfg
     example = torch.rand(1, c.in_channels, c.height, c.width)
     with torch.no_grad():
-        ts = torch.jit.trace_module(ens, {"forward": example, "force": example,
-                                          "members": example})
+        ts = torch.jit.trace_module(ens, {"forward": example, "force": example, "members": example})
         ts = torch.jit.freeze(ts, preserved_attrs=["force", "members"])
     ts.save(str(path))
     cfg = ens.model.config_dict() | {"n_forces": 1}
-    Path(str(path) + ".json").write_text(json.dumps(
-        {**cfg, "forces": ["fx_N"], "ensemble": len(ens.heads), "preprocess": preprocess,
-         **{k: base_meta[k] for k in ("stress_ref_MPa", "trained") if k in (base_meta or {})},
-         "adapted": info or {}}, indent=1))
+    Path(str(path) + ".json").write_text(
+        json.dumps(
+            {
+                **cfg,
+                "forces": ["fx_N"],
+                "ensemble": len(ens.heads),
+                "preprocess": preprocess,
+                **{
+                    k: base_meta[k] for k in ("stress_ref_MPa", "trained") if k in (base_meta or {})
+                },
+                "adapted": info or {},
+            },
+            indent=1,
+        )
+    )

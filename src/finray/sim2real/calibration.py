@@ -19,6 +19,7 @@ times long for every parameter (emcee's integrated time); the diagnostics are ke
 with the posterior (:func:`fit_calibration`). :func:`predictive` gives each frame's
 median and interval from the posterior and the network's spread.
 """
+
 from __future__ import annotations
 
 import json
@@ -91,9 +92,14 @@ def log_posterior(theta: np.ndarray, mu, s, y, priors: Priors, weight: float = 1
     from scipy.special import gammaln
 
     theta = np.atleast_2d(theta)
-    g, b, ls, lr, lk, ln = (theta[:, i:i + 1] for i in range(len(PARAMS)))
+    g, b, ls, lr, lk, ln = (theta[:, i : i + 1] for i in range(len(PARAMS)))
     ok = g[:, 0] > 0
-    for v, (lo, hi) in ((ls, priors.sigma_N), (lr, priors.rho), (lk, priors.kappa), (ln, priors.nu)):
+    for v, (lo, hi) in (
+        (ls, priors.sigma_N),
+        (lr, priors.rho),
+        (lk, priors.kappa),
+        (ln, priors.nu),
+    ):
         ok &= (v[:, 0] >= np.log(lo)) & (v[:, 0] <= np.log(hi))
     out = np.full(len(theta), -np.inf)
     if not ok.any():
@@ -102,8 +108,9 @@ def log_posterior(theta: np.ndarray, mu, s, y, priors: Priors, weight: float = 1
     nu = np.exp(ln)
     var = np.exp(2 * ls) + (np.exp(lr) * g * mu) ** 2 + (np.exp(lk) * g * s) ** 2
     z2 = (y - g * mu - b) ** 2 / var
-    ll = (len(y) * (gammaln((nu[:, 0] + 1) / 2) - gammaln(nu[:, 0] / 2) - 0.5 * np.log(np.pi * nu[:, 0]))
-          - 0.5 * np.sum(np.log(var) + (nu + 1) * np.log1p(z2 / nu), axis=1))
+    ll = len(y) * (
+        gammaln((nu[:, 0] + 1) / 2) - gammaln(nu[:, 0] / 2) - 0.5 * np.log(np.pi * nu[:, 0])
+    ) - 0.5 * np.sum(np.log(var) + (nu + 1) * np.log1p(z2 / nu), axis=1)
     shape, rate = priors.nu_gamma
     # the Gamma prior on nu, sampled as log nu (Jacobian nu); a gain or offset of prior
     # sd 0 is fixed (:func:`fixed_params`) and has no prior term
@@ -121,8 +128,9 @@ def fixed_params(priors: Priors) -> dict[int, float]:
     """The parameters held fixed, by their index in :data:`PARAMS`: the gain at 1 where
     ``gain_log_sd`` is 0, the offset at 0 N where ``offset_sd_N`` is 0 (a model already
     fitted to the sensor's frames, whose residuals are left to the noise terms)."""
-    return {i: v for i, v, sd in ((0, 1.0, priors.gain_log_sd), (1, 0.0, priors.offset_sd_N))
-            if sd == 0}
+    return {
+        i: v for i, v, sd in ((0, 1.0, priors.gain_log_sd), (1, 0.0, priors.offset_sd_N)) if sd == 0
+    }
 
 
 def _full(free: np.ndarray, fixed: dict[int, float]) -> np.ndarray:
@@ -152,11 +160,23 @@ def _start(mu, s, y, priors: Priors, weight: float = 1.0) -> np.ndarray:
         (g, b), *_ = np.linalg.lstsq(A, y, rcond=None)
         g = g if g > 0 else 1.0
     r = y - g * mu - b
-    x0 = np.array([g, b, np.log(max(np.std(r), 2 * priors.sigma_N[0])), np.log(0.05), 0.0,
-                   np.log(np.clip(20.0, *priors.nu))])
+    x0 = np.array(
+        [
+            g,
+            b,
+            np.log(max(np.std(r), 2 * priors.sigma_N[0])),
+            np.log(0.05),
+            0.0,
+            np.log(np.clip(20.0, *priors.nu)),
+        ]
+    )
     free = [i for i in range(len(PARAMS)) if i not in fixed]
-    best = minimize(lambda t: -log_posterior(_full(t, fixed), mu, s, y, priors, weight)[0], x0[free],
-                    method="Nelder-Mead", options={"maxiter": 4000, "xatol": 1e-6, "fatol": 1e-6})
+    best = minimize(
+        lambda t: -log_posterior(_full(t, fixed), mu, s, y, priors, weight)[0],
+        x0[free],
+        method="Nelder-Mead",
+        options={"maxiter": 4000, "xatol": 1e-6, "fatol": 1e-6},
+    )
     x = _full(best.x if np.isfinite(best.fun) else x0[free], fixed)[0]
     # inside the bounds, so that every walker of the ball around it starts finite
     for i, (lo, hi) in zip((2, 3, 4, 5), (priors.sigma_N, priors.rho, priors.kappa, priors.nu)):
@@ -164,8 +184,15 @@ def _start(mu, s, y, priors: Priors, weight: float = 1.0) -> np.ndarray:
     return x
 
 
-def fit_calibration(mu, s, y, priors: Priors | None = None, sampler: Sampler | None = None,
-                    log=print, weight: float = 1.0) -> dict:
+def fit_calibration(
+    mu,
+    s,
+    y,
+    priors: Priors | None = None,
+    sampler: Sampler | None = None,
+    log=print,
+    weight: float = 1.0,
+) -> dict:
     """Sample the sensor model's posterior on frames (network mean ``mu``, spread ``s``,
     sensor ``y``; N). Returns ``{"posterior": {"names", "samples"}, "summary",
     "diagnostics", "priors", "sampler"}``; ``diagnostics["ok"]``: the chain is long
@@ -186,19 +213,28 @@ def fit_calibration(mu, s, y, priors: Priors | None = None, sampler: Sampler | N
     p0 = x0 + 1e-3 * rng.standard_normal((sampler.walkers, len(free))) * np.maximum(np.abs(x0), 0.1)
     # differential-evolution moves shorten the autocorrelation; mixed with the stretch
     # move (acceptance ~0.6 here) for an acceptance fraction within 0.2-0.5
-    moves = [(emcee.moves.DEMove(), 0.6), (emcee.moves.DESnookerMove(), 0.1),
-             (emcee.moves.StretchMove(), 0.3)]
-    ens = emcee.EnsembleSampler(sampler.walkers, len(free),
-                                lambda t: log_posterior(_full(t, fixed), mu, s, y, priors, weight),
-                                vectorize=True, moves=moves)
+    moves = [
+        (emcee.moves.DEMove(), 0.6),
+        (emcee.moves.DESnookerMove(), 0.1),
+        (emcee.moves.StretchMove(), 0.3),
+    ]
+    ens = emcee.EnsembleSampler(
+        sampler.walkers,
+        len(free),
+        lambda t: log_posterior(_full(t, fixed), mu, s, y, priors, weight),
+        vectorize=True,
+        moves=moves,
+    )
     ens.random_state = np.random.RandomState(sampler.seed).get_state()  # replayable moves
     state, tau, n = p0, None, 0
     while n < sampler.max_steps:
         state = ens.run_mcmc(state, sampler.chunk, progress=False)
         n += sampler.chunk
         tau = emcee.autocorr.integrated_time(ens.get_chain(), tol=0)
-        log(f"  calibration: {n} steps, autocorrelation time {np.max(tau):.1f} steps "
-            f"({n / np.max(tau):.0f} tau)")
+        log(
+            f"  calibration: {n} steps, autocorrelation time {np.max(tau):.1f} steps "
+            f"({n / np.max(tau):.0f} tau)"
+        )
         if n >= sampler.min_tau_multiple * np.max(tau):
             break
     acc = ens.acceptance_fraction
@@ -207,17 +243,33 @@ def fit_calibration(mu, s, y, priors: Priors | None = None, sampler: Sampler | N
     flat = _full(ens.get_chain(discard=burn, thin=thin, flat=True), fixed)
     if len(flat) > 4000:
         flat = flat[rng.choice(len(flat), 4000, replace=False)]
-    diag = {"tau_steps": dict(zip([PARAMS[i] for i in free], map(float, tau))), "steps": int(n),
-            "walkers": sampler.walkers, "steps_over_tau_min": float(n / np.max(tau)),
-            "acceptance_fraction": {"mean": float(acc.mean()), "min": float(acc.min()),
-                                    "max": float(acc.max())},
-            "burn_in_steps": burn, "thin": thin, "n_samples": int(len(flat))}
-    diag["ok"] = bool(diag["steps_over_tau_min"] >= sampler.min_tau_multiple
-                      and 0.2 <= acc.mean() <= 0.5)
-    return {"posterior": {"names": list(PARAMS), "samples": flat.tolist()},
-            "summary": summarise(flat), "diagnostics": diag, "n_frames": int(len(y)),
-            "likelihood_weight": weight, "fixed": {PARAMS[i]: v for i, v in fixed.items()},
-            "priors": asdict(priors), "sampler": asdict(sampler)}
+    diag = {
+        "tau_steps": dict(zip([PARAMS[i] for i in free], map(float, tau))),
+        "steps": int(n),
+        "walkers": sampler.walkers,
+        "steps_over_tau_min": float(n / np.max(tau)),
+        "acceptance_fraction": {
+            "mean": float(acc.mean()),
+            "min": float(acc.min()),
+            "max": float(acc.max()),
+        },
+        "burn_in_steps": burn,
+        "thin": thin,
+        "n_samples": int(len(flat)),
+    }
+    diag["ok"] = bool(
+        diag["steps_over_tau_min"] >= sampler.min_tau_multiple and 0.2 <= acc.mean() <= 0.5
+    )
+    return {
+        "posterior": {"names": list(PARAMS), "samples": flat.tolist()},
+        "summary": summarise(flat),
+        "diagnostics": diag,
+        "n_frames": int(len(y)),
+        "likelihood_weight": weight,
+        "fixed": {PARAMS[i]: v for i, v in fixed.items()},
+        "priors": asdict(priors),
+        "sampler": asdict(sampler),
+    }
 
 
 def summarise(samples: np.ndarray) -> dict:
@@ -227,13 +279,24 @@ def summarise(samples: np.ndarray) -> dict:
     cols = dict(zip(PARAMS, samples.T))
     for k in ("log_sigma_N", "log_rho", "log_kappa", "log_nu"):
         cols[k[4:]] = np.exp(cols[k])
-    return {k: {"median": float(np.median(v)),
-                **{f"q{q:g}": float(np.percentile(v, q)) for q in (2.5, 5, 95, 97.5)}}
-            for k, v in cols.items()}
+    return {
+        k: {
+            "median": float(np.median(v)),
+            **{f"q{q:g}": float(np.percentile(v, q)) for q in (2.5, 5, 95, 97.5)},
+        }
+        for k, v in cols.items()
+    }
 
 
-def predictive(calibration: dict, mu, s, level: float = 0.9, seed: int = 0,
-               chunk: int = 1000, rig: RigPrior | None = None) -> dict:
+def predictive(
+    calibration: dict,
+    mu,
+    s,
+    level: float = 0.9,
+    seed: int = 0,
+    chunk: int = 1000,
+    rig: RigPrior | None = None,
+) -> dict:
     """Each frame's sensor force under the posterior (N): ``median``, ``lo``, ``hi``
     (the central ``level`` interval), from one draw per posterior sample; ``rig``: a
     new rig's unknown gain and offset drawn on top of each sample (:class:`RigPrior`)."""
@@ -243,16 +306,16 @@ def predictive(calibration: dict, mu, s, level: float = 0.9, seed: int = 0,
         draw = np.random.default_rng([seed, 1]).standard_normal((len(theta), 2))
         g = g * np.exp(rig.gain_log_mean + rig.gain_log_sd * draw[:, :1])
         b = b + rig.offset_sd_N * draw[:, 1:2]
-    sig, rho, kap, nu = (np.exp(theta[:, i:i + 1]) for i in (2, 3, 4, 5))
+    sig, rho, kap, nu = (np.exp(theta[:, i : i + 1]) for i in (2, 3, 4, 5))
     mu, s = np.asarray(mu, dtype=np.float64).ravel(), np.asarray(s, dtype=np.float64).ravel()
     rng = np.random.default_rng(seed)
     q = (50.0, 50 * (1 - level), 50 * (1 + level))
     out = np.empty((3, len(mu)))
     for i in range(0, len(mu), chunk):
-        m, sp = mu[None, i:i + chunk], s[None, i:i + chunk]
-        sd = np.sqrt(sig ** 2 + (rho * g * m) ** 2 + (kap * g * sp) ** 2)
+        m, sp = mu[None, i : i + chunk], s[None, i : i + chunk]
+        sd = np.sqrt(sig**2 + (rho * g * m) ** 2 + (kap * g * sp) ** 2)
         draws = g * m + b + sd * rng.standard_t(np.broadcast_to(nu, sd.shape))
-        out[:, i:i + chunk] = np.percentile(draws, q, axis=0)
+        out[:, i : i + chunk] = np.percentile(draws, q, axis=0)
     return {"median": out[0], "lo": out[1], "hi": out[2], "level": level}
 
 
@@ -288,13 +351,22 @@ def corner_figure(calibration: dict, title: str = ""):
 
     samples = np.asarray(calibration["posterior"]["samples"])
     keep = [i for i, p in enumerate(PARAMS) if p not in calibration.get("fixed", {})]
-    fig = corner.corner(samples[:, keep], labels=[LABELS[i] for i in keep], quantiles=[0.05, 0.5, 0.95],
-                        show_titles=True, title_fmt=".3f", title_kwargs={"fontsize": 8},
-                        label_kwargs={"fontsize": 9})
+    fig = corner.corner(
+        samples[:, keep],
+        labels=[LABELS[i] for i in keep],
+        quantiles=[0.05, 0.5, 0.95],
+        show_titles=True,
+        title_fmt=".3f",
+        title_kwargs={"fontsize": 8},
+        label_kwargs={"fontsize": 9},
+    )
     d = calibration["diagnostics"]
-    fig.suptitle(f"{title}\n{d['steps']} steps x {d['walkers']} walkers, "
-                 f"{d['steps_over_tau_min']:.0f} tau, acceptance {d['acceptance_fraction']['mean']:.2f}",
-                 fontsize=9, y=1.02)
+    fig.suptitle(
+        f"{title}\n{d['steps']} steps x {d['walkers']} walkers, "
+        f"{d['steps_over_tau_min']:.0f} tau, acceptance {d['acceptance_fraction']['mean']:.2f}",
+        fontsize=9,
+        y=1.02,
+    )
     return fig
 
 
@@ -360,15 +432,29 @@ def cross_fitted(model, features, force_N, units, fit, anchor=None):
     y = np.asarray(force_N, dtype=np.float32)
     for j, u in enumerate(labels):
         out = units == u
-        heads = fit_heads(model, features[~out], y[~out],
-                          replace(fit, seed=fit.seed + 101 * (j + 1)), anchor=anchor)
+        heads = fit_heads(
+            model,
+            features[~out],
+            y[~out],
+            replace(fit, seed=fit.seed + 101 * (j + 1)),
+            anchor=anchor,
+        )
         P = head_forces(model, heads, features[out])
         mu[out], sd[out] = P.mean(0), spread(P)
     return mu, sd
 
 
-def fit_rig(model, features, force_N, unit_sets, fit, priors: Priors | None = None,
-            sampler: Sampler | None = None, log=print, anchor=None):
+def fit_rig(
+    model,
+    features,
+    force_N,
+    unit_sets,
+    fit,
+    priors: Priors | None = None,
+    sampler: Sampler | None = None,
+    log=print,
+    anchor=None,
+):
     """A rig's head ensemble (:func:`finray.sim2real.adapt.fit_heads` on every frame, beside
     ``anchor``'s simulated frames where given) and its sensor calibration, sampled on the
     cross-fitted predictions (:func:`cross_fitted`) of every labelling in ``unit_sets``
@@ -382,21 +468,35 @@ def fit_rig(model, features, force_N, unit_sets, fit, priors: Priors | None = No
     mu, sd = (np.concatenate(a) for a in zip(*parts))
     # each frame once per labelling: a likelihood weighted 1/len, so that the posterior
     # is not narrowed as if there were more frames
-    cal = fit_calibration(mu, sd, np.tile(y, len(parts)), priors, sampler, log=log,
-                          weight=1.0 / len(parts))
-    cal["cross_fit"] = {"unit_sets": [sorted(set(np.asarray(u).tolist())) for u in unit_sets],
-                        "fold_members": fit.members,
-                        "nrmse_pct": [float(100 * np.sqrt(np.mean((m - y) ** 2)) / np.max(np.abs(y)))
-                                      for m, _ in parts]}
+    cal = fit_calibration(
+        mu, sd, np.tile(y, len(parts)), priors, sampler, log=log, weight=1.0 / len(parts)
+    )
+    cal["cross_fit"] = {
+        "unit_sets": [sorted(set(np.asarray(u).tolist())) for u in unit_sets],
+        "fold_members": fit.members,
+        "nrmse_pct": [
+            float(100 * np.sqrt(np.mean((m - y) ** 2)) / np.max(np.abs(y))) for m, _ in parts
+        ],
+    }
     cal["heads"] = dict(vars(fit))
     cal["sim_replay_frames"] = anchor.frames if anchor is not None else 0
     return heads, cal
 
 
-def calibrate_takes(takes, model_path, out_json, ingest_params, fit, folds: str = "object",
-                    priors: Priors | None = None,
-                    sampler: Sampler | None = None, level: float = 0.9, log=print,
-                    no_context=None, replay_frames: int = 0) -> dict:
+def calibrate_takes(
+    takes,
+    model_path,
+    out_json,
+    ingest_params,
+    fit,
+    folds: str = "object",
+    priors: Priors | None = None,
+    sampler: Sampler | None = None,
+    level: float = 0.9,
+    log=print,
+    no_context=None,
+    replay_frames: int = 0,
+) -> dict:
     """``finray calibrate``: ingest the take folders (:func:`finray.recording.ingest`,
     into ``<out>.ingest/<take>/``), fit the rig's head ensemble on the simulation-trained
     model (``model.pt``, or the ``model.ts`` it was exported to, beside it), beside
@@ -417,8 +517,10 @@ def calibrate_takes(takes, model_path, out_json, ingest_params, fit, folds: str 
     pt = model_path if model_path.suffix == ".pt" else model_path.with_suffix(".pt")
     ts_meta = Path(str(pt.with_suffix(".ts")) + ".json")
     if not pt.is_file() or not ts_meta.is_file():
-        raise CalibrationError(f"{model_path}: need the trained model's model.pt and "
-                               "model.ts.json side by side (results/train/<model>/)")
+        raise CalibrationError(
+            f"{model_path}: need the trained model's model.pt and "
+            "model.ts.json side by side (results/train/<model>/)"
+        )
     model, _ = load_checkpoint(pt)
     meta = json.loads(ts_meta.read_text())
     stem = out_json.with_suffix("")
@@ -436,19 +538,35 @@ def calibrate_takes(takes, model_path, out_json, ingest_params, fit, folds: str 
     table = table.assign(t_s=np.concatenate(t), take=np.repeat(names, [len(x) for x in t]))
     feats = encoder_features(model, a["images"][:, None].astype(np.float32) / 255.0)
     y = np.asarray(a["fx_N"], dtype=np.float64)
-    anchor = SimAnchor.from_file(model, no_context, replay_frames) if no_context is not None else None
-    heads, cal = fit_rig(model, feats, y, fold_units(table, folds), fit, priors, sampler, log=log,
-                         anchor=anchor)
+    anchor = (
+        SimAnchor.from_file(model, no_context, replay_frames) if no_context is not None else None
+    )
+    heads, cal = fit_rig(
+        model, feats, y, fold_units(table, folds), fit, priors, sampler, log=log, anchor=anchor
+    )
     ts_path = Path(f"{stem}.model.ts")
-    export_ensemble(HeadEnsemble(model, heads), ts_path, meta.get("preprocess", {}),
-                    {"base_model": str(pt), "takes": [str(p) for p in takes]}, meta)
+    export_ensemble(
+        HeadEnsemble(model, heads),
+        ts_path,
+        meta.get("preprocess", {}),
+        {"base_model": str(pt), "takes": [str(p) for p in takes]},
+        meta,
+    )
     with np.load(shards[0]) as f:  # the takes' finger colour, to segment new frames alike
         colour = json.loads(str(f["meta"]))["colour"]
-    cal.update(model=ts_path.name, base_model=str(pt), takes=[str(p) for p in takes],
-               level=level, n_frames_takes=int(len(y)),
-               segment={"colour": colour, "stride": ingest_params.stride,
-                        "min_object_frac": ingest_params.min_object_frac,
-                        "max_hole_frac": ingest_params.max_hole_frac})
+    cal.update(
+        model=ts_path.name,
+        base_model=str(pt),
+        takes=[str(p) for p in takes],
+        level=level,
+        n_frames_takes=int(len(y)),
+        segment={
+            "colour": colour,
+            "stride": ingest_params.stride,
+            "min_object_frac": ingest_params.min_object_frac,
+            "max_hole_frac": ingest_params.max_hole_frac,
+        },
+    )
     out_json.parent.mkdir(parents=True, exist_ok=True)
     out_json.write_text(json.dumps(cal))
     import matplotlib.pyplot as plt

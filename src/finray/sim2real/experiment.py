@@ -15,6 +15,7 @@ Metrics are against the sensor (the label a rig gives: its gain error and offset
 included), of the posterior predictive median, and the share of frames inside the
 ``level`` predictive interval.
 """
+
 from __future__ import annotations
 
 import itertools
@@ -27,8 +28,17 @@ import numpy as np
 import pandas as pd
 
 from .adapt import HeadFit, SimAnchor, encoder_features, head_forces, head_from_state
-from .calibration import (Priors, RigPrior, Sampler, coverage, fit_rig, fold_units, predictive,
-                           shard_times, spread)
+from .calibration import (
+    Priors,
+    RigPrior,
+    Sampler,
+    coverage,
+    fit_rig,
+    fold_units,
+    predictive,
+    shard_times,
+    spread,
+)
 from ..paper_reference import paper_value
 from ..schema import schema_default
 from ..evaluate.metrics import force_metrics
@@ -59,24 +69,32 @@ class Sim2RealConfig:
     @classmethod
     def from_params(cls, p: dict) -> "Sim2RealConfig":
         pr = p.get("priors", {})
-        return cls(heads=HeadFit(**p.get("heads", {})),
-                   folds=str(p.get("folds", cls.folds)),
-                   level=float(p.get("level", cls.level)),
-                   max_context=int(p.get("max_context", cls.max_context)),
-                   sim_every=int(p.get("sim_every", cls.sim_every)),
-                   sim_folds=int(p.get("sim_folds", cls.sim_folds)),
-                   sim_views=str(p.get("sim_views", cls.sim_views)),
-                   sim_replay_frames=int(p.get("sim_replay_frames", cls.sim_replay_frames)),
-                   priors=Priors(**{k: tuple(v) if isinstance(v, list) else v for k, v in pr.items()}),
-                   sampler=Sampler(**p.get("sampler", {})),
-                   rig_prior=RigPrior(**{k: v for k, v in p.get("rig_prior", {}).items() if k != "gain"}))
+        return cls(
+            heads=HeadFit(**p.get("heads", {})),
+            folds=str(p.get("folds", cls.folds)),
+            level=float(p.get("level", cls.level)),
+            max_context=int(p.get("max_context", cls.max_context)),
+            sim_every=int(p.get("sim_every", cls.sim_every)),
+            sim_folds=int(p.get("sim_folds", cls.sim_folds)),
+            sim_views=str(p.get("sim_views", cls.sim_views)),
+            sim_replay_frames=int(p.get("sim_replay_frames", cls.sim_replay_frames)),
+            priors=Priors(**{k: tuple(v) if isinstance(v, list) else v for k, v in pr.items()}),
+            sampler=Sampler(**p.get("sampler", {})),
+            rig_prior=RigPrior(**{k: v for k, v in p.get("rig_prior", {}).items() if k != "gain"}),
+        )
 
     def with_rig_prior(self, path) -> "Sim2RealConfig":
         """This config with the rig prior's gain of a ``rig_prior.json``
         (:mod:`finray.sim2real.rig_prior`)."""
         prior = json.loads(Path(path).read_text())
-        return replace(self, rig_prior=replace(self.rig_prior, gain_log_mean=float(prior["gain_log_mean"]),
-                                               gain_log_sd=float(prior["gain_log_sd"])))
+        return replace(
+            self,
+            rig_prior=replace(
+                self.rig_prior,
+                gain_log_mean=float(prior["gain_log_mean"]),
+                gain_log_sd=float(prior["gain_log_sd"]),
+            ),
+        )
 
 
 #: Which simulated views the no-context heads are fitted on: the front view,
@@ -101,8 +119,10 @@ def _frames(shards, size, every=1, views="front"):
     except ValueError as e:
         if views == "front":
             raise
-        raise ValueError(f"evaluate.sim2real.sim_views: {views} reads the camera views, and {e}; "
-                         "set sim_views: front") from None
+        raise ValueError(
+            f"evaluate.sim2real.sim_views: {views} reads the camera views, and {e}; "
+            "set sim_views: front"
+        ) from None
     x, y = a["images"], a["fx_N"]
     if views == "camera":
         x = a["camera_images"]
@@ -129,7 +149,9 @@ def object_folds(objects, n: int) -> np.ndarray:
     return np.array([fold[o] for o in objects])
 
 
-def fit_no_context(model_pt, sim_shards, sim_test_shards, size, cfg: Sim2RealConfig, log=print) -> dict:
+def fit_no_context(
+    model_pt, sim_shards, sim_test_shards, size, cfg: Sim2RealConfig, log=print
+) -> dict:
     """The no-context heads and calibration, from the simulation alone and so the same for
     every rig: heads on the training frames (every ``cfg.sim_every``-th), calibrated on
     predictions of training objects by heads fitted without them (``cfg.sim_folds``
@@ -148,33 +170,71 @@ def fit_no_context(model_pt, sim_shards, sim_test_shards, size, cfg: Sim2RealCon
     # the held-out shapes have no camera views (rendered for training scenes only)
     xt, yt, _ = _frames(sim_test_shards, size, cfg.sim_every)
     f_test = encoder_features(model, xt)
-    log(f"features: {len(xs)} simulated, {len(xt)} simulated test frames ({time.perf_counter() - t0:.1f} s)")
-    heads0, cal0 = fit_rig(model, f_sim, ys, [object_folds(ts["object"].to_numpy(), cfg.sim_folds)],
-                           cfg.heads, cfg.priors, cfg.sampler, log=log)
-    cal0.update(context_objects=0, context="none", fitted_on="simulated training frames, objects cross-fitted")
+    log(
+        f"features: {len(xs)} simulated, {len(xt)} simulated test frames ({time.perf_counter() - t0:.1f} s)"
+    )
+    heads0, cal0 = fit_rig(
+        model,
+        f_sim,
+        ys,
+        [object_folds(ts["object"].to_numpy(), cfg.sim_folds)],
+        cfg.heads,
+        cfg.priors,
+        cfg.sampler,
+        log=log,
+    )
+    cal0.update(
+        context_objects=0,
+        context="none",
+        fitted_on="simulated training frames, objects cross-fitted",
+    )
     p_test = head_forces(model, heads0, f_test)
     sim_band = predictive(cal0, p_test.mean(0), spread(p_test), cfg.level)
     own = head_forces(model, [model.force_head], f_test)[0]  # the simulation's own head
-    sim = {"n_frames": int(len(yt)), "coverage_pct": 100 * coverage(yt, sim_band),
-           "metrics": force_metrics(yt, sim_band["median"]),
-           "raw_metrics": force_metrics(yt, p_test.mean(0)), "own_head": force_metrics(yt, own),
-           "shards": len(sim_test_shards), "every": cfg.sim_every, "views": "front",
-           "heads_fitted_on": cfg.sim_views}
-    log(f"no context: {time.perf_counter() - t0:.1f} s; simulated test frames inside the "
-        f"{cfg.level:.0%} interval: {sim['coverage_pct']:.1f} %")
-    pick = np.sort(np.random.default_rng(cfg.heads.seed).choice(
-        len(ys), min(ANCHOR_FRAMES, len(ys)), replace=False))
-    anchor = {"features": f_sim[pick].half(), "force_N": torch.tensor(ys[pick], dtype=torch.float32)}
-    return {"heads": [h.state_dict() for h in heads0], "calibration": cal0, "simulated_test": sim,
-            "anchor": anchor}
+    sim = {
+        "n_frames": int(len(yt)),
+        "coverage_pct": 100 * coverage(yt, sim_band),
+        "metrics": force_metrics(yt, sim_band["median"]),
+        "raw_metrics": force_metrics(yt, p_test.mean(0)),
+        "own_head": force_metrics(yt, own),
+        "shards": len(sim_test_shards),
+        "every": cfg.sim_every,
+        "views": "front",
+        "heads_fitted_on": cfg.sim_views,
+    }
+    log(
+        f"no context: {time.perf_counter() - t0:.1f} s; simulated test frames inside the "
+        f"{cfg.level:.0%} interval: {sim['coverage_pct']:.1f} %"
+    )
+    pick = np.sort(
+        np.random.default_rng(cfg.heads.seed).choice(
+            len(ys), min(ANCHOR_FRAMES, len(ys)), replace=False
+        )
+    )
+    anchor = {
+        "features": f_sim[pick].half(),
+        "force_N": torch.tensor(ys[pick], dtype=torch.float32),
+    }
+    return {
+        "heads": [h.state_dict() for h in heads0],
+        "calibration": cal0,
+        "simulated_test": sim,
+        "anchor": anchor,
+    }
 
 
 def save_no_context(result: dict, path) -> None:
     """:func:`fit_no_context`'s result as one file: the heads' weights and the rest as JSON."""
     import torch
 
-    torch.save({"heads": result["heads"], "anchor": result["anchor"], "info": json.dumps(
-        {k: result[k] for k in ("calibration", "simulated_test")})}, path)
+    torch.save(
+        {
+            "heads": result["heads"],
+            "anchor": result["anchor"],
+            "info": json.dumps({k: result[k] for k in ("calibration", "simulated_test")}),
+        },
+        path,
+    )
 
 
 def load_no_context(model, path) -> tuple[list, dict, dict]:
@@ -184,7 +244,11 @@ def load_no_context(model, path) -> tuple[list, dict, dict]:
 
     saved = torch.load(path, weights_only=True)
     info = json.loads(saved["info"])
-    return [head_from_state(model, state) for state in saved["heads"]], info["calibration"], info["simulated_test"]
+    return (
+        [head_from_state(model, state) for state in saved["heads"]],
+        info["calibration"],
+        info["simulated_test"],
+    )
 
 
 def run_sim2real(model_pt, lab_shards, no_context, size, cfg: Sim2RealConfig, log=print) -> dict:
@@ -209,13 +273,25 @@ def run_sim2real(model_pt, lab_shards, no_context, size, cfg: Sim2RealConfig, lo
         # no context: the rig's gain and offset are unknown (cfg.rig_prior)
         band = predictive(cal, mu, sd, cfg.level, rig=None if k else cfg.rig_prior)
         tab = table[test]
-        frames.append(pd.DataFrame({
-            "context_objects": k, "context": " + ".join(context) or "none",
-            "take": tab["take"].to_numpy(), "group": tab["group"].to_numpy(),
-            "height_mm": tab["height_mm"].to_numpy(dtype=float),
-            "frame": tab["frame"].to_numpy(), "t_s": tab["t_s"].to_numpy(),
-            "sensor_N": y[test], "net_mean_N": mu, "net_spread_N": sd,
-            "pred_N": band["median"], "lo_N": band["lo"], "hi_N": band["hi"]}))
+        frames.append(
+            pd.DataFrame(
+                {
+                    "context_objects": k,
+                    "context": " + ".join(context) or "none",
+                    "take": tab["take"].to_numpy(),
+                    "group": tab["group"].to_numpy(),
+                    "height_mm": tab["height_mm"].to_numpy(dtype=float),
+                    "frame": tab["frame"].to_numpy(),
+                    "t_s": tab["t_s"].to_numpy(),
+                    "sensor_N": y[test],
+                    "net_mean_N": mu,
+                    "net_spread_N": sd,
+                    "pred_N": band["median"],
+                    "lo_N": band["lo"],
+                    "hi_N": band["hi"],
+                }
+            )
+        )
 
     # no context: the simulation's heads and calibration (fit_no_context), the rig prior on top
     heads0, cal0, sim = load_no_context(model, no_context)
@@ -229,8 +305,17 @@ def run_sim2real(model_pt, lab_shards, no_context, size, cfg: Sim2RealConfig, lo
             t1 = time.perf_counter()
             ctx = table["group"].isin(context).to_numpy().copy()
             fit = replace(cfg.heads, seed=cfg.heads.seed + 7 * len(cals))
-            heads, cal = fit_rig(model, f_lab[ctx], y[ctx], fold_units(table[ctx], cfg.folds), fit,
-                                 cfg.priors, cfg.sampler, log=log, anchor=anchor)
+            heads, cal = fit_rig(
+                model,
+                f_lab[ctx],
+                y[ctx],
+                fold_units(table[ctx], cfg.folds),
+                fit,
+                cfg.priors,
+                cfg.sampler,
+                log=log,
+                anchor=anchor,
+            )
             cal.update(context_objects=k, context=" + ".join(context), fitted_on="context takes")
             cals.append(cal)
             record(k, context, ~ctx, heads, cal)
@@ -247,9 +332,16 @@ def _row(g: pd.DataFrame) -> dict:
     m = force_metrics(g["sensor_N"], g["pred_N"])
     raw = force_metrics(g["sensor_N"], g["net_mean_N"])
     inside = (g["sensor_N"] >= g["lo_N"]) & (g["sensor_N"] <= g["hi_N"])
-    return {"n": m["n"], "mse_N2": m["mse_N2"], "rmse_N": m["rmse_N"], "nrmse_pct": m["nrmse_pct"],
-            "max_sensor_N": m["max_true_N"], "coverage_pct": float(100 * inside.mean()),
-            "raw_mse_N2": raw["mse_N2"], "raw_nrmse_pct": raw["nrmse_pct"]}
+    return {
+        "n": m["n"],
+        "mse_N2": m["mse_N2"],
+        "rmse_N": m["rmse_N"],
+        "nrmse_pct": m["nrmse_pct"],
+        "max_sensor_N": m["max_true_N"],
+        "coverage_pct": float(100 * inside.mean()),
+        "raw_mse_N2": raw["mse_N2"],
+        "raw_nrmse_pct": raw["nrmse_pct"],
+    }
 
 
 def metrics_table(frames: pd.DataFrame, level: float) -> pd.DataFrame:
@@ -265,8 +357,14 @@ def metrics_table(frames: pd.DataFrame, level: float) -> pd.DataFrame:
         rows.append({"context_objects": k, "context": "all", "test": "all", **_row(gk)})
         if "height_mm" in gk:  # each contact height over its contexts (context "by_height")
             for h, g in gk.groupby("height_mm"):
-                rows.append({"context_objects": k, "context": "by_height", "test": f"{float(h):g}",
-                             **_row(g)})
+                rows.append(
+                    {
+                        "context_objects": k,
+                        "context": "by_height",
+                        "test": f"{float(h):g}",
+                        **_row(g),
+                    }
+                )
     out = pd.DataFrame(rows)
     out["paper_mse_N2"] = out["context_objects"].map(paper_mse_N2())
     out["interval"] = f"{level:.0%}"
@@ -280,30 +378,71 @@ def summarise_runs(metrics: pd.DataFrame, cals: list[dict], sim: dict, cfg: Sim2
     for k, g in metrics[metrics["context"] == "all"].groupby("context_objects"):
         tot = g[g["test"] == "all"].iloc[0]
         by_k[str(int(k))] = {
-            **{c: float(tot[c]) for c in ("mse_N2", "rmse_N", "nrmse_pct", "coverage_pct",
-                                          "raw_mse_N2", "raw_nrmse_pct", "max_sensor_N")},
-            "n_frames": int(tot["n"]), "paper_mse_N2": paper_mse_N2().get(int(k)),
-            "per_object": {r["test"]: {c: float(r[c]) for c in ("mse_N2", "rmse_N", "nrmse_pct",
-                                                                 "coverage_pct")}
-                           for _, r in g[g["test"] != "all"].iterrows()},
+            **{
+                c: float(tot[c])
+                for c in (
+                    "mse_N2",
+                    "rmse_N",
+                    "nrmse_pct",
+                    "coverage_pct",
+                    "raw_mse_N2",
+                    "raw_nrmse_pct",
+                    "max_sensor_N",
+                )
+            },
+            "n_frames": int(tot["n"]),
+            "paper_mse_N2": paper_mse_N2().get(int(k)),
+            "per_object": {
+                r["test"]: {
+                    c: float(r[c]) for c in ("mse_N2", "rmse_N", "nrmse_pct", "coverage_pct")
+                }
+                for _, r in g[g["test"] != "all"].iterrows()
+            },
             "n_fits": sum(c["context_objects"] == int(k) for c in cals),
             # per contact height of the takes: NRMSE in % of that height's largest force
-            "per_height": {r["test"]: {c: float(r[c]) for c in ("rmse_N", "nrmse_pct", "max_sensor_N",
-                                                                 "coverage_pct")}
-                           for _, r in metrics[(metrics["context"] == "by_height")
-                                               & (metrics["context_objects"] == k)].iterrows()}}
+            "per_height": {
+                r["test"]: {
+                    c: float(r[c]) for c in ("rmse_N", "nrmse_pct", "max_sensor_N", "coverage_pct")
+                }
+                for _, r in metrics[
+                    (metrics["context"] == "by_height") & (metrics["context_objects"] == k)
+                ].iterrows()
+            },
+        }
     mse = [by_k[k]["mse_N2"] for k in sorted(by_k, key=int)]
-    fits = [{"context_objects": c["context_objects"], "context": c["context"],
-             "fitted_on": c["fitted_on"], "n_frames": c["n_frames"], "summary": c["summary"],
-             "diagnostics": c["diagnostics"], "cross_fit": c.get("cross_fit")} for c in cals]
+    fits = [
+        {
+            "context_objects": c["context_objects"],
+            "context": c["context"],
+            "fitted_on": c["fitted_on"],
+            "n_frames": c["n_frames"],
+            "summary": c["summary"],
+            "diagnostics": c["diagnostics"],
+            "cross_fit": c.get("cross_fit"),
+        }
+        for c in cals
+    ]
     lab_k = [k for k in by_k if int(k) > 0]
-    return {"emulated": True, "level": cfg.level, "by_context": by_k,
-            "error_falls": bool(all(a > b for a, b in zip(mse, mse[1:]))),
-            "lab_coverage_pct_with_context": (
-                float(np.average([by_k[k]["coverage_pct"] for k in lab_k],
-                                 weights=[by_k[k]["n_frames"] for k in lab_k])) if lab_k else None),
-            "simulated_test": sim, "diagnostics_ok": bool(all(c["diagnostics"]["ok"] for c in cals)),
-            "fits": fits, "config": json.loads(json.dumps(asdict(cfg)))}
+    return {
+        "emulated": True,
+        "level": cfg.level,
+        "by_context": by_k,
+        "error_falls": bool(all(a > b for a, b in zip(mse, mse[1:]))),
+        "lab_coverage_pct_with_context": (
+            float(
+                np.average(
+                    [by_k[k]["coverage_pct"] for k in lab_k],
+                    weights=[by_k[k]["n_frames"] for k in lab_k],
+                )
+            )
+            if lab_k
+            else None
+        ),
+        "simulated_test": sim,
+        "diagnostics_ok": bool(all(c["diagnostics"]["ok"] for c in cals)),
+        "fits": fits,
+        "config": json.loads(json.dumps(asdict(cfg))),
+    }
 
 
 def write_outputs(result: dict, out: dict) -> None:
@@ -321,8 +460,11 @@ def write_outputs(result: dict, out: dict) -> None:
 
     with PdfPages(out["corner"]) as pdf:
         for cal in result["calibrations"]:
-            fig = corner_figure(cal, f"{cal['context_objects']} context object(s): {cal['context']} "
-                                     f"({cal['fitted_on']}; emulated lab)")
+            fig = corner_figure(
+                cal,
+                f"{cal['context_objects']} context object(s): {cal['context']} "
+                f"({cal['fitted_on']}; emulated lab)",
+            )
             pdf.savefig(fig, bbox_inches="tight")
             plt.close(fig)
 
@@ -339,8 +481,13 @@ def sim2real_figure(frames: pd.DataFrame, summary: dict, path) -> None:
 
     ks = sorted(frames["context_objects"].unique())
     groups = sorted(frames["group"].unique())
-    fig, axes = plt.subplots(len(ks), len(groups), figsize=(3.6 * len(groups), 2.4 * len(ks) + 0.5),
-                             squeeze=False, sharey=True)
+    fig, axes = plt.subplots(
+        len(ks),
+        len(groups),
+        figsize=(3.6 * len(groups), 2.4 * len(ks) + 0.5),
+        squeeze=False,
+        sharey=True,
+    )
     level = summary.get("level", 0.9)
     for i, k in enumerate(ks):
         for j, grp in enumerate(groups):
@@ -348,24 +495,38 @@ def sim2real_figure(frames: pd.DataFrame, summary: dict, path) -> None:
             fk = frames[(frames["context_objects"] == k) & (frames["group"] == grp)]
             if fk.empty:
                 ax.set_axis_off()
-                ax.text(0.5, 0.5, f"{grp}: context", ha="center", transform=ax.transAxes, fontsize=8)
+                ax.text(
+                    0.5, 0.5, f"{grp}: context", ha="center", transform=ax.transAxes, fontsize=8
+                )
                 continue
             g = fk[fk["context"] == sorted(fk["context"].unique())[0]]
             t0, ticks = 0.0, []
             for take, gt in g.groupby("take", sort=True):
                 t = gt["t_s"].to_numpy() - gt["t_s"].min() + t0
-                ax.fill_between(t, gt["lo_N"], gt["hi_N"], color="C0", alpha=0.25, lw=0,
-                                label=f"{level:.0%} interval" if t0 == 0 else None)
+                ax.fill_between(
+                    t,
+                    gt["lo_N"],
+                    gt["hi_N"],
+                    color="C0",
+                    alpha=0.25,
+                    lw=0,
+                    label=f"{level:.0%} interval" if t0 == 0 else None,
+                )
                 ax.plot(t, gt["sensor_N"], color="k", lw=0.8, label="sensor" if t0 == 0 else None)
-                ax.plot(t, gt["pred_N"], color="C3", lw=0.9, label="prediction" if t0 == 0 else None)
+                ax.plot(
+                    t, gt["pred_N"], color="C3", lw=0.9, label="prediction" if t0 == 0 else None
+                )
                 ticks.append((t0, take))
                 t0 = t[-1] + 0.5
             for x0, _ in ticks[1:]:
                 ax.axvline(x0 - 0.25, color="0.8", lw=0.6)
             inside = ((g["sensor_N"] >= g["lo_N"]) & (g["sensor_N"] <= g["hi_N"])).mean()
             m = force_metrics(g["sensor_N"], g["pred_N"])
-            ax.set_title(f"{grp} | context: {g['context'].iloc[0]}\nMSE {m['mse_N2']:.3f} N², "
-                         f"NRMSE {m['nrmse_pct']:.1f} %, inside {100 * inside:.0f} %", fontsize=7)
+            ax.set_title(
+                f"{grp} | context: {g['context'].iloc[0]}\nMSE {m['mse_N2']:.3f} N², "
+                f"NRMSE {m['nrmse_pct']:.1f} %, inside {100 * inside:.0f} %",
+                fontsize=7,
+            )
             ax.tick_params(labelsize=7)
             if j == 0:
                 ax.set_ylabel(f"{k} context object(s)\nforce (N)", fontsize=8)
@@ -373,8 +534,10 @@ def sim2real_figure(frames: pd.DataFrame, summary: dict, path) -> None:
                 ax.set_xlabel("time, takes one after another (s)", fontsize=8)
             if i == 0 and j == 0:
                 ax.legend(fontsize=6, loc="upper left")
-    fig.suptitle("Sim-to-real on the EMULATED lab takes (not recordings): sensor vs calibrated "
-                 "prediction", fontsize=9)
+    fig.suptitle(
+        "Sim-to-real on the EMULATED lab takes (not recordings): sensor vs calibrated prediction",
+        fontsize=9,
+    )
     fig.tight_layout()
     from ..evaluate.figures import _save
 

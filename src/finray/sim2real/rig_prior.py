@@ -12,6 +12,7 @@ printed fingers from the ranges (log-uniform modulus, uniform walls and friction
 scene at random), adds the log-gains (the effects taken as independent) and returns
 their mean and standard deviation: the prior's log-normal gain.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -68,18 +69,32 @@ def rig_prior(gains: dict[str, dict[str, float]], spec: dict, nominal_friction: 
     per_scene = {}
     for i, scene in enumerate(scenes):
         g = gains[scene]
-        t_pts = {0.0: 0.0} | {v["thickness_delta_mm"]: float(np.log(g[k]))
-                              for k, v in names.items() if "thickness_delta_mm" in v}
+        t_pts = {0.0: 0.0} | {
+            v["thickness_delta_mm"]: float(np.log(g[k]))
+            for k, v in names.items()
+            if "thickness_delta_mm" in v
+        }
         t_pts |= {-t: -lg for t, lg in list(t_pts.items()) if t > 0}
         m_pts = {v["friction"]: float(np.log(g[k])) for k, v in names.items() if "friction" in v}
         m_pts.setdefault(float(nominal_friction), 0.0)
         sel = which == i
         total[sel] += _log_gain_curve(t_pts, dt[sel]) + _log_gain_curve(m_pts, mu[sel])
-        per_scene[scene] = {"log_gain_walls": {f"{k:g}": v for k, v in sorted(t_pts.items())},
-                            "log_gain_friction": {f"{k:g}": v for k, v in sorted(m_pts.items())}}
-    return {"gain_log_mean": float(total.mean()), "gain_log_sd": float(total.std()),
-            "gain_q5": float(np.exp(np.percentile(total, 5))),
-            "gain_q95": float(np.exp(np.percentile(total, 95))),
-            "draws": n, "ranges": {"youngs_modulus_scale": [e_lo, e_hi],
-                                   "thickness_delta_mm": [t_lo, t_hi], "friction": [m_lo, m_hi]},
-            "nominal_friction": float(nominal_friction), "gains": gains, "scenes": per_scene}
+        per_scene[scene] = {
+            "log_gain_walls": {f"{k:g}": v for k, v in sorted(t_pts.items())},
+            "log_gain_friction": {f"{k:g}": v for k, v in sorted(m_pts.items())},
+        }
+    return {
+        "gain_log_mean": float(total.mean()),
+        "gain_log_sd": float(total.std()),
+        "gain_q5": float(np.exp(np.percentile(total, 5))),
+        "gain_q95": float(np.exp(np.percentile(total, 95))),
+        "draws": n,
+        "ranges": {
+            "youngs_modulus_scale": [e_lo, e_hi],
+            "thickness_delta_mm": [t_lo, t_hi],
+            "friction": [m_lo, m_hi],
+        },
+        "nominal_friction": float(nominal_friction),
+        "gains": gains,
+        "scenes": per_scene,
+    }

@@ -6,6 +6,7 @@ per context count the mean, range and pooled interval coverage over the rigs, an
 whether every rig meets the targets) and a figure of error and coverage against the
 context count, one line per rig. Every rig is emulated (:mod:`finray.lab.rigs`).
 """
+
 from __future__ import annotations
 
 import json
@@ -20,9 +21,16 @@ def rigs_table(summaries: dict[str, dict]) -> pd.DataFrame:
     rows = []
     for rig, s in summaries.items():
         for k, m in sorted(s["by_context"].items(), key=lambda kv: int(kv[0])):
-            rows.append({"rig": rig, "context_objects": int(k), "nrmse_pct": m["nrmse_pct"],
-                         "mse_N2": m["mse_N2"], "coverage_pct": m["coverage_pct"],
-                         "n_frames": int(m["n_frames"])})
+            rows.append(
+                {
+                    "rig": rig,
+                    "context_objects": int(k),
+                    "nrmse_pct": m["nrmse_pct"],
+                    "mse_N2": m["mse_N2"],
+                    "coverage_pct": m["coverage_pct"],
+                    "n_frames": int(m["n_frames"]),
+                }
+            )
     return pd.DataFrame(rows)
 
 
@@ -30,10 +38,16 @@ def rigs_heights(summaries: dict[str, dict]) -> dict:
     """Per rig and context count, each contact height's NRMSE (% of that height's largest
     force) and interval coverage (%): ``{rig: {k: {height: {"nrmse_pct", "coverage_pct"}}}}``
     (empty for a summary written before heights were recorded)."""
-    return {rig: {k: {h: {c: m[c] for c in ("nrmse_pct", "coverage_pct")}
-                      for h, m in sorted(node.get("per_height", {}).items(), key=lambda kv: float(kv[0]))}
-                  for k, node in sorted(s["by_context"].items(), key=lambda kv: int(kv[0]))}
-            for rig, s in summaries.items()}
+    return {
+        rig: {
+            k: {
+                h: {c: m[c] for c in ("nrmse_pct", "coverage_pct")}
+                for h, m in sorted(node.get("per_height", {}).items(), key=lambda kv: float(kv[0]))
+            }
+            for k, node in sorted(s["by_context"].items(), key=lambda kv: int(kv[0]))
+        }
+        for rig, s in summaries.items()
+    }
 
 
 def rigs_summary(table: pd.DataFrame, level: float, max_nrmse_pct: float = 5.0) -> dict:
@@ -42,28 +56,39 @@ def rigs_summary(table: pd.DataFrame, level: float, max_nrmse_pct: float = 5.0) 
     NRMSE with the most context objects is within ``max_nrmse_pct``."""
     by_k = {}
     for k, g in table.groupby("context_objects"):
-        by_k[str(k)] = {"nrmse_pct_mean": float(g["nrmse_pct"].mean()),
-                        "nrmse_pct_min": float(g["nrmse_pct"].min()),
-                        "nrmse_pct_max": float(g["nrmse_pct"].max()),
-                        "coverage_pct_pooled": float((g["coverage_pct"] * g["n_frames"]).sum()
-                                                     / g["n_frames"].sum()),
-                        "coverage_pct_min": float(g["coverage_pct"].min()),
-                        "coverage_pct_max": float(g["coverage_pct"].max())}
+        by_k[str(k)] = {
+            "nrmse_pct_mean": float(g["nrmse_pct"].mean()),
+            "nrmse_pct_min": float(g["nrmse_pct"].min()),
+            "nrmse_pct_max": float(g["nrmse_pct"].max()),
+            "coverage_pct_pooled": float(
+                (g["coverage_pct"] * g["n_frames"]).sum() / g["n_frames"].sum()
+            ),
+            "coverage_pct_min": float(g["coverage_pct"].min()),
+            "coverage_pct_max": float(g["coverage_pct"].max()),
+        }
     per_rig = {}
     for rig, g in table.groupby("rig", sort=False):
         g = g.sort_values("context_objects")
         e = g["nrmse_pct"].to_numpy()
-        per_rig[rig] = {"error_falls": bool(np.all(np.diff(e) < 0)),
-                        "nrmse_pct_most_context": float(e[-1]),
-                        "within_target": bool(e[-1] <= max_nrmse_pct),
-                        # per context count (0, 1, ...), and the frames behind each coverage
-                        "nrmse_pct": [float(v) for v in e],
-                        "coverage_pct": [float(v) for v in g["coverage_pct"]],
-                        "n_frames": [int(v) for v in g["n_frames"]]}
-    return {"emulated": True, "rigs": list(per_rig), "level": level, "by_context": by_k,
-            "per_rig": per_rig, "max_nrmse_pct": max_nrmse_pct,
-            "all_fall": all(r["error_falls"] for r in per_rig.values()),
-            "all_within_target": all(r["within_target"] for r in per_rig.values())}
+        per_rig[rig] = {
+            "error_falls": bool(np.all(np.diff(e) < 0)),
+            "nrmse_pct_most_context": float(e[-1]),
+            "within_target": bool(e[-1] <= max_nrmse_pct),
+            # per context count (0, 1, ...), and the frames behind each coverage
+            "nrmse_pct": [float(v) for v in e],
+            "coverage_pct": [float(v) for v in g["coverage_pct"]],
+            "n_frames": [int(v) for v in g["n_frames"]],
+        }
+    return {
+        "emulated": True,
+        "rigs": list(per_rig),
+        "level": level,
+        "by_context": by_k,
+        "per_rig": per_rig,
+        "max_nrmse_pct": max_nrmse_pct,
+        "all_fall": all(r["error_falls"] for r in per_rig.values()),
+        "all_within_target": all(r["within_target"] for r in per_rig.values()),
+    }
 
 
 def rigs_figure(table: pd.DataFrame, level: float, path) -> None:
@@ -106,10 +131,15 @@ def write_rigs(summaries: dict[str, dict], rigs: dict, out) -> dict:
     table.to_csv(out["csv"], index=False)
     wide = table.pivot(index="rig", columns="context_objects", values=["nrmse_pct", "coverage_pct"])
     wide = wide.loc[list(summaries)]
-    wide.columns = [f"{'NRMSE %' if c == 'nrmse_pct' else 'coverage %'}, {k} context" for c, k in wide.columns]
+    wide.columns = [
+        f"{'NRMSE %' if c == 'nrmse_pct' else 'coverage %'}, {k} context" for c, k in wide.columns
+    ]
     Path(out["table"]).write_text(
         "# Sim-to-real on emulated rigs\n\nEvery rig is emulated (finray.lab.rigs): `default` is "
-        "config `lab:`, the others are drawn from `lab.rigs`.\n\n" + wide.round(2).to_markdown() + "\n")
+        "config `lab:`, the others are drawn from `lab.rigs`.\n\n"
+        + wide.round(2).to_markdown()
+        + "\n"
+    )
     Path(out["json"]).write_text(json.dumps(summary, indent=1, default=float))
     rigs_figure(table, level, out["figure"])
     return summary

@@ -14,6 +14,7 @@ stage     train_from_shards(): the stage's entry point (shards -> files), its cu
 The names below load their module on first use (PEP 562), so that planning the DAG
 (``from finray.train.config import pitch_geometry``) imports no torch.
 """
+
 from __future__ import annotations
 
 from ..lazy import lazy_exports
@@ -21,11 +22,22 @@ from ..lazy import lazy_exports
 _HOMES = {
     "config": ("TrainConfig", "History", "AugmentConfig", "pitch_geometry", "SCHEDULES", "KEEP"),
     "augment": ("TrainAugment",),
-    "loop": ("train", "evaluate", "lr_factor", "recalibrate_batchnorm", "seed_everything",
-             "_autocast"),
+    "loop": (
+        "train",
+        "evaluate",
+        "lr_factor",
+        "recalibrate_batchnorm",
+        "seed_everything",
+        "_autocast",
+    ),
     "data": ("FORCE_COMPONENTS", "load_split", "validation_scenes"),
-    "export": ("save_checkpoint", "load_checkpoint", "export_torchscript", "export_onnx",
-               "force_onnx_path"),
+    "export": (
+        "save_checkpoint",
+        "load_checkpoint",
+        "export_torchscript",
+        "export_onnx",
+        "force_onnx_path",
+    ),
     "stage": ("train_from_shards", "training_curves"),
 }
 __getattr__, __dir__, __all__ = lazy_exports(__name__, _HOMES, globals())

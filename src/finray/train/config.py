@@ -2,6 +2,7 @@
 (the on-the-fly augmentation), :class:`History` (what a run measured) and the pitch
 augmentation's input geometry. Plain dataclasses: no torch (the workflow imports them
 to plan the DAG)."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -74,9 +75,13 @@ class History:
     device: str = ""  # where it trained: "cpu (<CPU>)" or "cuda:0 (<GPU>)"
     step_ms: float = float("nan")  # median training step, wall (batch, augmentation included)
     step_cpu_ms: float = float("nan")  # the same in the thread's CPU time (less load-dependent)
-    best_epoch: int = 0  # the epoch whose weights are kept (TrainConfig.keep; train loss without validation)
+    best_epoch: int = (
+        0  # the epoch whose weights are kept (TrainConfig.keep; train loss without validation)
+    )
     lr: list = field(default_factory=list)  # the learning rate at the end of each epoch
-    val_force_rmse_running_bn_N: list = field(default_factory=list)  # TrainConfig.compare_running_bn
+    val_force_rmse_running_bn_N: list = field(
+        default_factory=list
+    )  # TrainConfig.compare_running_bn
     force_mean_N: list = field(default_factory=list)  # the force normalisation (training frames)
     force_std_N: list = field(default_factory=list)
     # the contact head's (TrainConfig.contact_weight > 0): the masked normalised MSE per
@@ -121,8 +126,11 @@ def pitch_geometry(dataset: dict, render: dict, height_px: int, extrusion_mm: fl
     y0, y1 = dataset["crop_y_mm"]
     mm_per_px = (y1 - y0) / height_px
     yc = 0.5 * sum(render["window_y_mm"])
-    return {"mm_per_px": mm_per_px, "pitch_centre_row": (y1 - yc) / mm_per_px - 0.5,
-            "extrusion_mm": float(extrusion_mm)}
+    return {
+        "mm_per_px": mm_per_px,
+        "pitch_centre_row": (y1 - yc) / mm_per_px - 0.5,
+        "extrusion_mm": float(extrusion_mm),
+    }
 
 
 SCHEDULES = ("cosine", "constant")

@@ -1,5 +1,6 @@
 """The training data: the dataset stage's shards as network tensors, and the held-out
 validation scenes."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -10,8 +11,13 @@ import numpy as np
 FORCE_COMPONENTS = {"fx": "fx_N", "fy": "fy_N"}
 
 
-def load_split(shards, size: tuple[int, int], every: int = 1,
-               forces: tuple[str, ...] = ("fx",), camera: bool = False) -> dict[str, np.ndarray]:
+def load_split(
+    shards,
+    size: tuple[int, int],
+    every: int = 1,
+    forces: tuple[str, ...] = ("fx",),
+    camera: bool = False,
+) -> dict[str, np.ndarray]:
     """The frames of shards at one input size as network tensors (arrays): ``images``
     (N, 1, H, W) in [0, 1], ``stress`` (N, 1, H, W), ``mask`` (N, H, W) bool, ``fx_N``
     (N, 1), ``force_N`` (N, len(forces)): the components ``forces`` (``fx``, ``fy``) in N,
@@ -25,16 +31,24 @@ def load_split(shards, size: tuple[int, int], every: int = 1,
     a, table = load_frames(shards, size, every, require_stress=True, camera=camera)
     bad = [c for c in forces if c not in FORCE_COMPONENTS]
     if bad:
-        raise ValueError(f"train.forces: unknown component(s) {bad}; known: {list(FORCE_COMPONENTS)}")
-    out = {} if not camera else {
-        "camera_images": a["camera_images"][:, None].astype(np.float32) / np.float32(255.0)}
-    return out | {"images": a["images"][:, None].astype(np.float32) / np.float32(255.0),
-            "stress": a["stress"][:, None].astype(np.float32), "mask": a["mask"],
-            "fx_N": a["fx_N"][:, None].astype(np.float32),
-            "force_N": np.column_stack([a[FORCE_COMPONENTS[c]] for c in forces]).astype(np.float32),
-            "contact_mm": a["contact_y_mm"].astype(np.float32),
-            "scene_id": np.array(table["scene_id"].tolist()),
-            "displacement_mm": table["displacement_mm"].to_numpy()}
+        raise ValueError(
+            f"train.forces: unknown component(s) {bad}; known: {list(FORCE_COMPONENTS)}"
+        )
+    out = (
+        {}
+        if not camera
+        else {"camera_images": a["camera_images"][:, None].astype(np.float32) / np.float32(255.0)}
+    )
+    return out | {
+        "images": a["images"][:, None].astype(np.float32) / np.float32(255.0),
+        "stress": a["stress"][:, None].astype(np.float32),
+        "mask": a["mask"],
+        "fx_N": a["fx_N"][:, None].astype(np.float32),
+        "force_N": np.column_stack([a[FORCE_COMPONENTS[c]] for c in forces]).astype(np.float32),
+        "contact_mm": a["contact_y_mm"].astype(np.float32),
+        "scene_id": np.array(table["scene_id"].tolist()),
+        "displacement_mm": table["displacement_mm"].to_numpy(),
+    }
 
 
 def shard_stress_ref(shards) -> float | None:
@@ -51,8 +65,10 @@ def shard_stress_ref(shards) -> float | None:
                 if ref is not None:
                     refs.add(float(ref))
     if len(refs) > 1:
-        raise ValueError(f"the shards' stress maps use different references {sorted(refs)} MPa "
-                         "(render.stress_ref_MPa): render them alike")
+        raise ValueError(
+            f"the shards' stress maps use different references {sorted(refs)} MPa "
+            "(render.stress_ref_MPa): render them alike"
+        )
     return refs.pop() if refs else None
 
 

@@ -1,6 +1,7 @@
 """A trained model on disk: the checkpoint (``model.pt``), TorchScript (``model.ts`` with
 its JSON settings) and ONNX (``model.onnx``, force-only ``model.force.onnx``), each
 written from the CPU so that it loads anywhere."""
+
 from __future__ import annotations
 
 import copy
@@ -16,10 +17,19 @@ from .config import History
 from .data import FORCE_COMPONENTS
 
 
-def save_checkpoint(model: FinRayNet, hist: History, path: str | Path, extra: dict | None = None) -> None:
+def save_checkpoint(
+    model: FinRayNet, hist: History, path: str | Path, extra: dict | None = None
+) -> None:
     state = {k: v.detach().cpu() for k, v in model.state_dict().items()}  # loads anywhere
-    torch.save({"net_config": model.config_dict(), "state_dict": state,
-                "history": asdict(hist), "extra": extra or {}}, path)
+    torch.save(
+        {
+            "net_config": model.config_dict(),
+            "state_dict": state,
+            "history": asdict(hist),
+            "extra": extra or {},
+        },
+        path,
+    )
 
 
 def load_checkpoint(path: str | Path) -> tuple[FinRayNet, dict]:
@@ -36,10 +46,15 @@ def load_checkpoint(path: str | Path) -> tuple[FinRayNet, dict]:
 CONTACT_METHODS = ("contact", "force_contact", "forward_contact")
 
 
-def export_torchscript(model: FinRayNet, path: str | Path, preprocess: dict | None = None,
-                       forces: list[str] | None = None,
-                       contact_min_force_N: float | None = None,
-                       stress_ref_MPa: float | None = None, trained: dict | None = None) -> None:
+def export_torchscript(
+    model: FinRayNet,
+    path: str | Path,
+    preprocess: dict | None = None,
+    forces: list[str] | None = None,
+    contact_min_force_N: float | None = None,
+    stress_ref_MPa: float | None = None,
+    trained: dict | None = None,
+) -> None:
     """Trace the model (eval mode, float32) to TorchScript: ``forward`` gives (stress,
     force N), ``force`` the force (N) alone (no stress decoder); frozen. A model with the
     contact head also has ``contact`` (contact height (B,) mm), ``force_contact`` (force
@@ -63,19 +78,24 @@ def export_torchscript(model: FinRayNet, path: str | Path, preprocess: dict | No
         ts = torch.jit.trace_module(model, {"forward": example, **{m: example for m in methods}})
         ts = torch.jit.freeze(ts, preserved_attrs=methods)
     ts.save(str(path))
-    names = list(forces or list(FORCE_COMPONENTS.values())[:c.n_forces])
+    names = list(forces or list(FORCE_COMPONENTS.values())[: c.n_forces])
     if len(names) != c.n_forces:
         raise ValueError(f"{len(names)} force names for a model with {c.n_forces} force outputs")
     extra = {"contact_min_force_N": contact_min_force_N} if c.contact else {}
     if stress_ref_MPa is not None:
         extra["stress_ref_MPa"] = float(stress_ref_MPa)
-    extra["force_normalisation"] = {"mean_N": model.force_mean_N.tolist(),
-                                    "scale_N": model.force_scale_N.tolist()}
+    extra["force_normalisation"] = {
+        "mean_N": model.force_mean_N.tolist(),
+        "scale_N": model.force_scale_N.tolist(),
+    }
     if trained is not None:
         extra["trained"] = trained
-    Path(str(path) + ".json").write_text(json.dumps({**model.config_dict(), "forces": names,
-                                                      **extra, "preprocess": preprocess or {}},
-                                                     indent=1))
+    Path(str(path) + ".json").write_text(
+        json.dumps(
+            {**model.config_dict(), "forces": names, **extra, "preprocess": preprocess or {}},
+            indent=1,
+        )
+    )
 
 
 class _ForceOnly(nn.Module):
@@ -112,13 +132,20 @@ def export_onnx(model: FinRayNet, path: str | Path) -> None:
     contact = ["contact_mm"] if c.contact else []
     with warnings.catch_warnings(), torch.no_grad():
         warnings.simplefilter("ignore")  # the TorchScript-based exporter is deprecated
-        for module, file, outputs in ((_Full(model), path, ["stress_log", "force_N", *contact]),
-                                      (_ForceOnly(model), force_onnx_path(path),
-                                       ["force_N", *contact])):
-            torch.onnx.export(module, (example,), str(file), input_names=["image"],
-                              output_names=outputs, opset_version=17,
-                              dynamic_axes={n: {0: "batch"} for n in ["image", *outputs]},
-                              dynamo=False)
+        for module, file, outputs in (
+            (_Full(model), path, ["stress_log", "force_N", *contact]),
+            (_ForceOnly(model), force_onnx_path(path), ["force_N", *contact]),
+        ):
+            torch.onnx.export(
+                module,
+                (example,),
+                str(file),
+                input_names=["image"],
+                output_names=outputs,
+                opset_version=17,
+                dynamic_axes={n: {0: "batch"} for n in ["image", *outputs]},
+                dynamo=False,
+            )
 
 
 def force_onnx_path(path: str | Path) -> Path:

@@ -40,6 +40,7 @@ native support. Batch size, learning rate and epochs are the config's on every d
 The trained model comes back on the CPU, and checkpoints and exports are written from
 it, so that they load on any machine.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -84,8 +85,9 @@ def lr_factor(step: int, total: int, schedule: str = "cosine", warmup_frac: floa
 
 
 @torch.no_grad()
-def recalibrate_batchnorm(model: FinRayNet, batches, device: torch.device, channels_last: bool,
-                          bf16: bool) -> int:
+def recalibrate_batchnorm(
+    model: FinRayNet, batches, device: torch.device, channels_last: bool, bf16: bool
+) -> int:
     """Re-estimate every batch-norm layer's running mean and variance as the plain
     average over ``batches`` (an iterable of input tensors, drawn as in training) --
     ``torch.optim.swa_utils.update_bn``'s method, on the encoder and force head only
@@ -122,9 +124,10 @@ def _masked_mse(pred: torch.Tensor, target: torch.Tensor, mask: torch.Tensor) ->
     """Mean squared error over ``mask``'s frames (0 where there are none); NaN targets
     outside the mask touch neither the value nor the gradient."""
     m = mask.to(pred.dtype)
-    err = torch.where(mask, pred - torch.where(mask, target, torch.zeros_like(target)),
-                      torch.zeros_like(pred))
-    return (err ** 2 * m).sum() / m.sum().clamp_min(1.0)
+    err = torch.where(
+        mask, pred - torch.where(mask, target, torch.zeros_like(target)), torch.zeros_like(pred)
+    )
+    return (err**2 * m).sum() / m.sum().clamp_min(1.0)
 
 
 def _use_bf16(cfg: TrainConfig, device: torch.device) -> bool:
@@ -133,7 +136,7 @@ def _use_bf16(cfg: TrainConfig, device: torch.device) -> bool:
 
 def _step_times(hist: History, step_s: list[tuple[float, float]]) -> None:
     """Median wall and CPU time of a step (ms), leaving out the first fifth (warm-up)."""
-    t = np.asarray(step_s[len(step_s) // 5:])
+    t = np.asarray(step_s[len(step_s) // 5 :])
     hist.step_ms, hist.step_cpu_ms = (1e3 * float(v) for v in np.median(t, axis=0))
 
 
@@ -147,8 +150,15 @@ def _prep(x: torch.Tensor, channels_last: bool) -> torch.Tensor:
     return x.contiguous(memory_format=torch.channels_last) if channels_last else x
 
 
-def evaluate(model: FinRayNet, images: torch.Tensor, stress: torch.Tensor, force_N: torch.Tensor,
-             cfg: TrainConfig, batch_size: int = 256, contact_mm: torch.Tensor | None = None) -> dict:
+def evaluate(
+    model: FinRayNet,
+    images: torch.Tensor,
+    stress: torch.Tensor,
+    force_N: torch.Tensor,
+    cfg: TrainConfig,
+    batch_size: int = 256,
+    contact_mm: torch.Tensor | None = None,
+) -> dict:
     """Losses and force errors (N) of ``model`` on a set, in eval mode, on the model's
     device (the set's batches go there; the predicted forces come back to the CPU).
     A model with the contact head, given ``contact_mm`` (N,): also ``contact_pred_mm``
@@ -161,10 +171,12 @@ def evaluate(model: FinRayNet, images: torch.Tensor, stress: torch.Tensor, force
     s_se, f_se, f_pred, c_pred = 0.0, 0.0, [], []
     with torch.no_grad(), _autocast(_use_bf16(cfg, device), device):
         for i in range(0, n, batch_size):
-            x = _prep(images[i:i + batch_size].to(device), cfg.channels_last)
+            x = _prep(images[i : i + batch_size].to(device), cfg.channels_last)
             s, f, c = model.forward_normalised_all(x)
-            s_se += float(((s.float() - stress[i:i + batch_size].to(device)) ** 2).mean()) * len(x)
-            fn = model.normalise_force(force_N[i:i + batch_size].to(device))
+            s_se += float(((s.float() - stress[i : i + batch_size].to(device)) ** 2).mean()) * len(
+                x
+            )
+            fn = model.normalise_force(force_N[i : i + batch_size].to(device))
             f_se += float(((f.float() - fn) ** 2).mean()) * len(x)
             f_pred.append((f.float() * model.force_scale_N + model.force_mean_N).cpu())
             if contact:
@@ -173,7 +185,8 @@ def evaluate(model: FinRayNet, images: torch.Tensor, stress: torch.Tensor, force
     s_mse, f_mse = s_se / n, f_se / n
     out = {
         "loss": cfg.alpha_stress * s_mse + cfg.alpha_force * f_mse,
-        "stress_mse": s_mse, "force_mse_normalised": f_mse,
+        "stress_mse": s_mse,
+        "force_mse_normalised": f_mse,
         # the first component (fx, the headline force); every component's beside it
         "force_rmse_N": float(((f_pred[:, 0] - force_N[:, 0]) ** 2).mean().sqrt()),
         "force_rmse_components_N": ((f_pred - force_N) ** 2).mean(0).sqrt().tolist(),
@@ -184,11 +197,13 @@ def evaluate(model: FinRayNet, images: torch.Tensor, stress: torch.Tensor, force
         mask = contact_mask(contact_mm, force_N[:, 0], cfg.contact_min_force_N)
         se = _masked_mse(c_pred, contact_mm, mask)
         scale = float(model.contact_scale_mm.cpu())
-        out.update(contact_pred_mm=c_pred, contact_mse_normalised=float(se) / scale ** 2,
-                   contact_rmse_mm=float(se.sqrt()) if mask.any() else float("nan"))
+        out.update(
+            contact_pred_mm=c_pred,
+            contact_mse_normalised=float(se) / scale**2,
+            contact_rmse_mm=float(se.sqrt()) if mask.any() else float("nan"),
+        )
         out["loss"] += cfg.contact_weight * out["contact_mse_normalised"]
     return out
-
 
 
 @dataclass
@@ -211,24 +226,45 @@ class _TrainData:
         return len(self.x)
 
     @classmethod
-    def checked(cls, images, stress, force_N, camera_images, force_weight, contact_mm,
-                net_cfg: NetConfig, cfg: TrainConfig) -> "_TrainData":
+    def checked(
+        cls,
+        images,
+        stress,
+        force_N,
+        camera_images,
+        force_weight,
+        contact_mm,
+        net_cfg: NetConfig,
+        cfg: TrainConfig,
+    ) -> "_TrainData":
         """The arrays as tensors, each checked against the images (one line per fault)."""
         x = torch.as_tensor(images, dtype=torch.float32)
         s = torch.as_tensor(stress, dtype=torch.float32)
         f = torch.as_tensor(force_N, dtype=torch.float32).reshape(len(x), -1)
-        c = torch.as_tensor(camera_images, dtype=torch.float32) if camera_images is not None else None
+        c = (
+            torch.as_tensor(camera_images, dtype=torch.float32)
+            if camera_images is not None
+            else None
+        )
         if c is not None and c.shape != x.shape:
-            raise ValueError(f"camera images {tuple(c.shape)} do not match the images {tuple(x.shape)}")
-        w = None if force_weight is None else torch.as_tensor(force_weight, dtype=torch.float32).reshape(-1)
+            raise ValueError(
+                f"camera images {tuple(c.shape)} do not match the images {tuple(x.shape)}"
+            )
+        w = (
+            None
+            if force_weight is None
+            else torch.as_tensor(force_weight, dtype=torch.float32).reshape(-1)
+        )
         if w is not None and len(w) != len(x):
             raise ValueError(f"{len(w)} force weights for {len(x)} frames")
         if not (torch.isfinite(x).all() and torch.isfinite(s).all() and torch.isfinite(f).all()):
             raise ValueError("training data contain NaN or infinite values")
         contact = net_cfg.contact
         if contact != (cfg.contact_weight > 0):
-            raise ValueError(f"train.contact_weight {cfg.contact_weight:g} and a network "
-                             f"{'with' if contact else 'without'} the contact head do not go together")
+            raise ValueError(
+                f"train.contact_weight {cfg.contact_weight:g} and a network "
+                f"{'with' if contact else 'without'} the contact head do not go together"
+            )
         y = ym = None
         if contact:
             if contact_mm is None:
@@ -238,10 +274,12 @@ class _TrainData:
                 raise ValueError(f"{len(y)} contact heights for {len(x)} frames")
             ym = contact_mask(y, f[:, 0], cfg.contact_min_force_N)
             if not ym.any():
-                raise ValueError(f"train.contact_weight > 0, but no training frame has a contact "
-                                 f"height with |fx| above {cfg.contact_min_force_N:g} N (shards built "
-                                 "before the FEA wrote contact_y_mm?); rebuild them or set "
-                                 "train.contact_weight: 0")
+                raise ValueError(
+                    f"train.contact_weight > 0, but no training frame has a contact "
+                    f"height with |fx| above {cfg.contact_min_force_N:g} N (shards built "
+                    "before the FEA wrote contact_y_mm?); rebuild them or set "
+                    "train.contact_weight: 0"
+                )
         return cls(x, s, f, c, w, y, ym, contact)
 
     def batch(self, idx: torch.Tensor, augment, gen: torch.Generator):
@@ -255,9 +293,9 @@ class _TrainData:
         """``cfg.bn_frames`` training frames, augmented as in training, from their own
         generator (the training draws stay those of a run without re-estimates)."""
         g = torch.Generator().manual_seed(cfg.seed * 100003 + epoch)
-        pick = torch.randperm(self.n, generator=g)[:min(cfg.bn_frames, self.n)]
+        pick = torch.randperm(self.n, generator=g)[: min(cfg.bn_frames, self.n)]
         for i in range(0, len(pick), size):
-            yield self.batch(pick[i:i + size], augment, g)[0]
+            yield self.batch(pick[i : i + size], augment, g)[0]
 
 
 def _new_model(net_cfg: NetConfig, data: _TrainData, init_state: dict | None):
@@ -270,7 +308,9 @@ def _new_model(net_cfg: NetConfig, data: _TrainData, init_state: dict | None):
     model.set_force_normalisation(mean, scale)
     if data.contact:
         y_in = data.y[data.ym]
-        model.set_contact_normalisation(y_in.mean(), y_in.std().clamp_min(1e-3) if len(y_in) > 1 else 1.0)
+        model.set_contact_normalisation(
+            y_in.mean(), y_in.std().clamp_min(1e-3) if len(y_in) > 1 else 1.0
+        )
     if init_state is not None:  # fine-tuning: the start's weights, its force scale too
         model.load_state_dict(init_state)
         mean, scale = model.force_mean_N.clone(), model.force_scale_N.clone()
@@ -291,7 +331,9 @@ class _ValSet:
         if val is None:
             return None
         vx, vs, vf, *rest = (torch.as_tensor(a, dtype=torch.float32) for a in val)
-        return cls(vx, vs, vf.reshape(len(vx), -1), rest[0].reshape(-1) if contact and rest else None)
+        return cls(
+            vx, vs, vf.reshape(len(vx), -1), rest[0].reshape(-1) if contact and rest else None
+        )
 
 
 class _Keeper:
@@ -307,8 +349,16 @@ class _Keeper:
         return False
 
 
-def _batch_loss(model: FinRayNet, data: _TrainData, idx: torch.Tensor, x: torch.Tensor,
-                s: torch.Tensor, cfg: TrainConfig, device: torch.device, bf16: bool):
+def _batch_loss(
+    model: FinRayNet,
+    data: _TrainData,
+    idx: torch.Tensor,
+    x: torch.Tensor,
+    s: torch.Tensor,
+    cfg: TrainConfig,
+    device: torch.device,
+    bf16: bool,
+):
     """The loss of one batch (``x``, ``s`` augmented) and its terms: stress MSE, force MSE
     (normalised; weighted by ``data.w``), contact MSE (None without the head)."""
     f = data.f[idx].to(device)
@@ -325,14 +375,28 @@ def _batch_loss(model: FinRayNet, data: _TrainData, idx: torch.Tensor, x: torch.
     loss = cfg.alpha_stress * ls + cfg.alpha_force * lf
     lc = None
     if data.contact:
-        lc = _masked_mse(c_pred.float(), model.normalise_contact(data.y[idx].to(device)),
-                         data.ym[idx].to(device))
+        lc = _masked_mse(
+            c_pred.float(), model.normalise_contact(data.y[idx].to(device)), data.ym[idx].to(device)
+        )
         loss = loss + cfg.contact_weight * lc
     return loss, ls, lf, lc
 
 
-def _train_epoch(model, data: _TrainData, opt, sched, gen, augment, cfg: TrainConfig,
-                 device, bf16: bool, epoch: int, n_batches: int, hist: History, log) -> dict:
+def _train_epoch(
+    model,
+    data: _TrainData,
+    opt,
+    sched,
+    gen,
+    augment,
+    cfg: TrainConfig,
+    device,
+    bf16: bool,
+    epoch: int,
+    n_batches: int,
+    hist: History,
+    log,
+) -> dict:
     """One pass over the shuffled training frames; the summed loss and terms. The first
     epoch's step times go into ``hist`` (a log line after 25 steps)."""
     try:
@@ -343,13 +407,16 @@ def _train_epoch(model, data: _TrainData, opt, sched, gen, augment, cfg: TrainCo
     perm = torch.randperm(data.n, generator=gen)
     tot = {"loss": 0.0, "s": 0.0, "f": 0.0, "c": 0.0}
     it = range(n_batches)
-    bar = tqdm(it, desc=f"epoch {epoch}/{cfg.epochs}", leave=False,
-               disable=not cfg.progress) if tqdm else it
+    bar = (
+        tqdm(it, desc=f"epoch {epoch}/{cfg.epochs}", leave=False, disable=not cfg.progress)
+        if tqdm
+        else it
+    )
     step_s: list[tuple[float, float]] = []  # first epoch's (wall, CPU) step times (s)
     te = t_log = time.perf_counter()
     for b in bar:
         tb, cb = time.perf_counter(), time.thread_time()
-        idx = perm[b * cfg.batch_size:(b + 1) * cfg.batch_size]
+        idx = perm[b * cfg.batch_size : (b + 1) * cfg.batch_size]
         x, s = data.batch(idx, augment, gen)
         loss, ls, lf, lc = _batch_loss(model, data, idx, x, s, cfg, device, bf16)
         if lc is not None:
@@ -368,13 +435,17 @@ def _train_epoch(model, data: _TrainData, opt, sched, gen, augment, cfg: TrainCo
             step_s.append((now - tb, time.thread_time() - cb))
             if len(step_s) == min(n_batches, 25):  # past the first steps' warm-up
                 _step_times(hist, step_s)
-                log(f"step time {hist.step_ms:.1f} ms ({hist.step_cpu_ms:.1f} ms CPU; "
+                log(
+                    f"step time {hist.step_ms:.1f} ms ({hist.step_cpu_ms:.1f} ms CPU; "
                     f"{hist.precision}, batch {cfg.batch_size}): about "
-                    f"{hist.step_ms * n_batches / 1e3:.0f} s per epoch")
+                    f"{hist.step_ms * n_batches / 1e3:.0f} s per epoch"
+                )
         if now - t_log >= cfg.log_every_s:
             t_log = now
-            log(f"epoch {epoch}/{cfg.epochs}: batch {b + 1}/{n_batches}, train loss "
-                f"{tot['loss'] / (b + 1):.5f}, {now - te:.0f} s")
+            log(
+                f"epoch {epoch}/{cfg.epochs}: batch {b + 1}/{n_batches}, train loss "
+                f"{tot['loss'] / (b + 1):.5f}, {now - te:.0f} s"
+            )
         if tqdm and cfg.progress:
             bar.set_postfix(loss=f"{tot['loss'] / (b + 1):.4f}")
     if step_s:  # the whole first epoch (the log line had 25 steps)
@@ -382,8 +453,9 @@ def _train_epoch(model, data: _TrainData, opt, sched, gen, augment, cfg: TrainCo
     return tot
 
 
-def _validate(model: FinRayNet, vset: _ValSet | None, cfg: TrainConfig, hist: History,
-              epoch: int) -> tuple[str, float]:
+def _validate(
+    model: FinRayNet, vset: _ValSet | None, cfg: TrainConfig, hist: History, epoch: int
+) -> tuple[str, float]:
     """The epoch's log line and its score for ``train.keep`` (lower is better): the
     validation metrics (into ``hist``), or the training loss without validation frames."""
     msg = f"epoch {epoch}/{cfg.epochs}: train loss {hist.train_loss[-1]:.5f}"
@@ -398,19 +470,26 @@ def _validate(model: FinRayNet, vset: _ValSet | None, cfg: TrainConfig, hist: Hi
         hist.val_contact_rmse_mm.append(ev["contact_rmse_mm"])
         msg += f", val contact RMSE {ev['contact_rmse_mm']:.2f} mm"
     if hist.val_force_rmse_running_bn_N:
-        msg += f" ({hist.val_force_rmse_running_bn_N[-1]:.4f} N with training's batch-norm averages)"
+        msg += (
+            f" ({hist.val_force_rmse_running_bn_N[-1]:.4f} N with training's batch-norm averages)"
+        )
     return msg, {"val_force_rmse": ev["force_rmse_N"], "val_loss": ev["loss"]}.get(cfg.keep, -epoch)
 
 
-def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
-          val: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
-          net_cfg: NetConfig, cfg: TrainConfig,
-          augment: Callable[[torch.Tensor, torch.Tensor, torch.Generator], tuple] | None = None,
-          log: Callable[[str], None] = print,
-          camera_images: np.ndarray | None = None,
-          init_state: dict | None = None,
-          contact_mm: np.ndarray | None = None,
-          force_weight: np.ndarray | None = None) -> tuple[FinRayNet, History]:
+def train(
+    images: np.ndarray,
+    stress: np.ndarray,
+    force_N: np.ndarray,
+    val: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
+    net_cfg: NetConfig,
+    cfg: TrainConfig,
+    augment: Callable[[torch.Tensor, torch.Tensor, torch.Generator], tuple] | None = None,
+    log: Callable[[str], None] = print,
+    camera_images: np.ndarray | None = None,
+    init_state: dict | None = None,
+    contact_mm: np.ndarray | None = None,
+    force_weight: np.ndarray | None = None,
+) -> tuple[FinRayNet, History]:
     """Train a network; returns the kept model (``cfg.keep``) and the history.
 
     ``images`` (N, C, H, W) float in [0, 1]; ``stress`` (N, 1, H, W) log-stress maps;
@@ -431,7 +510,9 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
         raise ValueError(f"train.keep: {cfg.keep!r} is not one of {list(KEEP)}")
     lr_factor(0, 1, cfg.schedule, cfg.warmup_frac)  # an unknown schedule stops here
     device = resolve_device(cfg.device, "train.device")
-    if device.type == "cuda":  # deterministic cuBLAS needs a fixed workspace (torch's reproducibility notes)
+    if (
+        device.type == "cuda"
+    ):  # deterministic cuBLAS needs a fixed workspace (torch's reproducibility notes)
         os.environ.setdefault("CUBLAS_WORKSPACE_CONFIG", ":4096:8")
     torch.set_num_threads(cfg.threads)
     gen = seed_everything(cfg.seed)
@@ -444,40 +525,55 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
     cfg = replace(cfg, bf16=bf16)
     log(f"precision: {why}")
     log(f"device: {device_name(device)}")
-    data = _TrainData.checked(images, stress, force_N, camera_images, force_weight,
-                              contact_mm, net_cfg, cfg)
+    data = _TrainData.checked(
+        images, stress, force_N, camera_images, force_weight, contact_mm, net_cfg, cfg
+    )
     model, mean, scale = _new_model(net_cfg, data, init_state)
     model = model.to(device)  # initialised on the CPU: the same weights on any device
     if cfg.channels_last:
         model = model.to(memory_format=torch.channels_last)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
     vset = _ValSet.of(val, data.contact)
-    hist = History(precision="bfloat16" if bf16 else "float32", precision_reason=why,
-                   device=device_name(device), force_mean_N=mean.tolist(),
-                   force_std_N=scale.tolist())
+    hist = History(
+        precision="bfloat16" if bf16 else "float32",
+        precision_reason=why,
+        device=device_name(device),
+        force_mean_N=mean.tolist(),
+        force_std_N=scale.tolist(),
+    )
     if data.contact:
         hist.contact_mean_mm = float(model.contact_mean_mm)
         hist.contact_std_mm = float(model.contact_scale_mm)
         hist.n_contact_frames = int(data.ym.sum())
-        log(f"contact height: {hist.n_contact_frames} of {data.n} training frames "
+        log(
+            f"contact height: {hist.n_contact_frames} of {data.n} training frames "
             f"(|fx| > {cfg.contact_min_force_N:g} N), mean {hist.contact_mean_mm:.1f} mm, "
-            f"sd {hist.contact_std_mm:.1f} mm; loss weight {cfg.contact_weight:g}")
+            f"sd {hist.contact_std_mm:.1f} mm; loss weight {cfg.contact_weight:g}"
+        )
     n = data.n
     n_batches = max(1, n // cfg.batch_size)  # drop the last partial batch (batch-norm)
     total = cfg.epochs * n_batches
     sched = torch.optim.lr_scheduler.LambdaLR(
-        opt, lambda k: lr_factor(k, total, cfg.schedule, cfg.warmup_frac))
-    log(f"{cfg.epochs} epochs of {n_batches} batches of {cfg.batch_size} "
+        opt, lambda k: lr_factor(k, total, cfg.schedule, cfg.warmup_frac)
+    )
+    log(
+        f"{cfg.epochs} epochs of {n_batches} batches of {cfg.batch_size} "
         f"({n} frames), {cfg.threads} thread(s); learning rate {cfg.lr:g}, {cfg.schedule}"
         + (f" after a {cfg.warmup_frac:.0%} warm-up" if cfg.schedule == "cosine" else "")
-        + (f"; batch-norm re-estimated on {min(cfg.bn_frames, n)} frames per epoch"
-           if cfg.bn_frames > 0 else "") + f"; kept: {cfg.keep.replace('_', ' ')}")
+        + (
+            f"; batch-norm re-estimated on {min(cfg.bn_frames, n)} frames per epoch"
+            if cfg.bn_frames > 0
+            else ""
+        )
+        + f"; kept: {cfg.keep.replace('_', ' ')}"
+    )
     keeper = _Keeper()
     t0 = time.perf_counter()
     for epoch in range(1, cfg.epochs + 1):
         te = time.perf_counter()
-        tot = _train_epoch(model, data, opt, sched, gen, augment, cfg, device, bf16, epoch,
-                           n_batches, hist, log)
+        tot = _train_epoch(
+            model, data, opt, sched, gen, augment, cfg, device, bf16, epoch, n_batches, hist, log
+        )
         hist.epoch.append(epoch)
         hist.train_loss.append(tot["loss"] / n_batches)
         hist.train_stress_mse.append(tot["s"] / n_batches)
@@ -487,10 +583,12 @@ def train(images: np.ndarray, stress: np.ndarray, force_N: np.ndarray,
         hist.lr.append(float(opt.param_groups[0]["lr"]))
         if cfg.compare_running_bn and vset is not None:
             hist.val_force_rmse_running_bn_N.append(
-                evaluate(model, vset.x, vset.s, vset.f, cfg)["force_rmse_N"])
+                evaluate(model, vset.x, vset.s, vset.f, cfg)["force_rmse_N"]
+            )
         if cfg.bn_frames > 0:
-            recalibrate_batchnorm(model, data.bn_batches(epoch, cfg, augment), device,
-                                  cfg.channels_last, bf16)
+            recalibrate_batchnorm(
+                model, data.bn_batches(epoch, cfg, augment), device, cfg.channels_last, bf16
+            )
         hist.wall_time_s.append(time.perf_counter() - t0)
         msg, score = _validate(model, vset, cfg, hist, epoch)
         hist.epoch_time_s.append(time.perf_counter() - te)

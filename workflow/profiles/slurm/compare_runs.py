@@ -18,6 +18,7 @@ logs/ and the per-job benchmark records (results/benchmarks/**/*.tsv):
 - any other differing file (PNG, VTU, ...) is a mismatch unless its path names a timing
   (a speed figure plots measured times) or it is a figure of TIMED_FIGURES.
 """
+
 import json
 import re
 import sys
@@ -27,8 +28,11 @@ import numpy as np
 import pandas as pd
 
 TOL = 1e-9
-TIMING = re.compile(r"(time|timing|(^|_)ms(_|$)|(^|_)s(_per|$)|_s_|\d s/|load_average|seconds|latency|fps|throughput|speed|rss|wall|cpu"
-                    r"|duration|elapsed|per_s|hz|date|host|pareto|benchmark)", re.I)
+TIMING = re.compile(
+    r"(time|timing|(^|_)ms(_|$)|(^|_)s(_per|$)|_s_|\d s/|load_average|seconds|latency|fps|throughput|speed|rss|wall|cpu"
+    r"|duration|elapsed|per_s|hz|date|host|pareto|benchmark)",
+    re.I,
+)
 TEXT = {".md", ".txt", ".tex", ".html", ".pvd", ".rst", ".yaml", ".j2"}
 STAMPS = re.compile(rb"(comment Created by meshio[^\n]*|/(Creation|Mod)Date \(D:[^)]*\))")
 NUM = re.compile(r"[-+]?\d*\.?\d+(?:[eE][-+]?\d+)?")
@@ -36,7 +40,9 @@ TIMED = re.compile(NUM.pattern + r"(?=\s*(?:ms|s|min|h)\b)")
 # a table header that names a time unit: "(s)", "(min, sum)", "s/scene", "ms/frame"
 UNIT_HEADER = re.compile(r"\((?:s|ms|min|h)\b|(?:^|\W)(?:s|ms|min)/")
 # figures that plot measured times beside results (finray.evaluate.figures)
-TIMED_FIGURES = {"material_generalisation": "its right panel plots the FEA's and the network's time per material"}
+TIMED_FIGURES = {
+    "material_generalisation": "its right panel plots the FEA's and the network's time per material"
+}
 
 
 def files(run):
@@ -95,7 +101,9 @@ def compare_table(a, b, sep):
 
 def compare_json(a, b):
     """(problems, ignored timing keys) of two JSON files."""
-    return _compare_flat(flat(json.loads(Path(a).read_text())), flat(json.loads(Path(b).read_text())))
+    return _compare_flat(
+        flat(json.loads(Path(a).read_text())), flat(json.loads(Path(b).read_text()))
+    )
 
 
 def _compare_flat(fa, fb):
@@ -145,8 +153,11 @@ def timed_columns(lines):
         if t.startswith("|"):
             cells = t.strip("|").split("|")
             if md_head is None:
-                md_head = [i for i, c in enumerate(map(str.strip, cells))
-                           if TIMING.search(c) or UNIT_HEADER.search(c)]
+                md_head = [
+                    i
+                    for i, c in enumerate(map(str.strip, cells))
+                    if TIMING.search(c) or UNIT_HEADER.search(c)
+                ]
             cols = set(md_head)
         else:
             md_head = None
@@ -170,7 +181,9 @@ def _mask(line, cols):
     line = TIMED.sub("#", line)
     if line.strip().startswith("|"):  # cells without their padding (widths follow the numbers)
         cells = line.strip().split("|")
-        line = "|".join((NUM.sub("#", c) if i - 1 in cols else c).strip() for i, c in enumerate(cells))
+        line = "|".join(
+            (NUM.sub("#", c) if i - 1 in cols else c).strip() for i, c in enumerate(cells)
+        )
     elif cols:
         line = NUM.sub("#", line)
     return line
@@ -186,7 +199,9 @@ def compare_text(a, b):
     for i, (x, y, cols) in enumerate(zip(la, lb, timed_columns(la)), 1):
         if x == y:
             continue
-        if (TIMING.search(x) and NUM.sub("#", x) == NUM.sub("#", y)) or _mask(x, cols) == _mask(y, cols):
+        if (TIMING.search(x) and NUM.sub("#", x) == NUM.sub("#", y)) or _mask(x, cols) == _mask(
+            y, cols
+        ):
             timing.append(f"line {i}")
         else:
             bad.append(f"line {i}: {x.strip()[:80]!r} vs {y.strip()[:80]!r}")
@@ -209,8 +224,9 @@ def compare_checkpoint(a, b):
     if ta.keys() != tb.keys():
         return [f"tensors differ: {sorted(ta.keys() ^ tb.keys())[:5]}"], []
     bad = [f"{k}: tensor differs" for k in ta if not torch.equal(ta[k], tb[k])]
-    more, timing = _compare_flat({k: v for k, v in fa.items() if k not in ta},
-                                 {k: v for k, v in fb.items() if k not in tb})
+    more, timing = _compare_flat(
+        {k: v for k, v in fa.items() if k not in ta}, {k: v for k, v in fb.items() if k not in tb}
+    )
     return bad + more, timing
 
 
@@ -220,7 +236,7 @@ def main(argv=None):
     if "--rtol" in argv:
         i = argv.index("--rtol")
         TOL = float(argv[i + 1])
-        del argv[i:i + 2]
+        del argv[i : i + 2]
     if len(argv) != 2 or not all(Path(r, "results").is_dir() for r in argv):
         sys.exit("usage: compare_runs.py [--rtol 1e-9] RUN_A RUN_B (directories holding results/)")
     a, b = argv
@@ -259,8 +275,10 @@ def main(argv=None):
             kind = "equal to 1e-9" if not timing else "timings differ: " + ", ".join(timing[:6])
             timing_only.append(f"{rel}: {kind}")
     n = len(fa & fb)
-    print(f"compare (rtol {TOL:g}): {len(fa)} vs {len(fb)} files; {n} in both: {identical} identical (write dates masked), "
-          f"{len(timing_only)} equal apart from timings/roundoff, {len(mismatches)} mismatches")
+    print(
+        f"compare (rtol {TOL:g}): {len(fa)} vs {len(fb)} files; {n} in both: {identical} identical (write dates masked), "
+        f"{len(timing_only)} equal apart from timings/roundoff, {len(mismatches)} mismatches"
+    )
     for line in timing_only:
         print(f"  ok (not bit-identical) {line}")
     for line in mismatches:

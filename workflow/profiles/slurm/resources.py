@@ -9,6 +9,7 @@ under RESULTS_DIR/benchmarks and prints, per rule,
 Rules without a benchmark get DEFAULT. The rules declare these numbers in their
 ``resources:``; --check exits 1 (one line per rule) where a rule's declaration differs.
 """
+
 import argparse
 import math
 import re
@@ -44,8 +45,11 @@ def pattern_regex(pattern):
 
 def measured(results, blocks):
     """{rule: {mem_mb, runtime, jobs}} from RESULTS/benchmarks/**/*.tsv."""
-    patterns = {name: pattern_regex(m.group(1)) for name, text in blocks.items()
-                if (m := _BENCH.search(text))}
+    patterns = {
+        name: pattern_regex(m.group(1))
+        for name, text in blocks.items()
+        if (m := _BENCH.search(text))
+    }
     rows = {}
     for tsv in sorted((Path(results) / "benchmarks").rglob("*.tsv")):
         rel = tsv.relative_to(Path(results) / "benchmarks").as_posix()
@@ -58,9 +62,13 @@ def measured(results, blocks):
     for name, rs in rows.items():
         df = pd.DataFrame(rs)
         rss = pd.to_numeric(df["max_rss"], errors="coerce").max()
-        out[name] = {"mem_mb": int(math.ceil(1.5 * rss / 100.0) * 100),
-                     "runtime": max(1, math.ceil(2 * df["s"].max() / 60)),
-                     "jobs": len(df), "max_rss": rss, "max_s": df["s"].max()}
+        out[name] = {
+            "mem_mb": int(math.ceil(1.5 * rss / 100.0) * 100),
+            "runtime": max(1, math.ceil(2 * df["s"].max() / 60)),
+            "jobs": len(df),
+            "max_rss": rss,
+            "max_s": df["s"].max(),
+        }
     return out
 
 
@@ -80,15 +88,22 @@ def main(argv=None):
     blocks = rule_blocks()
     meas = measured(args.results, blocks)
     bad = 0
-    print(f"{'rule':30s} {'jobs':>4s} {'max_rss_MB':>10s} {'max_s':>8s} {'mem_mb':>6s} {'runtime':>7s}")
+    print(
+        f"{'rule':30s} {'jobs':>4s} {'max_rss_MB':>10s} {'max_s':>8s} {'mem_mb':>6s} {'runtime':>7s}"
+    )
     for name in blocks:
         want = meas.get(name, DEFAULT)
-        print(f"{name:30s} {want.get('jobs', 0):4d} {want.get('max_rss', float('nan')):10.1f} "
-              f"{want.get('max_s', float('nan')):8.1f} {want['mem_mb']:6d} {want['runtime']:7d}")
+        print(
+            f"{name:30s} {want.get('jobs', 0):4d} {want.get('max_rss', float('nan')):10.1f} "
+            f"{want.get('max_s', float('nan')):8.1f} {want['mem_mb']:6d} {want['runtime']:7d}"
+        )
         have = declared(blocks[name])
         if args.check and any(have.get(k) != want[k] for k in ("mem_mb", "runtime")):
-            print(f"  MISMATCH {name}: declares {have}, measured "
-                  f"mem_mb={want['mem_mb']} runtime={want['runtime']}", file=sys.stderr)
+            print(
+                f"  MISMATCH {name}: declares {have}, measured "
+                f"mem_mb={want['mem_mb']} runtime={want['runtime']}",
+                file=sys.stderr,
+            )
             bad += 1
     return 1 if bad else 0
 
