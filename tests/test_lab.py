@@ -9,9 +9,9 @@ import pandas as pd
 import pytest
 
 from finray.config import load_config
-from finray.lab.camera import LensDistortion, PinholeCamera
-from finray.lab.motion import GripperMotion
-from finray.lab.sensor import ForceSensor
+from finray.emulator.camera import LensDistortion, PinholeCamera
+from finray.emulator.motion import GripperMotion
+from finray.emulator.sensor import ForceSensor
 from test_render_fixture import write_synthetic_fea_result
 
 LAB = load_config("config/smoke.yaml")["lab"]
@@ -90,11 +90,11 @@ def result(tmp_path_factory):
 
 
 def test_scene_projects_like_the_camera_and_windows_are_exact(result):
-    from finray.lab.scene import LabScene
+    from finray.emulator.studio import Studio
     from finray.render.result import load_fea_result
 
     res = load_fea_result(result)
-    look = dict(LAB["scene"])
+    look = dict(LAB["look"])
     cam = PinholeCamera.looking_at(
         (5.0, 38.0, 0.0),
         width=320,
@@ -107,7 +107,7 @@ def test_scene_projects_like_the_camera_and_windows_are_exact(result):
         principal_offset_px=(3.5, -2.0),
     )
     outline = res.object_points_mm[0].astype(float)
-    with LabScene(res.mesh, outline, cam, look, 20.0) as scene:
+    with Studio(res.mesh, outline, cam, look, 20.0) as scene:
         scene.pose(res.deformed_points(5), -5.0)
         full = scene.render_mask().copy()
         colour = scene.render_colour().copy()
@@ -126,7 +126,7 @@ def test_scene_projects_like_the_camera_and_windows_are_exact(result):
 
 @pytest.mark.slow
 def test_a_short_take_ingests_without_its_truth(result, tmp_path):
-    from finray.lab.emulate import emulate_take
+    from finray.emulator.emulate import emulate_take
     from finray.recording import IngestParams, ingest
 
     lab = json.loads(json.dumps(LAB))
@@ -169,7 +169,7 @@ def test_a_short_take_ingests_without_its_truth(result, tmp_path):
 def test_a_scene_stopped_at_its_force_limit_makes_a_shorter_push(tmp_path):
     """An FEA scene that stopped at the physical limit (fea.force_cap_N) before the
     motion's push: the take pushes as far as the FEA reached, and its truth says so."""
-    from finray.lab.emulate import emulate_take
+    from finray.emulator.emulate import emulate_take
 
     res = write_synthetic_fea_result(
         tmp_path / "result.npz", n_frames=5, max_displacement_mm=6.0, size_mm=1.0

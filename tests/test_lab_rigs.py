@@ -1,4 +1,4 @@
-"""Drawn emulated rigs (finray.lab.rigs) and the summary over rigs (finray.evaluate.rigs)."""
+"""Drawn emulated rigs (finray.emulator.rigs) and the summary over rigs (finray.evaluate.rigs)."""
 
 import colorsys
 
@@ -8,7 +8,7 @@ import pytest
 
 from finray.config import load_config
 from finray.evaluate.rigs import rigs_summary, rigs_table
-from finray.lab.rigs import draw_rig, rig_index, rig_names, selection_rig_names
+from finray.emulator.rigs import draw_rig, rig_index, rig_names, selection_rig_names
 
 
 @pytest.fixture(scope="module")
@@ -41,7 +41,7 @@ def test_rigs_are_drawn_within_their_ranges_and_replay(lab):
         assert rig["camera"]["size_px"] in spec["choice"]["camera.size_px"]
         assert "emulated" in rig["camera"]["model"]
         # the object's hue is at least 120 deg from the finger's
-        h = [colorsys.rgb_to_hsv(*rig["scene"][c])[0] * 360 for c in ("finger_rgb", "object_rgb")]
+        h = [colorsys.rgb_to_hsv(*rig["look"][c])[0] * 360 for c in ("finger_rgb", "object_rgb")]
         assert min(abs(h[0] - h[1]), 360 - abs(h[0] - h[1])) >= 119.9
         for name, obj in rig["objects"].items():
             base = lab["objects"][name]
@@ -100,7 +100,7 @@ def test_height_span_draws_one_height_per_part_of_the_face():
     import numpy as np
 
     from finray.geometry.objects import object_shape
-    from finray.lab.rigs import BASE_CLEARANCE_MM, span_heights
+    from finray.emulator.rigs import BASE_CLEARANCE_MM, span_heights
 
     objects = {
         "cylinder": {"type": "circle", "diameter_mm": 20.0},

@@ -23,9 +23,9 @@ or lower. The top-level modules that are not stages get the rank of what they im
   at train's rank, so that ``predict`` may apply a calibration; ``sim2real.experiment``
   and ``sim2real.rigs`` score and draw: evaluate's rank. ``adapt`` and ``calibration``
   (top level) are aliases of the first two for a release.
-- ``lab``: the emulated rig: FEA results through a camera into takes (render's level
+- ``emulator``: the emulated rig: FEA results through a camera into takes (render's level
   and up: rank 35). ``recording``: a real rig's takes -> shards, the dataset stage's
-  counterpart; it must never import ``lab`` (ingest must not see the emulator's truth).
+  counterpart; it must never import ``emulator`` (ingest must not see the emulator's truth).
 - ``benchmarks``: the studies, a consumer of every stage like evaluate; no stage and
   not evaluate imports it. ``cli``: the entry point, on top.
 """
@@ -51,7 +51,7 @@ RANK = {
     "geometry": 10,
     "fea": 20,
     "render": 30,
-    "lab": 35,
+    "emulator": 35,
     "dataset": 40,
     "recording": 40,
     "config": 45,
@@ -138,14 +138,14 @@ def test_no_stage_imports_a_later_one():
 
 
 def test_ingest_never_sees_the_emulator():
-    """A real rig's takes go through the same code: recording imports nothing of lab
+    """A real rig's takes go through the same code: recording imports nothing of the emulator
     (whose takes carry the truth beside them), nor does predict(or) or train."""
     bad = [
         f"{m}:{line}: {target}"
         for f, m in _modules()
         if _unit(m.split(".")[1:]) in ("recording", "predictor", "predict", "train", "model")
         for line, target in finray_imports(f.read_text(), m)
-        if _unit(target.split(".")[1:]) == "lab"
+        if _unit(target.split(".")[1:]) == "emulator"
     ]
     assert bad == []
 

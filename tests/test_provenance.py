@@ -473,7 +473,7 @@ READERS: list[tuple[str, set[str]]] = [
     ("lab.as_built.*", {"lab_fea", "summary"}),
     ("lab.motion.gap_mm", {"lab_object", "lab_take", "summary"}),
     ("lab.motion.push_mm", {"lab_fea", "lab_take", "summary"}),
-    ("lab.scene.*", {"lab_take"}),
+    ("lab.look.*", {"lab_take"}),
     ("lab.*", {"lab_take", "summary"}),  # motion, camera, sensor
 ]
 
@@ -602,9 +602,9 @@ NEW_VALUES = {
     "lab.objects.cylinder.type": lambda cfg: cfg["lab"]["objects"]["cylinder"].update(
         type="square", side_mm=15.0
     ),
-    "lab.scene.finger_colour": "orange",
-    "lab.scene.clutter": [{"kind": "hand", "centre_mm": [30.0, 20.0], "size_mm": [20.0, 40.0]}],
-    "lab.scene.lights": [{"position_mm": [-200.0, 300.0, 300.0], "intensity": 0.8}],
+    "lab.look.finger_colour": "orange",
+    "lab.look.clutter": [{"kind": "hand", "centre_mm": [30.0, 20.0], "size_mm": [20.0, 40.0]}],
+    "lab.look.lights": [{"position_mm": [-200.0, 300.0, 300.0], "intensity": 0.8}],
     "lab.camera.video_pix_fmt": "yuv420p",
     "lab.rigs.uniform": {"camera.distance_mm": [180.0, 240.0]},
     "lab.rigs.choice": {"camera.size_px": [[1280, 720], [848, 480]]},

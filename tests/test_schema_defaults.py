@@ -120,8 +120,8 @@ def _section_defaults(path: str) -> dict:
         ("finray.render.params.RenderParams", "render"),
         ("finray.dataset.params.DatasetParams", "dataset"),
         ("finray.render.camera_views.CameraViews", "render.camera_views"),
-        ("finray.lab.motion.GripperMotion", "lab.motion"),
-        ("finray.lab.sensor.ForceSensor", "lab.sensor"),
+        ("finray.emulator.motion.GripperMotion", "lab.motion"),
+        ("finray.emulator.sensor.ForceSensor", "lab.sensor"),
         ("finray.geometry.finger.FingerParams", "finger"),
     ],
 )

@@ -316,8 +316,8 @@ def test_the_emulated_rig_draws_clutter_that_the_finder_flags(tmp_path):
     the label view (the true mask) leaves them out; the colour finder keeps the finger
     and flags the frame low_confidence."""
     from finray.config import load_config
-    from finray.lab.camera import PinholeCamera
-    from finray.lab.scene import LabScene
+    from finray.emulator.camera import PinholeCamera
+    from finray.emulator.studio import Studio
     from finray.render.result import load_fea_result
     from test_render_fixture import write_synthetic_fea_result
 
@@ -326,7 +326,7 @@ def test_the_emulated_rig_draws_clutter_that_the_finder_flags(tmp_path):
             tmp_path / "result.npz", n_frames=3, max_displacement_mm=2.0, size_mm=1.0
         )
     )
-    look = dict(load_config("config/smoke.yaml")["lab"]["scene"])
+    look = dict(load_config("config/smoke.yaml")["lab"]["look"])
     cam = PinholeCamera.looking_at(
         (5.0, 38.0, 0.0), width=320, height=240, hfov_deg=69.4, distance_mm=200
     )
@@ -342,7 +342,7 @@ def test_the_emulated_rig_draws_clutter_that_the_finder_flags(tmp_path):
             ],
         ),
     ):
-        with LabScene(res.mesh, outline, cam, look | {"clutter": clutter}, 20.0) as scene:
+        with Studio(res.mesh, outline, cam, look | {"clutter": clutter}, 20.0) as scene:
             scene.pose(res.deformed_points(0), 0.0)
             views[name] = (scene.render_colour().copy(), scene.render_mask().copy())
     (plain, truth), (cluttered, truth_c) = views["plain"], views["clutter"]

@@ -261,8 +261,8 @@ def _check_spread(cfg: dict) -> None:
 
 def _check_lab(cfg: dict, finger: FingerParams) -> None:
     """The emulated rig's objects fit the finger at its heights, its motion fits its take."""
-    from .lab.as_built import as_built_finger
-    from .lab.motion import GripperMotion
+    from .emulator.as_built import as_built_finger
+    from .emulator.motion import GripperMotion
 
     lab = cfg["lab"]
     try:

@@ -1,5 +1,5 @@
 """The learned finger finder on emulated rigs drawn from the full config's ranges
-(finray.lab.rigs: finger colours, backgrounds, lenses, distances), none of which a test
+(finray.emulator.rigs: finger colours, backgrounds, lenses, distances), none of which a test
 was tuned to: per rig, the finder ``auto`` chooses from the first 5 frames and the IoU of
 its masks with the emulator's true masks (every 5th frame), and the masks' confidence.
 
@@ -21,8 +21,8 @@ sys.path.insert(0, str(ROOT / "tests"))
 from test_render_fixture import write_synthetic_fea_result  # noqa: E402
 
 from finray.config import load_config  # noqa: E402
-from finray.lab.emulate import emulate_take  # noqa: E402
-from finray.lab.rigs import draw_rig  # noqa: E402
+from finray.emulator.emulate import emulate_take  # noqa: E402
+from finray.emulator.rigs import draw_rig  # noqa: E402
 from finray.media import video_frames  # noqa: E402
 from finray.recording.finder import FingerFinder, learn_finder  # noqa: E402
 

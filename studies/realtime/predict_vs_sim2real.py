@@ -11,7 +11,7 @@ configured rig) and ``lab/rigs/<rig>/<take>/take.mp4`` (the drawn ones), their
 ``pred_N`` calibrated by the simulation with the rig prior, ``net_mean_N`` the
 no-context heads' mean) and ``train/<model>/model.ts``. OUT_DIR gets each take's
 ``finray predict`` output, ``frames.csv`` (every frame of both paths beside the sensor)
-and ``summary.json`` / ``summary.md`` (per rig). The takes are emulated (finray.lab),
+and ``summary.json`` / ``summary.md`` (per rig). The takes are emulated (finray.emulator),
 not recordings.
 
 A model exported before the training's ranges were saved with it (``model.ts.json``

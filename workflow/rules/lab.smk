@@ -109,7 +109,7 @@ rule lab_take:
         mem_mb=1100,
         runtime=1,
     params:
-        lab=section("lab", keys=("motion", "camera", "scene", "sensor")),
+        lab=section("lab", keys=("motion", "camera", "look", "sensor")),
         seed=lab_take_seed,
         extrusion_mm=config["finger"]["extrusion_mm"],
     script:

@@ -1,4 +1,4 @@
-# More emulated rigs (lab.rigs): rig<i>'s whole lab section drawn by finray.lab.rigs, its
+# More emulated rigs (lab.rigs): rig<i>'s whole lab section drawn by finray.emulator.rigs, its
 # takes made and ingested by the lab rules' scripts (results/lab/rigs/<rig>/), and
 # sim-to-real run on each (results/evaluate/sim2real/rigs/<rig>/), beside the configured
 # rig; sim2real_rigs gives each figure per rig and its mean and range over the rigs.
@@ -87,7 +87,7 @@ use rule lab_take as rig_take with:
         f"{RESULTS}/benchmarks/lab/rigs/{{rig}}/{{object}}_h{{height}}_take.tsv"
     params:
         lab=lambda w: canonical(
-            {k: rig_lab(w.rig)[k] for k in ("motion", "camera", "scene", "sensor")}
+            {k: rig_lab(w.rig)[k] for k in ("motion", "camera", "look", "sensor")}
         ),
         seed=rig_take_seed,
         extrusion_mm=config["finger"]["extrusion_mm"],

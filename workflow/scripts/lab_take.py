@@ -1,6 +1,6 @@
 from pathlib import Path
 
-from finray.lab.emulate import emulate_take
+from finray.emulator.emulate import emulate_take
 from finray.logs import log_to
 
 wc, p = snakemake.wildcards, snakemake.params

@@ -359,7 +359,7 @@ def write_spread_rigs(summaries: dict[str, dict], default: str, out: dict) -> di
     summary["acceptance"] = rig_acceptance(summary, max_nrmse_pct)
     Path(out["table"]).write_text(
         "# Sim-to-real on the emulated rigs, over training seeds and numeric types\n\n"
-        "Every rig is emulated (finray.lab.rigs): `default` is config `lab:`, the others are "
+        "Every rig is emulated (finray.emulator.rigs): `default` is config `lab:`, the others are "
         "drawn from `lab.rigs`; each variant is the camera model trained again "
         "(evaluate.spread).\n\n"
         + rigs_markdown(summary["acceptance"])

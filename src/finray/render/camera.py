@@ -10,7 +10,7 @@ a pixel of the (distorted) image, with normalised coordinates ``x, y`` and
 ``x_u = x (1 + k1 r^2 + k2 r^4 + k3 r^6) + 2 p1 x y + p2 (r^2 + 2 x^2)`` (y alike), so
 each output pixel samples the pinhole render at one point (no iteration). The
 renderers here draw the pinhole image; the lab applies the distortion afterwards
-(:class:`finray.lab.camera.LensDistortion`).
+(:class:`finray.emulator.camera.LensDistortion`).
 """
 
 from __future__ import annotations

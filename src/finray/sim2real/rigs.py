@@ -4,7 +4,7 @@
 run_sim2real`; :func:`write_rigs` writes the table (CSV, Markdown), a summary (JSON:
 per context count the mean, range and pooled interval coverage over the rigs, and
 whether every rig meets the targets) and a figure of error and coverage against the
-context count, one line per rig. Every rig is emulated (:mod:`finray.lab.rigs`).
+context count, one line per rig. Every rig is emulated (:mod:`finray.emulator.rigs`).
 """
 
 from __future__ import annotations
@@ -135,7 +135,7 @@ def write_rigs(summaries: dict[str, dict], rigs: dict, out) -> dict:
         f"{'NRMSE %' if c == 'nrmse_pct' else 'coverage %'}, {k} context" for c, k in wide.columns
     ]
     Path(out["table"]).write_text(
-        "# Sim-to-real on emulated rigs\n\nEvery rig is emulated (finray.lab.rigs): `default` is "
+        "# Sim-to-real on emulated rigs\n\nEvery rig is emulated (finray.emulator.rigs): `default` is "
         "config `lab:`, the others are drawn from `lab.rigs`.\n\n"
         + wide.round(2).to_markdown()
         + "\n"

@@ -2,8 +2,8 @@
 import functools
 import zlib
 
-from finray.lab.as_built import as_built_fea, as_built_finger, as_built_material
-from finray.lab.rigs import (
+from finray.emulator.as_built import as_built_fea, as_built_finger, as_built_material
+from finray.emulator.rigs import (
     draw_rig,
     rig_index,
     rig_names as _rig_names,
@@ -55,7 +55,7 @@ def selection_rig_names():
 
 @functools.lru_cache(maxsize=None)
 def rig_lab(rig):
-    """Rig ``rig``'s lab section (finray.lab.rigs.draw_rig), drawn once per planning: the
+    """Rig ``rig``'s lab section (finray.emulator.rigs.draw_rig), drawn once per planning: the
     config does not change while Snakemake plans. Read-only."""
     return draw_rig(config["lab"], rig_index(rig))
 

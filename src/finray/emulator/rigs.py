@@ -132,11 +132,11 @@ def draw_rig(lab: dict, index: int) -> dict:
     if col:
         hue = rng.uniform(*col["finger_hue_deg"])
         sat, val = rng.uniform(*col["saturation"], 2), rng.uniform(*col["value"], 2)
-        scene = out["scene"]
-        scene["finger_rgb"] = _hsv(hue, sat[0], val[0])
-        scene["object_rgb"] = _hsv(hue + rng.uniform(*col["object_hue_offset_deg"]), sat[1], val[1])
+        look = out["look"]
+        look["finger_rgb"] = _hsv(hue, sat[0], val[0])
+        look["object_rgb"] = _hsv(hue + rng.uniform(*col["object_hue_offset_deg"]), sat[1], val[1])
         grey = float(rng.uniform(*col["background_grey"]))
-        scene["background_rgb"] = [round(grey, 4)] * 3
+        look["background_rgb"] = [round(grey, 4)] * 3
     if spec.get("object_scale"):
         out["objects"] = {
             name: _scale_object(o, float(rng.uniform(*spec["object_scale"])))

@@ -1,4 +1,4 @@
-"""The emulated rig's 3D scene seen by a perspective camera (pyvista, off screen).
+"""The emulated rig's studio: the 3D set a perspective camera films (pyvista, off screen).
 
 In view: the extruded finger (its FEA mesh, deformed per frame), the clamp that holds
 its base, the object on a six-axis sensor, and a textured back wall; lit by a key and
@@ -51,7 +51,7 @@ def clutter_mesh(item: dict, finger_rgb):
 
     kind = item["kind"]
     if kind not in CLUTTER:
-        raise ValueError(f"lab.scene.clutter: kind {kind!r} is not one of {list(CLUTTER)}")
+        raise ValueError(f"lab.look.clutter: kind {kind!r} is not one of {list(CLUTTER)}")
     (x, y), (w, h) = item["centre_mm"], item["size_mm"]
     z = float(item.get("z_mm", 0.0))
     if kind == "object":
@@ -74,8 +74,8 @@ def wall_texture(shape=(256, 384), seed=0, base_rgb=(0.62, 0.60, 0.56)) -> np.nd
     return np.clip(img * 255, 0, 255).astype(np.uint8)
 
 
-class LabScene:
-    """The scene of one take; :meth:`render` gives the colour and label images."""
+class Studio:
+    """The studio of one take; :meth:`render` gives the colour and label images."""
 
     def __init__(
         self,

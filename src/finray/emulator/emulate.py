@@ -4,7 +4,7 @@
 
 - ``take.mp4`` (H.264, the camera's frames), ``forces.csv`` (the sensor's log on its
   own clock) and ``take.json`` (object, contact height, push axis, the camera's
-  intrinsics as a RealSense reports them; the finger's colour when ``lab.scene`` names
+  intrinsics as a RealSense reports them; the finger's colour when ``lab.look`` names
   one) -- what a real rig writes, and all that ``finray ingest`` reads;
 - ``truth/`` for QA only: ``masks.npz`` (the true finger mask of every frame, bit-
   packed), ``frames.csv`` (per frame: camera time, push, true push force averaged over
@@ -12,7 +12,7 @@
   the sensor's gain and offsets, the camera).
 
 Per frame k at camera time t_k = k / fps (mid-exposure): the push d(t) of
-:class:`~finray.lab.motion.GripperMotion` picks the FEA state (node displacements
+:class:`~finray.emulator.motion.GripperMotion` picks the FEA state (node displacements
 interpolated linearly in the push between solver frames); the camera integrates
 ``exposure_ms`` (sub-frames averaged while the gripper moves: motion blur), then lens
 distortion, the optics' blur (Gaussian PSF), shot and read noise, 8 bits, H.264.
@@ -31,7 +31,7 @@ from ..media import VideoWriter
 from ..render.result import load_fea_result
 from .camera import LensDistortion, PinholeCamera, SensorNoise
 from .motion import GripperMotion
-from .scene import LabScene
+from .studio import Studio
 from .sensor import ForceSensor, write_forces_csv
 
 
@@ -101,7 +101,7 @@ def emulate_take(
             f"the FEA stopped at {reach:.3f} mm of lab.motion.push_mm's "
             f"{lab['motion']['push_mm']:g} mm: the take pushes {reach:.3f} mm"
         )
-    cam_cfg, look = lab["camera"], lab["scene"]
+    cam_cfg, look = lab["camera"], lab["look"]
     target = (float(look["target_mm"][0]), float(look["target_mm"][1]), 0.0)
     camera = camera_from_config(cam_cfg, target)
     fps = float(cam_cfg["fps"])
@@ -118,7 +118,7 @@ def emulate_take(
     push_mid = motion.push(t)
     bits, mask_px = np.zeros((n, H, (W + 7) // 8), np.uint8), np.zeros(n, np.int64)
     with (
-        LabScene(res.mesh, outline, camera, look, extrusion_mm, seed=seed) as scene,
+        Studio(res.mesh, outline, camera, look, extrusion_mm, seed=seed) as studio,
         VideoWriter(
             take_dir / "take.mp4",
             fps,
@@ -129,13 +129,13 @@ def emulate_take(
     ):
         # Only the finger and the clamp move: the full frame is rendered and processed
         # once, and each frame re-renders and re-processes only the box they can reach.
-        pin = scene.render_colour().astype(np.float32)  # the pinhole image, full frame
+        pin = studio.render_colour().astype(np.float32)  # the pinhole image, full frame
         still = _optics(lens.image(pin), psf)
         noise = SensorNoise(still.shape, cam_cfg["read_noise_dn"], cam_cfg["shot_gain_dn"], rng)
         sigma = noise.sigma(still)
         pin_mask = np.zeros((H, W), bool)
-        v0, v1, u0, u1 = _moving_box(scene, fea, camera)
-        scene.set_window(u0, v0, u1 - u0, v1 - v0)
+        v0, v1, u0, u1 = _moving_box(studio, fea, camera)
+        studio.set_window(u0, v0, u1 - u0, v1 - v0)
         b1 = lens.box_reading(v0, v1, u0, u1)  # output pixels that sample the box
         b2 = _grow(b1, r, H, W)  # ... and those the optics' blur reaches from them
         b3 = _grow(b2, r, H, W)  # what the blur of b2 reads
@@ -160,11 +160,11 @@ def emulate_take(
             else:
                 acc = np.zeros((v1 - v0, u1 - u0, 3), np.float32)
                 for d in pushes:
-                    scene.pose(fea.points(d), -d)
-                    acc += scene.render_colour()
+                    studio.pose(fea.points(d), -d)
+                    acc += studio.render_colour()
                 pin[v0:v1, u0:u1] = acc / len(pushes)
-                scene.pose(fea.points(push_mid[k]), -push_mid[k])
-                pin_mask[v0:v1, u0:u1] = scene.render_mask()
+                studio.pose(fea.points(push_mid[k]), -push_mid[k])
+                pin_mask[v0:v1, u0:u1] = studio.render_mask()
                 box_mask = lens.labels(pin_mask, b1)
                 box_img = _optics(lens.image(pin, b3), psf)[inner]
                 box_sig = noise.sigma(box_img)
@@ -199,7 +199,7 @@ def emulate_take(
         "push_axis": "-fz",
         "camera": {"intrinsics": camera.intrinsics(), "model": cam_cfg["model"]},
         "video": "take.mp4",
-        "emulated": "finray.lab: an emulated rig, not a recording (see truth/truth.json)",
+        "emulated": "finray.emulator: an emulated rig, not a recording (see truth/truth.json)",
     }
     if look.get("finger_colour"):
         meta["finger_colour"] = look["finger_colour"]
@@ -264,14 +264,14 @@ def _grow(box, r: int, H: int, W: int):
     return (max(box[0] - r, 0), min(box[1] + r, H), max(box[2] - r, 0), min(box[3] + r, W))
 
 
-def _moving_box(scene: LabScene, fea: _Interpolator, camera: PinholeCamera, margin: int = 3):
+def _moving_box(studio: Studio, fea: _Interpolator, camera: PinholeCamera, margin: int = 3):
     """The pinhole image's box (rows, cols; end exclusive) that holds the finger and the
     clamp in every FEA state, each at its shift (-push along x), plus ``margin`` px."""
     pts = [
-        scene.surface.deformed(fea.res.points + fea.res.u_mm[i]) - [d, 0.0, 0.0]
+        studio.surface.deformed(fea.res.points + fea.res.u_mm[i]) - [d, 0.0, 0.0]
         for i, d in enumerate(fea.d)
     ]
-    pts += [scene.clamp_ref.points - [d, 0.0, 0.0] for d in (fea.d[0], fea.d[-1])]
+    pts += [studio.clamp_ref.points - [d, 0.0, 0.0] for d in (fea.d[0], fea.d[-1])]
     uv = camera.project(np.vstack(pts))
     c0, r0 = np.floor(uv.min(axis=0)).astype(int) - margin
     c1, r1 = np.ceil(uv.max(axis=0)).astype(int) + 1 + margin
