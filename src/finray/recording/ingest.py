@@ -90,7 +90,14 @@ def ingest(
     take: str | Path, out_dir: str | Path, params: IngestParams | None = None, log=print
 ) -> dict:
     """Ingest the take folder ``take`` into ``out_dir`` (see the module's text); returns
-    the summary written to ``ingest.json``. Bad input raises :class:`TakeError`."""
+    the summary written to ``ingest.json``. Bad input raises :class:`TakeError`.
+
+    The steps: read the take (:func:`check_take`), choose the finger's colour
+    (:func:`_choose_colour`), segment and crop every frame (:func:`_measure_frames`),
+    drop the frames without a usable finger (:func:`_frame_table`), align the clocks
+    and label the frames with the force (:func:`_synchronise`), write the shard
+    (:func:`_write_shard`), then the per-frame table, the QA figure and the report
+    (:func:`_write_report`)."""
     t_wall, t_cpu = time.perf_counter(), time.process_time()
     p = params or IngestParams()
     take = Path(take)
@@ -99,39 +106,149 @@ def ingest(
         f"{take.name}: {src.kind} {src.path.name}, {src.n_frames} frames at {src.rate_hz:.4g} FPS; "
         f"forces.csv: {len(t_force)} samples at {(len(t_force) - 1) / (t_force[-1] - t_force[0]):.4g} Hz"
     )
-
     frames = iter(src)
-    head = []  # the first frames, for a learned colour
-    for item in frames:
-        head.append(item)
-        if sum(rgb is not None for _, _, rgb in head) >= p.learn_frames:
-            break
-    if "finger_colour" in meta:
-        colour = ColourRange.from_take(meta["finger_colour"])
-    else:
-        colour = (
-            learn_colour([rgb for _, _, rgb in head if rgb is not None], p.stride)
-            if any(rgb is not None for _, _, rgb in head)
-            else None
-        )
-        if colour is None:
-            raise TakeError(
-                f"no finger found: nothing coloured in the first frames of {src.path} "
-                "(give finger_colour in take.json)"
-            )
+    head = _first_frames(frames, p.learn_frames)
+    colour = _choose_colour(meta, head, p.stride, src)
     log(f"finger colour ({colour.source}): {colour.describe()}")
     # the one way the finger is found (finray predict's, with ingest's sizes)
     finder = colour_finder(colour, p.stride, p.min_object_frac, p.max_hole_frac)
+    measured = _measure_frames(itertools.chain(head, frames), finder, src, p, log, t_wall)
+    table, ok, had = _frame_table(measured.rows, src, colour, p)
+    sync, labelled = _synchronise(table, ok, t_force, force, src, p, log)
 
-    big = max(p.sizes, key=lambda s: s[0] * s[1])
-    crop_w_mm = p.crop_x_mm[1] - p.crop_x_mm[0]
-    rows, inputs, boxes, thumbs = [], {size_key(s): [] for s in p.sizes}, [], []
-    packed = []  # (frame, bits) with write_masks
-    ref = ref_edges = ppm0 = None
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    scale = _scale(table.loc[ok, "base_px_per_mm"].to_numpy(), meta)
+    _write_shard(
+        out_dir / "shard.npz", take, meta, p, colour, sync, scale, table, labelled, had, measured
+    )
+    return _write_report(
+        out_dir,
+        take,
+        src,
+        p,
+        colour,
+        sync,
+        scale,
+        table,
+        t_force,
+        force,
+        measured,
+        (t_wall, t_cpu),
+        log,
+    )
+
+
+def _first_frames(frames, n_readable: int) -> list:
+    """The first ``(k, t, rgb)`` of the iterator ``frames`` up to its ``n_readable``-th
+    readable frame (consumed from it): the frames a colour is learned from."""
+    head = []
+    for item in frames:
+        head.append(item)
+        if sum(rgb is not None for _, _, rgb in head) >= n_readable:
+            break
+    return head
+
+
+def _choose_colour(meta: dict, head: list, stride: int, src) -> ColourRange:
+    """The finger's colour: take.json's ``finger_colour``, else learned from the first
+    frames ``head``; :class:`TakeError` when nothing there is coloured."""
+    if "finger_colour" in meta:
+        return ColourRange.from_take(meta["finger_colour"])
+    colour = (
+        learn_colour([rgb for _, _, rgb in head if rgb is not None], stride)
+        if any(rgb is not None for _, _, rgb in head)
+        else None
+    )
+    if colour is None:
+        raise TakeError(
+            f"no finger found: nothing coloured in the first frames of {src.path} "
+            "(give finger_colour in take.json)"
+        )
+    return colour
+
+
+@dataclass
+class _Measured:
+    """The pass over a take's frames: ``rows``, one per frame (its status and image
+    signal: frames.csv); per frame with the finger, in order, its network ``inputs``
+    (size key -> crops) and its crop box (``boxes``); ``thumbs`` (k, rgb, mask) of
+    every few such frames for the QA figure; with ``write_masks``, ``packed`` (k,
+    bit-packed mask, frame shape) of every readable frame."""
+
+    rows: list
+    inputs: dict
+    boxes: list
+    thumbs: list
+    packed: list
+
+
+class _ImageSignal:
+    """A frame's deformation, measured in a window anchored on its base at the first
+    measured frame's scale against that first frame: the shift of the finger's side
+    edges (mm), the change of its silhouette (px) and its centroid (mm)."""
+
+    def __init__(self, p: IngestParams):
+        self.p = p
+        self.big = max(p.sizes, key=lambda s: s[0] * s[1])
+        self.crop_w_mm = p.crop_x_mm[1] - p.crop_x_mm[0]
+        self.ref = self.ref_edges = self.ppm0 = None
+
+    def measure(self, mask: np.ndarray, box) -> dict:
+        """The frame's ``base_px_per_mm``, ``shape_change_px``, ``edge_shift_mm`` and
+        ``centroid_dx_mm`` (before the take's first is subtracted); the first call
+        sets the reference."""
+        p, big, crop_w_mm = self.p, self.big, self.crop_w_mm
+        ppm = (box[2] - box[0]) / crop_w_mm
+        left, base_edge = box[0] - p.crop_x_mm[0] * ppm, box[3] + p.crop_y_mm[0] * ppm
+        if self.ref is None:
+            self.ppm0 = ppm
+        ppm0 = self.ppm0
+        # the image signal's window: anchored on this frame's base, at the first
+        # frame's scale (a pixel more or less of base width must not read as bending)
+        sig_box = (
+            left + p.crop_x_mm[0] * ppm0,
+            base_edge - p.crop_y_mm[1] * ppm0,
+            left + p.crop_x_mm[1] * ppm0,
+            base_edge - p.crop_y_mm[0] * ppm0,
+        )
+        x = silhouette_input(mask, sig_box, big).astype(np.float32)
+        edges = side_edges(x)
+        if self.ref is None:
+            self.ref, self.ref_edges = x, edges
+        both = np.isfinite(edges) & np.isfinite(self.ref_edges)
+        edge_mm = (
+            (
+                float(np.abs(edges - self.ref_edges)[both].sum() / max(both.sum() / 2, 1))
+                * crop_w_mm
+                / big[1]
+            )
+            if both.any()
+            else np.nan
+        )
+        w = x.sum(axis=0)
+        cx_mm = (
+            p.crop_x_mm[0]
+            + crop_w_mm * float((w * (np.arange(big[1]) + 0.5)).sum() / max(w.sum(), 1e-9)) / big[1]
+        )
+        return {
+            "base_px_per_mm": ppm,
+            "shape_change_px": float(np.abs(x - self.ref).sum() / 255.0),
+            "edge_shift_mm": edge_mm,
+            "centroid_dx_mm": cx_mm,
+        }
+
+
+def _measure_frames(frames, finder, src, p: IngestParams, log, t_wall: float) -> _Measured:
+    """Segment each ``(k, t, rgb)`` of ``frames`` with ``finder``, crop it as the
+    predictor does (:func:`~finray.dataset.imageops.base_anchored_box`) to each size and
+    measure its image signal; logs the progress every tenth of the take."""
+    out = _Measured([], {size_key(s): [] for s in p.sizes}, [], [], [])
+    signal = _ImageSignal(p)
     n_total = max(src.n_frames, 1)
     thumb_every = max(1, n_total // 60)
     next_report = 0.1
-    for k, t, rgb in itertools.chain(head, frames):
+    for k, t, rgb in frames:
         row = {
             "frame": k,
             "t_s": t,
@@ -150,74 +267,34 @@ def ingest(
             if mask is None:
                 row["status"] = "no_finger"
         if p.write_masks and rgb is not None:
-            packed.append(
-                (
-                    k,
-                    np.packbits(
-                        mask if mask is not None else np.zeros(rgb.shape[:2], bool), axis=-1
-                    ),
-                    rgb.shape[:2],
-                )
-            )
+            bits = np.packbits(mask if mask is not None else np.zeros(rgb.shape[:2], bool), axis=-1)
+            out.packed.append((k, bits, rgb.shape[:2]))
         if mask is not None:
             box = base_anchored_box(
                 mask, p.base_width_mm, p.crop_x_mm, p.crop_y_mm, p.base_rows, p.base_band
             )
-            ins = {size_key(s): silhouette_input(mask, box, s) for s in p.sizes}
-            ppm = (box[2] - box[0]) / crop_w_mm
-            left, base_edge = box[0] - p.crop_x_mm[0] * ppm, box[3] + p.crop_y_mm[0] * ppm
-            if ref is None:
-                ppm0 = ppm
-            # the image signal's window: anchored on this frame's base, at the first
-            # frame's scale (a pixel more or less of base width must not read as bending)
-            sig_box = (
-                left + p.crop_x_mm[0] * ppm0,
-                base_edge - p.crop_y_mm[1] * ppm0,
-                left + p.crop_x_mm[1] * ppm0,
-                base_edge - p.crop_y_mm[0] * ppm0,
-            )
-            x = silhouette_input(mask, sig_box, big).astype(np.float32)
-            edges = side_edges(x)
-            if ref is None:
-                ref, ref_edges = x, edges
-            both = np.isfinite(edges) & np.isfinite(ref_edges)
-            edge_mm = (
-                (
-                    float(np.abs(edges - ref_edges)[both].sum() / max(both.sum() / 2, 1))
-                    * crop_w_mm
-                    / big[1]
-                )
-                if both.any()
-                else np.nan
-            )
-            w = x.sum(axis=0)
-            cx_mm = (
-                p.crop_x_mm[0]
-                + crop_w_mm
-                * float((w * (np.arange(big[1]) + 0.5)).sum() / max(w.sum(), 1e-9))
-                / big[1]
-            )
-            row.update(
-                mask_area_px=int(mask.sum()),
-                base_px_per_mm=ppm,
-                shape_change_px=float(np.abs(x - ref).sum() / 255.0),
-                edge_shift_mm=edge_mm,
-                centroid_dx_mm=cx_mm,
-            )
-            for key, v in ins.items():
-                inputs[key].append(v)
-            boxes.append(box)
+            for s in p.sizes:
+                out.inputs[size_key(s)].append(silhouette_input(mask, box, s))
+            row.update(mask_area_px=int(mask.sum()), **signal.measure(mask, box))
+            out.boxes.append(box)
             if k % thumb_every == 0:
-                thumbs.append((k, *_thumb(rgb, mask)))
-        rows.append(row)
+                out.thumbs.append((k, *_thumb(rgb, mask)))
+        out.rows.append(row)
         if (k + 1) / n_total >= next_report:
-            n_ok = sum(r["status"] == "ok" for r in rows)
+            n_ok = sum(r["status"] == "ok" for r in out.rows)
             log(
                 f"  frame {k + 1}/{src.n_frames}: {n_ok} with the finger "
                 f"({time.perf_counter() - t_wall:.1f} s)"
             )
             next_report += 0.1
+    return out
 
+
+def _frame_table(rows: list, src, colour: ColourRange, p: IngestParams):
+    """The frames' table, frames with a mis-segmented base marked ``bad_base``, and the
+    centroid taken relative to the first usable frame's: ``(table, ok, had)``, ``ok``
+    the usable frames, ``had`` those the finder found (one crop each).
+    :class:`TakeError` when too few frames are usable."""
     import pandas as pd
 
     table = pd.DataFrame(rows)
@@ -245,6 +322,14 @@ def ingest(
         )
     if table["centroid_dx_mm"].notna().any():
         table["centroid_dx_mm"] -= table.loc[ok, "centroid_dx_mm"].iloc[0]
+    return table, ok, had
+
+
+def _synchronise(table, ok, t_force, force, src, p: IngestParams, log):
+    """Align the sensor's clock to the camera's on the usable frames' edge shift
+    (:func:`~finray.recording.sync.align_clocks`) and label every frame with the force
+    over its interval (``table["force_N"]``; frames outside the log marked
+    ``no_force``): ``(sync, labelled)``, ``labelled`` the frames that go to the shard."""
     t_frames = table["t_s"].to_numpy(dtype=np.float64)
     frame_dt = float(np.median(np.diff(t_frames))) if len(t_frames) > 1 else 1.0 / src.rate_hz
     sync = align_clocks(
@@ -264,21 +349,12 @@ def ingest(
     table["force_N"] = force_at_frames(t_frames, t_force, force, sync["offset_s"], frame_dt)
     no_force = ok & ~np.isfinite(table["force_N"].to_numpy())
     table.loc[no_force, "status"] = "no_force"
-    labelled = ok & ~no_force
-    keep = labelled[had]  # the kept crops (one per frame with a finger) that go to the shard
+    return sync, ok & ~no_force
 
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    scene = {
-        "object": meta["object"],
-        "material": "lab",
-        "height_mm": float(meta["contact_height_mm"]),
-        "split": "lab",
-        "splits": ["lab"],
-        "pitch_deg": 0.0,
-    }
-    scene["scene_id"] = f"{scene_id(scene)}_{take.name}"
-    px_mm = table.loc[ok, "base_px_per_mm"].to_numpy()
+
+def _scale(px_mm: np.ndarray, meta: dict) -> dict:
+    """The measured scale (px/mm of the usable frames' bases ``px_mm``), and its ratio
+    to take.json's, when given."""
     scale = {
         "measured_px_per_mm_median": float(np.median(px_mm)),
         "measured_px_per_mm_spread": float(np.percentile(px_mm, 95) - np.percentile(px_mm, 5)),
@@ -288,6 +364,24 @@ def ingest(
         scale["ratio_measured_to_given"] = (
             scale["measured_px_per_mm_median"] / scale["given_px_per_mm"]
         )
+    return scale
+
+
+def _write_shard(
+    path, take: Path, meta, p: IngestParams, colour, sync, scale, table, labelled, had, measured
+) -> None:
+    """The shard (training format, no stress map) of the ``labelled`` frames: their
+    crops, masks, times, force labels and crop boxes, and the take's meta."""
+    keep = labelled[had]  # the kept crops (one per frame with a finger) that go to the shard
+    scene = {
+        "object": meta["object"],
+        "material": "lab",
+        "height_mm": float(meta["contact_height_mm"]),
+        "split": "lab",
+        "splits": ["lab"],
+        "pitch_deg": 0.0,
+    }
+    scene["scene_id"] = f"{scene_id(scene)}_{take.name}"
     shard_meta = {
         "scene": scene,
         "source": "recording",
@@ -313,7 +407,7 @@ def ingest(
         "support_iou_min": None,
     }
     arrays = {}
-    for key, v in inputs.items():
+    for key, v in measured.inputs.items():
         arrays[f"input_{key}"] = np.stack(v)[keep]
         # covered at least half (the soft value x255 rounds to 128 or more)
         arrays[f"mask_{key}"] = (arrays[f"input_{key}"] >= 128).astype(np.uint8)
@@ -327,10 +421,31 @@ def ingest(
         fx_N=sel["force_N"].to_numpy(dtype=np.float64),
         fy_N=np.full(n, np.nan),
         contact_y_mm=np.full(n, np.nan),  # the contact height: not measured on a rig
-        crop_box_px=np.asarray(boxes, dtype=np.float64)[keep],
+        crop_box_px=np.asarray(measured.boxes, dtype=np.float64)[keep],
         meta=np.array(json.dumps(shard_meta)),
     )
-    save_npz(out_dir / "shard.npz", arrays)
+    save_npz(path, arrays)
+
+
+def _write_report(
+    out_dir: Path,
+    take,
+    src,
+    p,
+    colour,
+    sync,
+    scale,
+    table,
+    t_force,
+    force,
+    measured,
+    clocks,
+    log,
+) -> dict:
+    """``frames.csv``, ``sync.json``, ``masks.npz`` (with ``write_masks``), ``qa.png`` and
+    ``ingest.json`` (the summary, returned; ``clocks``: the wall and CPU clocks at the
+    start); logs the lost frames and the counts."""
+    t_wall, t_cpu = clocks
     cols = [
         "frame",
         "t_s",
@@ -345,13 +460,16 @@ def ingest(
     table[cols].to_csv(out_dir / "frames.csv", index=False, float_format="%.6g")
     (out_dir / "sync.json").write_text(json.dumps(sync, indent=1))
     if p.write_masks:
+        packed = measured.packed
         np.savez_compressed(
             out_dir / "masks.npz",
             bits=np.stack([b for _, b, _ in packed]),
             frame=np.array([k for k, _, _ in packed], np.int32),
             shape=np.array([len(packed), *packed[0][2]]),
         )
-    qa_figure(out_dir / "qa.png", table, t_force, force, sync, thumbs, p.qa_frames, take.name)
+    qa_figure(
+        out_dir / "qa.png", table, t_force, force, sync, measured.thumbs, p.qa_frames, take.name
+    )
     counts = {s: int((table["status"] == s).sum()) for s in STATUSES}
     summary = {
         "take": str(take),
