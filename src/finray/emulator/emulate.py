@@ -134,7 +134,8 @@ def emulate_take(
         noise = SensorNoise(still.shape, cam_cfg["read_noise_dn"], cam_cfg["shot_gain_dn"], rng)
         sigma = noise.sigma(still)
         pin_mask = np.zeros((H, W), bool)
-        v0, v1, u0, u1 = _moving_box(studio, fea, camera)
+        # moving clutter: every pixel may change, so the box is the whole frame
+        v0, v1, u0, u1 = (0, H, 0, W) if studio.moving else _moving_box(studio, fea, camera)
         studio.set_window(u0, v0, u1 - u0, v1 - v0)
         b1 = lens.box_reading(v0, v1, u0, u1)  # output pixels that sample the box
         b2 = _grow(b1, r, H, W)  # ... and those the optics' blur reaches from them
@@ -152,18 +153,21 @@ def emulate_take(
             subs = t[k] + exposure * (np.linspace(-0.5, 0.5, n_sub) if n_sub > 1 else np.zeros(1))
             pushes = motion.push(subs)
             key = None
-            if np.ptp(pushes) < 1e-3:  # still: one render
+            if np.ptp(pushes) < 1e-3 and not studio.moving:  # still: one render
                 pushes = pushes[len(pushes) // 2 : len(pushes) // 2 + 1]
+                subs = subs[len(subs) // 2 : len(subs) // 2 + 1]
                 key = (float(pushes[0]), float(push_mid[k]))
             if key in seen:
                 box_img, box_mask, box_sig = seen[key]
             else:
                 acc = np.zeros((v1 - v0, u1 - u0, 3), np.float32)
-                for d in pushes:
+                for d, t_sub in zip(pushes, subs):
                     studio.pose(fea.points(d), -d)
+                    studio.at_time(t_sub)
                     acc += studio.render_colour()
                 pin[v0:v1, u0:u1] = acc / len(pushes)
                 studio.pose(fea.points(push_mid[k]), -push_mid[k])
+                studio.at_time(t[k])
                 pin_mask[v0:v1, u0:u1] = studio.render_mask()
                 box_mask = lens.labels(pin_mask, b1)
                 box_img = _optics(lens.image(pin, b3), psf)[inner]

@@ -4,11 +4,12 @@ In view: the extruded finger (its FEA mesh, deformed per frame), the clamp that 
 its base, the object on a six-axis sensor, and a textured back wall; lit by a key and
 a fill light (an uneven background). The finger and clamp move with the gripper
 (``shift_mm`` along x); the object and the sensor stand still. ``look["clutter"]``
-adds still things that a finder must not take for the finger (:data:`CLUTTER`): a
+adds things that a finder must not take for the finger (:data:`CLUTTER`): a
 second object of the finger's colour (``object``: a box), a hand (``hand``: a
 skin-coloured ellipsoid), each at ``centre_mm`` (x, y in the FEA's plane, in front
-of the back wall at ``z_mm``) of ``size_mm`` (x, y extents); they hide what lies
-behind them in the label view too.
+of the back wall at ``z_mm``) of ``size_mm`` (x, y extents), still or moving at
+``velocity_mm_s`` (x, y; :meth:`Studio.at_time`: a person passing behind the rig);
+they hide what lies behind them in the label view too.
 
 Two plotters share the geometry: the colour view, and a label view where the finger is
 white and unlit and everything else black, whose pixels are the true finger mask
@@ -129,9 +130,16 @@ class Studio:
         self.colour.add_mesh(obj, color=look["object_rgb"], **shade)
         self.colour.add_mesh(sensor, color=look["sensor_rgb"], **shade)
         self.colour.add_mesh(wall, texture=tex, **shade)
-        clutter = [clutter_mesh(item, look["finger_rgb"]) for item in look.get("clutter") or []]
+        items = look.get("clutter") or []
+        clutter = [clutter_mesh(item, look["finger_rgb"]) for item in items]
         for mesh, rgb in clutter:
             self.colour.add_mesh(mesh, color=rgb, **shade)
+        # moving clutter: (mesh, its points at t = 0, velocity (3,) mm/s)
+        self.moving = [
+            (mesh, mesh.points.copy(), np.r_[np.asarray(item["velocity_mm_s"], float), 0.0])
+            for (mesh, _), item in zip(clutter, items)
+            if any(item.get("velocity_mm_s") or ())
+        ]
         for light in look["lights"]:
             self.colour.add_light(
                 pv.Light(
@@ -188,6 +196,11 @@ class Studio:
         clamp = self.clamp_ref.points.copy()
         clamp[:, 0] += shift_mm
         self.clamp.points = clamp
+
+    def at_time(self, t_s: float) -> None:
+        """Moving clutter where it is at time ``t_s`` (s) of the take."""
+        for mesh, ref, velocity in self.moving:
+            mesh.points = ref + t_s * velocity
 
     def render_colour(self) -> np.ndarray:
         """The pinhole colour image (h, w, 3) uint8 of the current pose and window

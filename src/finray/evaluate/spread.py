@@ -155,9 +155,9 @@ def _figures(
         out["sim2real | 1+ context pooled | coverage %"] = sim2real["lab_coverage_pct_with_context"]
     sim = sim2real.get("simulated_test", {})
     if sim:
-        out["sim2real | simulated held-out shapes, no-context heads | NRMSE %"] = sim["metrics"][
-            "nrmse_pct"
-        ]
+        out["sim2real | simulated held-out shapes, no context (calibrated) | NRMSE %"] = sim[
+            "metrics"
+        ]["nrmse_pct"]
         if "own_head" in sim:
             out["sim2real | simulated held-out shapes, the model's own head | NRMSE %"] = sim[
                 "own_head"

@@ -5,10 +5,11 @@ with 0, 1 or 2 of their objects as *context*: the rig's head ensemble
 (:mod:`finray.sim2real.adapt`) is fitted on the context objects' frames at every height, the
 sensor calibration (:mod:`finray.sim2real.calibration`) on the same frames' cross-fitted
 predictions, and both are tested on the remaining objects at every height. Every
-leave-out combination is run. With no context, the heads and the calibration come
-from the simulation alone (heads on the training frames, calibration on predictions of
-training objects by heads fitted without them); the same calibration is checked on the
-simulated test frames (the held-out shapes). With a single object in
+leave-out combination is run. With no context, the force is the model's own head,
+what ``finray predict`` reads uncalibrated from the same frame, and the rest comes from
+the simulation alone: the spread of heads fitted again on the training frames, and the
+calibration on predictions of training objects by heads fitted without them; the same
+calibration is checked on the simulated test frames (the held-out shapes). With a single object in
 the takes (a short check), its takes' first and second halves stand in for objects.
 
 Metrics are against the sensor (the label a rig gives: its gain error and offset
@@ -149,6 +150,12 @@ def object_folds(objects, n: int) -> np.ndarray:
     return np.array([fold[o] for o in objects])
 
 
+def own_forces(model, features) -> np.ndarray:
+    """The model's own force head along the push (N) on encoder features (N, F): what
+    ``finray predict`` gives without calibration."""
+    return head_forces(model, [model.force_head], features)[0]
+
+
 def fit_no_context(
     model_pt, sim_shards, sim_test_shards, size, cfg: Sim2RealConfig, log=print
 ) -> dict:
@@ -189,14 +196,15 @@ def fit_no_context(
         fitted_on="simulated training frames, objects cross-fitted",
     )
     p_test = head_forces(model, heads0, f_test)
-    sim_band = predictive(cal0, p_test.mean(0), spread(p_test), cfg.level)
-    own = head_forces(model, [model.force_head], f_test)[0]  # the simulation's own head
+    own = own_forces(model, f_test)
+    sim_band = predictive(cal0, own, spread(p_test), cfg.level)
     sim = {
         "n_frames": int(len(yt)),
         "coverage_pct": 100 * coverage(yt, sim_band),
         "metrics": force_metrics(yt, sim_band["median"]),
-        "raw_metrics": force_metrics(yt, p_test.mean(0)),
+        "raw_metrics": force_metrics(yt, own),
         "own_head": force_metrics(yt, own),
+        "heads_mean": force_metrics(yt, p_test.mean(0)),  # the refitted heads', for comparison
         "shards": len(sim_test_shards),
         "every": cfg.sim_every,
         "views": "front",
@@ -267,9 +275,12 @@ def run_sim2real(model_pt, lab_shards, no_context, size, cfg: Sim2RealConfig, lo
     groups = sorted(table["group"].unique())
     frames, cals = [], []
 
+    own = own_forces(model, f_lab)
+
     def record(k, context, test, heads, cal):
         mu_all = head_forces(model, heads, f_lab[test])
-        mu, sd = mu_all.mean(0), spread(mu_all)
+        # no context: the model's own force (finray predict's), the refitted heads' spread
+        mu, sd = (mu_all.mean(0) if k else own[test]), spread(mu_all)
         # no context: the rig's gain and offset are unknown (cfg.rig_prior)
         band = predictive(cal, mu, sd, cfg.level, rig=None if k else cfg.rig_prior)
         tab = table[test]
@@ -286,6 +297,7 @@ def run_sim2real(model_pt, lab_shards, no_context, size, cfg: Sim2RealConfig, lo
                     "sensor_N": y[test],
                     "net_mean_N": mu,
                     "net_spread_N": sd,
+                    "own_head_N": own[test],
                     "pred_N": band["median"],
                     "lo_N": band["lo"],
                     "hi_N": band["hi"],
