@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from .timing import time_calls
+from ..schema import schema_default
 
 #: Training frames of the full config (41 of the 45 training scenes x 444 frames; 4
 #: scenes held out for validation), for the per-epoch estimate.
@@ -55,9 +56,9 @@ def synthetic_frames(n: int, size: tuple[int, int], n_forces: int = 2, seed: int
 
 def time_epoch(
     net_cfg,
-    device: str = "auto",
+    device: str = schema_default("train.device"),
     frames: int = 1024,
-    batch_size: int = 16,
+    batch_size: int = schema_default("train.batch_size"),
     lr: float = 1e-4,
     threads: int = 1,
     full_frames: int = FULL_TRAIN_FRAMES,
@@ -107,7 +108,11 @@ def time_epoch(
 
 
 def time_inference(
-    model, device: str = "auto", n_calls: int = 200, repeats: int = 3, threads: int = 1
+    model,
+    device: str = schema_default("train.device"),
+    n_calls: int = 200,
+    repeats: int = 3,
+    threads: int = 1,
 ) -> dict:
     """Median latency (ms) of the network at batch 1 through :class:`Predictor` on
     ``device`` (exported to a temporary folder as training exports it): ``force_ms``
@@ -140,9 +145,9 @@ def time_inference(
 def run(
     out: str | Path,
     model_path: str | Path | None = None,
-    device: str = "auto",
+    device: str = schema_default("train.device"),
     frames: int = 1024,
-    batch_size: int = 16,
+    batch_size: int = schema_default("train.batch_size"),
     lr: float = 1e-4,
     calls: int = 200,
     repeats: int = 3,

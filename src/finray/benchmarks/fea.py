@@ -20,6 +20,7 @@ from ..geometry.finger import FingerParams, mesh_finger
 from ..geometry.mesh import TriMesh
 from ..geometry.objects import object_geometry
 from .timing import Stopwatch
+from ..schema import schema_default
 
 __all__ = [
     "run_case",
@@ -170,7 +171,7 @@ def run_case(
     }
 
 
-def fx_at(res, push_mm: float = 10.0) -> float:
+def fx_at(res, push_mm: float = schema_default("fea.push_mm")) -> float:
     """Fx (N, on the finger, + along the push) at ``push_mm`` of prescribed push."""
     fx = -res.force_N[:, 0]
     if push_mm > res.target_mm[-1] + 1e-9:

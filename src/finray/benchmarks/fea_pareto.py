@@ -17,6 +17,7 @@ import pandas as pd
 from .fea import CIRCLE_D20, FingerCache, fx_at, markdown_table, min_gap, run_case, with_overrides
 from .pareto import pareto_front
 from .timing import Stopwatch
+from ..schema import schema_default
 
 __all__ = ["run_time_vs_error", "richardson", "converged_estimate", "write_pareto"]
 
@@ -129,7 +130,7 @@ def run_time_vs_error(
     out_md=None,
     *,
     height_mm: float = 30.0,
-    push_mm: float = 10.0,
+    push_mm: float = schema_default("fea.push_mm"),
     reference_size_mm: float = 0.25,
     mesh_p2=(1.5, 0.75, 0.5, 0.35),
     mesh_p1=(0.5, 0.35),
@@ -234,7 +235,7 @@ def write_pareto(
     out_md=None,
     *,
     height_mm: float = 30.0,
-    push_mm: float = 10.0,
+    push_mm: float = schema_default("fea.push_mm"),
     reference_size_mm: float = 0.25,
     total_s: float = float("nan"),
 ) -> pd.DataFrame:

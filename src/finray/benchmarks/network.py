@@ -27,6 +27,7 @@ import numpy as np
 
 from .pareto import pareto_front
 from .timing import Stopwatch, time_calls
+from ..schema import schema_default
 
 COLUMNS = [
     "input",
@@ -119,12 +120,12 @@ def run_time_vs_error(
     tolerance: float = 0.1,
     budget_ms: float = 1.0,
     latency_calls: int = 200,
-    val_fraction: float = 0.1,
-    batch_size: int = 16,
+    val_fraction: float = schema_default("train.val_fraction"),
+    batch_size: int = schema_default("train.batch_size"),
     lr: float = 1e-4,
     seed: int = 0,
-    bf16: bool | str = "auto",
-    channels_last: bool = True,
+    bf16: bool | str = schema_default("train.bf16"),
+    channels_last: bool = schema_default("train.channels_last"),
     schedule: dict | None = None,
     log=print,
 ):

@@ -14,6 +14,7 @@ from ..render.params import RenderParams
 from ..render.raster import Rasterizer, composite
 from ..render.result import load_fea_result
 from .timing import Stopwatch, time_calls
+from ..schema import schema_default
 
 
 def _timed(fn, n: int) -> tuple[float, float]:
@@ -29,7 +30,7 @@ def benchmark(
     dataset_params=None,
     n_frames: int = 20,
     pitch_deg: float = 15.0,
-    extrusion_mm: float = 20.0,
+    extrusion_mm: float = schema_default("finger.extrusion_mm"),
     pyvista: bool = True,
 ) -> dict:
     """Milliseconds per frame (median over the frames) and frames per second per core of each render path and

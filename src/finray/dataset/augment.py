@@ -167,7 +167,9 @@ def sample_augment(
 
 
 def apply_augment(
-    image: np.ndarray, params: AugmentParams, occluder_value: float = 0.0
+    image: np.ndarray,
+    params: AugmentParams,
+    occluder_value: float = schema_default("dataset.occluder_value"),
 ) -> np.ndarray:
     """Apply a corruption to an (H, W) or (H, W, C) image (a copy is returned).
 

@@ -11,6 +11,7 @@ import numba as nb
 import numpy as np
 
 from ..errors import EmptyMaskError
+from ..schema import schema_default
 
 
 def to_gray(image: np.ndarray) -> np.ndarray:
@@ -127,11 +128,11 @@ def _luma(img: np.ndarray, stride: int = 1) -> np.ndarray:
 
 def segment(
     image: np.ndarray,
-    threshold: str | float = "isodata",
-    foreground: str = "bright",
-    min_object_frac: float = 1e-3,
-    max_hole_frac: float = 2e-4,
-    keep_largest: bool = True,
+    threshold: str | float = schema_default("dataset.threshold"),
+    foreground: str = schema_default("dataset.foreground"),
+    min_object_frac: float = schema_default("dataset.min_object_frac"),
+    max_hole_frac: float = schema_default("dataset.max_hole_frac"),
+    keep_largest: bool = schema_default("dataset.keep_largest"),
     roi_stride: int = 1,
     stats: dict | None = None,
 ) -> np.ndarray:
@@ -200,9 +201,9 @@ def segment(
 
 def clean_mask(
     mask: np.ndarray,
-    min_object_frac: float = 1e-3,
-    max_hole_frac: float = 2e-4,
-    keep_largest: bool = True,
+    min_object_frac: float = schema_default("dataset.min_object_frac"),
+    max_hole_frac: float = schema_default("dataset.max_hole_frac"),
+    keep_largest: bool = schema_default("dataset.keep_largest"),
 ) -> np.ndarray:
     """The morphology of :func:`segment` on a thresholded mask (H, W) bool, in place
     (and returned): drop specks (4-connected) of at most ``min_object_frac`` of the

@@ -17,6 +17,7 @@ import math
 
 import torch
 import torch.nn.functional as F
+from ..schema import schema_default
 
 
 def pitch_silhouette(
@@ -24,7 +25,7 @@ def pitch_silhouette(
     pitch_deg: torch.Tensor,
     mm_per_px: float,
     centre_row: float,
-    extrusion_mm: float = 20.0,
+    extrusion_mm: float = schema_default("finger.extrusion_mm"),
     step_px: float = 0.5,
 ) -> torch.Tensor:
     """Silhouettes ``x`` (B, C, H, W) in [0, 1] seen at camera pitches ``pitch_deg`` (B,).

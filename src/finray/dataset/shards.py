@@ -47,6 +47,7 @@ from ..render.camera_views import VIEW_COLUMNS
 from ..render.params import RenderParams
 from .imageops import _axis_weights
 from .params import SHARD_KEYS, DatasetParams, scene_id, size_key
+from ..schema import schema_default
 
 MANIFEST_COLUMNS = [
     "shard",
@@ -275,10 +276,10 @@ def render_shard(
     *,
     render_params: RenderParams | None = None,
     params: DatasetParams | None = None,
-    extrusion_mm: float = 20.0,
+    extrusion_mm: float = schema_default("finger.extrusion_mm"),
     scene: dict | None = None,
     camera_views=None,
-    base_width_mm: float = 30.0,
+    base_width_mm: float = schema_default("finger.base_width_mm"),
 ) -> dict:
     """Render a solver result and build its shard in one pass; returns the shard's ``meta``.
 

@@ -6,6 +6,7 @@ import numpy as np
 import pandas as pd
 
 from ..dataset import apply_augment, augment_seed, load_frames, sample_augment
+from ..schema import schema_default
 
 
 def load_test_set(shard_paths, size: tuple[int, int]) -> tuple[dict, pd.DataFrame]:
@@ -22,7 +23,7 @@ def occlude(
     level: str,
     seed: int,
     occlusion_levels: dict | None = None,
-    occluder_value: float = 0.0,
+    occluder_value: float = schema_default("dataset.occluder_value"),
 ) -> np.ndarray:
     """Every image occluded by a disc of the level, replayable from
     ``augment_seed(seed, scene_id, frame, level)``."""

@@ -678,7 +678,7 @@ def front_contact_circle(
     params,
     height_mm: float,
     diameter_mm: float,
-    gap_mm: float = 0.1,
+    gap_mm: float = schema_default("placement.gap_mm"),
     n: int | None = None,
     size_mm: float = 0.25,
 ) -> RigidObject:

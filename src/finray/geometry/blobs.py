@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from .finger import GeometryError
+from ..schema import schema_default
 
 #: smallest radius as a fraction of the mean one (keeps the curve star-shaped and simple)
 MIN_RADIUS_FRAC = 0.4
@@ -54,8 +55,8 @@ def _check(seed, diameter_mm, harmonics, amplitude, key):
 def blob_outline(
     seed: int,
     diameter_mm: float,
-    harmonics: int = 5,
-    amplitude: float = 0.4,
+    harmonics: int = schema_default("generated.harmonics"),
+    amplitude: float = schema_default("generated.amplitude"),
     max_chord_mm: float = 0.5,
     key: str = "object",
 ) -> np.ndarray:

@@ -275,8 +275,8 @@ def tag_finger_boundary(mesh: TriMesh, poly: Polygon, p: FingerParams) -> None:
 def mesh_finger(
     p: FingerParams,
     size_mm: float = 0.5,
-    min_angle_deg: float = 25.0,
-    order: int = 2,
+    min_angle_deg: float = schema_default("mesh.min_angle_deg"),
+    order: int = schema_default("mesh.order"),
     arc_chord_mm: float = ARC_CHORD_MM,
 ) -> TriMesh:
     """Quadratic triangle mesh of the finger with tagged boundaries.

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import triangle
+from ..schema import schema_default
 
 if TYPE_CHECKING:  # shapely (40 ms of import) only where polygons are meshed
     from shapely.geometry import Polygon
@@ -166,7 +167,10 @@ def polygon_rings(poly: Polygon, max_len: float) -> list[np.ndarray]:
 
 
 def triangulate_polygon(
-    poly: Polygon, size_mm: float, min_angle_deg: float = 25.0, order: int = 2
+    poly: Polygon,
+    size_mm: float,
+    min_angle_deg: float = schema_default("mesh.min_angle_deg"),
+    order: int = schema_default("mesh.order"),
 ) -> tuple[TriMesh, list[np.ndarray]]:
     """Quality-triangulate a (multiply connected) polygon.
 

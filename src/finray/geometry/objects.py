@@ -19,6 +19,7 @@ from shapely.geometry import Point, Polygon, box
 from .blobs import blob_outline
 from .finger import FingerParams, GeometryError, outer_polygon
 from .mesh import BOUNDARY_TAGS, TriMesh, polygon_rings, quality, triangulate_polygon
+from ..schema import schema_default
 
 OBJECT_TYPES = ("circle", "square", "ring", "ellipse", "polygon", "polygon_file", "blob")
 
@@ -129,7 +130,11 @@ def object_shape(spec: dict, size_mm: float = 0.5, key: str = "object") -> Polyg
 
 
 def place_object(
-    shape: Polygon, finger: FingerParams, height_mm: float, gap_mm: float = 0.1, key: str = "object"
+    shape: Polygon,
+    finger: FingerParams,
+    height_mm: float,
+    gap_mm: float = schema_default("placement.gap_mm"),
+    key: str = "object",
 ) -> tuple[Polygon, np.ndarray]:
     """Translate ``shape`` to contact height ``height_mm``, ``gap_mm`` left of the finger.
 
@@ -175,8 +180,8 @@ def object_geometry(
     height_mm: float,
     size_mm: float = 0.5,
     deformable: bool = False,
-    gap_mm: float = 0.1,
-    min_angle_deg: float = 25.0,
+    gap_mm: float = schema_default("placement.gap_mm"),
+    min_angle_deg: float = schema_default("mesh.min_angle_deg"),
 ) -> TriMesh:
     """Placed object as a :class:`TriMesh`.
 

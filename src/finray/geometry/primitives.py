@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from .mesh import TriMesh, elevate_to_p2
+from ..schema import schema_default
 
 
 def graded_coords(
@@ -31,7 +32,9 @@ def graded_coords(
     return a + (b - a) * x
 
 
-def rectangle_mesh(x: np.ndarray, y: np.ndarray, order: int = 2) -> TriMesh:
+def rectangle_mesh(
+    x: np.ndarray, y: np.ndarray, order: int = schema_default("mesh.order")
+) -> TriMesh:
     """Structured triangle mesh on the tensor grid x (nx+1,) by y (ny+1,).
 
     Each cell is split along alternating diagonals (a 'union jack'-free crossed

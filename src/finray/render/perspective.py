@@ -41,6 +41,7 @@ from ..geometry.mesh import TriMesh
 from ..geometry.surface import extrude
 from .camera import PinholeCamera
 from .raster import _edge_coeffs
+from ..schema import schema_default
 
 #: The most samples a coverage window may hold (a finger filling a camera's view at
 #: supersample 4 needs a few million; more is a camera inside or at the finger).
@@ -206,7 +207,7 @@ class PerspectiveRaster:
     def __init__(
         self,
         mesh: TriMesh,
-        extrusion_mm: float = 20.0,
+        extrusion_mm: float = schema_default("finger.extrusion_mm"),
         supersample: int = 3,
         corners_only: bool = False,
     ):

@@ -34,6 +34,7 @@ from ..geometry.surface import extrude
 from .camera import PinholeCamera, set_vtk_camera
 from .params import RenderParams
 from .raster import to_uint8
+from ..schema import schema_default
 
 #: Distance of the camera from the window centre (mm); any value outside the scene
 #: gives the same orthographic image.
@@ -108,7 +109,7 @@ class PyVistaRenderer(_Plotted):
         self,
         mesh: TriMesh,
         params: RenderParams | None = None,
-        extrusion_mm: float = 20.0,
+        extrusion_mm: float = schema_default("finger.extrusion_mm"),
         pitch_deg: float = 0.0,
         object_edges: np.ndarray | None = None,
         n_object_points: int = 0,
@@ -205,7 +206,7 @@ class PyVistaPerspective(_Plotted):
         self,
         mesh: TriMesh,
         params: RenderParams | None = None,
-        extrusion_mm: float = 20.0,
+        extrusion_mm: float = schema_default("finger.extrusion_mm"),
         supersample: int | None = None,
     ):
         import pyvista as pv

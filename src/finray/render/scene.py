@@ -40,6 +40,7 @@ from .imageio import read_exr, read_png, write_exr, write_png
 from .params import RenderParams
 from .raster import Rasterizer, composite
 from .result import FEAResult, load_fea_result, resample_frames
+from ..schema import schema_default
 
 INDEX_FILE = "index.json"
 STRESS_TRANSFORM = "log10(1 + von_mises_MPa / stress_ref_MPa)"
@@ -63,7 +64,7 @@ class SceneRenderer:
         result: FEAResult,
         params: RenderParams | None = None,
         pitch_deg: float = 0.0,
-        extrusion_mm: float = 20.0,
+        extrusion_mm: float = schema_default("finger.extrusion_mm"),
         backend: str = "auto",
         draw_object: bool = False,
     ):
@@ -126,7 +127,7 @@ def render_scene(
     pitch_deg: float = 0.0,
     *,
     params: RenderParams | None = None,
-    extrusion_mm: float = 20.0,
+    extrusion_mm: float = schema_default("finger.extrusion_mm"),
     backend: str = "auto",
     draw_object: bool = False,
     scene: dict | None = None,

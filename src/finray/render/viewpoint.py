@@ -28,6 +28,7 @@ from .camera import PinholeCamera
 from .imageio import write_png
 from .params import RenderParams
 from .result import load_fea_result, resample_frames
+from ..schema import schema_default
 
 log = logging.getLogger(__name__)
 
@@ -65,7 +66,7 @@ def render_viewpoint(
     pitches_deg,
     *,
     params: RenderParams | None = None,
-    extrusion_mm: float = 20.0,
+    extrusion_mm: float = schema_default("finger.extrusion_mm"),
     scene: dict | None = None,
     log_every_s: float = 30.0,
 ) -> dict:

@@ -58,6 +58,7 @@ from torch import nn
 from ..model import FinRayNet, NetConfig
 from ..precision import device_name, resolve_bf16, resolve_device
 from .config import KEEP, SCHEDULES, History, TrainConfig
+from ..schema import schema_default
 
 
 def seed_everything(seed: int) -> torch.Generator:
@@ -69,7 +70,12 @@ def seed_everything(seed: int) -> torch.Generator:
     return g
 
 
-def lr_factor(step: int, total: int, schedule: str = "cosine", warmup_frac: float = 0.05) -> float:
+def lr_factor(
+    step: int,
+    total: int,
+    schedule: str = schema_default("train.schedule"),
+    warmup_frac: float = schema_default("train.warmup_frac"),
+) -> float:
     """The learning rate of step ``step`` (0-based, of ``total``) as a fraction of the
     peak: 1 throughout (``constant``), or a linear warm-up over ``warmup_frac`` of the
     steps to 1, then a cosine to 0 at the last step (``cosine``)."""

@@ -25,6 +25,7 @@ from .data import (
 )
 from .export import export_onnx, export_torchscript, load_checkpoint, save_checkpoint
 from .loop import train
+from ..schema import schema_default
 
 
 def train_from_shards(
@@ -33,11 +34,11 @@ def train_from_shards(
     net_cfg: NetConfig,
     cfg: TrainConfig,
     augment: AugmentConfig | None,
-    val_fraction: float = 0.1,
+    val_fraction: float = schema_default("train.val_fraction"),
     occlusion_levels: dict | None = None,
     preprocess: dict | None = None,
     forces: tuple[str, ...] = ("fx",),
-    frame_every: int = 1,
+    frame_every: int = schema_default("train.frame_every"),
     log=print,
     init: str | Path | None = None,
 ) -> dict:
