@@ -127,19 +127,15 @@ NOT_CONFIG_PARAMS = {
     ("segment_finger", "max_hole_frac"): "the colour segmentation of a camera frame",
     ("colour_finder", "min_object_frac"): "the colour segmentation of a camera frame",
     ("learn_finder", "min_object_frac"): "the colour segmentation of a camera frame",
+    ("predict_files", "device"): "finray predict's --device, not train.device",
+    ("check_setup", "device"): "finray predict's --device, not train.device",
+    ("__init__", "device"): "the Predictor's device (finray predict --device), not train.device",
+    ("predictive", "chunk"): "frames per chunk of the predictive draw, "
+    "not the sampler's steps per chunk",
 }
 
-#: Repeated defaults in modules under another change (issue 54 item 1), to be fixed there:
-#: (file, function, parameter).
-PENDING = {
-    ("finray/predict.py", "predict_files", "device"),
-    ("finray/predict.py", "check_setup", "device"),
-    ("finray/predictor.py", "__init__", "device"),
-    ("finray/sim2real/calibration.py", "predictive", "level"),
-    ("finray/sim2real/calibration.py", "predictive", "chunk"),
-    ("finray/sim2real/calibration.py", "calibrate_takes", "folds"),
-    ("finray/sim2real/calibration.py", "calibrate_takes", "level"),
-}
+#: Repeated defaults still to be fixed: (file, function, parameter).
+PENDING: set[tuple[str, str, str]] = set()
 
 
 def _function_defaults():
