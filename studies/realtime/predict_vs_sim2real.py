@@ -8,8 +8,8 @@ whether any take reads as a constant while the sensor moves.
 RESULTS: a full run's results folder (read only): ``lab/<take>/take.mp4`` (the
 configured rig) and ``lab/rigs/<rig>/<take>/take.mp4`` (the drawn ones), their
 ``evaluate/sim2real[/rigs/<rig>]/frames.csv`` (the no-context rows, context_objects 0:
-``pred_N`` calibrated by the simulation with the rig prior, ``net_mean_N`` the
-no-context heads' mean) and ``train/<model>/model.ts``. OUT_DIR gets each take's
+``pred_N`` calibrated by the simulation with the rig prior, ``net_mean_N`` its
+network force: the model's own head since 33a89b4, the refitted heads' mean before) and ``train/<model>/model.ts``. OUT_DIR gets each take's
 ``finray predict`` output, ``frames.csv`` (every frame of both paths beside the sensor)
 and ``summary.json`` / ``summary.md`` (per rig). The takes are emulated (finray.emulator),
 not recordings.
