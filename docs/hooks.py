@@ -3,7 +3,7 @@ the argparse parsers, rendered at build time into the pages that hold their mark
 
 A page holds ``<!-- finray:config-reference -->`` or ``<!-- finray:cli-reference -->``;
 the hook replaces the marker with the generated Markdown, so the site never carries a
-stale copy. ``tests/test_docs.py`` calls the same functions.
+stale copy. ``tests/workflow/test_docs.py`` calls the same functions.
 """
 
 from __future__ import annotations

@@ -1,8 +1,10 @@
 """Fixtures shared by several test modules (pytest finds them here; no module imports
-another's fixture). Markers (pyproject.toml): ``slow`` (the integration tests: the
-smoke workflow, provenance, the FEA scenes, the runner, the CLI, tutorials run by
-Snakemake) and ``workflow`` (those that run Snakemake); ``pytest -m "not slow"`` is the
-quick run, CI (.ci/run) runs everything."""
+another's fixture or helper: shared plain functions and constants are in helpers.py).
+The tests mirror the package's stages, one folder each (geometry, fea, render, dataset,
+train, predict, evaluate, emulator, recording, sim2real, benchmarks, workflow). Markers
+(pyproject.toml): ``slow`` (the integration tests: the smoke workflow, provenance, the FEA
+scenes, the runner, the CLI, tutorials run by Snakemake) and ``workflow`` (those that run
+Snakemake); ``pytest -m "not slow"`` is the quick run, CI (.ci/run) runs everything."""
 
 import pytest
 import torch
@@ -12,13 +14,12 @@ from finray.model import FinRayNet, NetConfig
 from finray.render import RenderParams, load_render_index, render_scene
 from finray.train import export_torchscript
 
-from test_predict import PREPROCESS
-from test_render_fixture import write_synthetic_fea_result
+from helpers import PREPROCESS, write_synthetic_fea_result
 
 
 @pytest.fixture(scope="module")
 def render_png(tmp_path_factory):
-    """A camera frame of the fabricated scene (test_render_fixture.py), front view."""
+    """A camera frame of the fabricated scene (helpers.write_synthetic_fea_result), front view."""
     tmp = tmp_path_factory.mktemp("render")
     res = write_synthetic_fea_result(tmp / "result.npz", n_frames=4)
     render_scene(

@@ -5,7 +5,7 @@ its masks with the emulator's true masks (every 5th frame), and the masks' confi
 
     python studies/realtime/finder_on_rigs.py WORK_DIR [--rigs 8]
 
-The finger is the synthetic FEA result of tests/test_render_fixture.py (a short take:
+The finger is the synthetic FEA result of tests/helpers.py (a short take:
 smoke.yaml's motion), the frames 640x360; the takes are emulated, not recordings.
 """
 
@@ -18,7 +18,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tests"))
 
-from test_render_fixture import write_synthetic_fea_result  # noqa: E402
+from helpers import write_synthetic_fea_result  # noqa: E402
 
 from finray.config import load_config  # noqa: E402
 from finray.emulator.emulate import emulate_take  # noqa: E402

@@ -1,5 +1,7 @@
 """Rebuild ``tests/data/summary_full.json`` (the full config's summary, a test fixture)
-from a finished full run, with the summary code of this checkout:
+from a finished full run, with the summary code of this checkout (read by
+tests/workflow/test_manuscript.py, test_workflow.py, tests/evaluate/test_diversity.py
+and test_spread.py):
 
     PYTHONPATH=src python tests/data/make_summary_full.py RESULTS_DIR [--config config/config.yaml]
 

@@ -85,7 +85,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMB
 # Every config value a job reads is a param (or input) of that job, so that changing it
 # re-plans exactly the jobs that read it. Snakemake records a param by its repr: params
 # are passed in canonical form (mapping keys sorted) so that the same config with its
-# keys in another order re-plans nothing (tests/test_provenance.py).
+# keys in another order re-plans nothing (tests/workflow/test_provenance.py).
 
 
 SEGMENT_KEYS = ("threshold", "foreground", "min_object_frac", "max_hole_frac", "keep_largest")

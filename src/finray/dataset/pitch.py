@@ -6,8 +6,8 @@ mm), appears at image height ``v = yc + (y - yc) cos(t) - z sin(t)``. The silhou
 at pitch ``t`` is therefore the front silhouette squeezed by ``cos(t)`` about ``yc``
 and swept vertically by ``+-(e/2) sin(t)``: the side faces fill the cavities. Applied
 to the soft (area-averaged) silhouette this reproduces the pitched renders closely
-(see ``tests/test_pitch_augment.py``) at a tiny fraction of the cost of rendering them in 3D,
-so that training can be augmented over a range of pitches. The stress target is
+(see ``tests/dataset/test_pitch_augment.py``) at a tiny fraction of the cost of rendering
+them in 3D, so that training can be augmented over a range of pitches. The stress target is
 unchanged: it is the front view's, as in the pitch test set.
 """
 

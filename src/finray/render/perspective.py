@@ -24,7 +24,7 @@ The image adds what segmentation sees: a depth test per sample (1/z interpolated
 is exact under perspective) keeps the nearest camera-facing face, flat-shaded by the
 headlight as VTK shades it, so side walls seen at a grazing angle are darker than the
 front face and a threshold cuts them where it cuts them in a pyvista render
-(``tests/test_perspective.py`` compares the two pixel for pixel and after segmentation).
+(``tests/render/test_perspective.py`` compares the two pixel for pixel and after segmentation).
 Camera-facing walls overlap often (a rib's top face behind the outer wall at a pitch):
 painting them in any order without the depth test shades a fifth of a pitched view's
 pixels wrongly.
@@ -214,7 +214,7 @@ class PerspectiveRaster:
         """``corners_only``: quadratic elements drawn as their corner triangles (and the
         boundary as chords between corner nodes): a fourth of the triangles; a rib's
         mid-side node lies off the chord by ~chord^2 / (8 R), microns for 1 mm elements,
-        far below a camera pixel (the camera views use it; tests/test_perspective.py
+        far below a camera pixel (the camera views use it; tests/render/test_perspective.py
         checks the silhouettes against pyvista's full surface)."""
         if int(supersample) < 1:
             raise ValueError(f"supersample must be >= 1, got {supersample}")
