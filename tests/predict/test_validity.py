@@ -359,6 +359,45 @@ def test_the_emulated_rig_draws_clutter_that_the_finder_flags(tmp_path):
     assert (mask & truth).sum() / (mask | truth).sum() > 0.8 and conf < 0.8
 
 
+def test_the_emulated_rig_moves_clutter_behind_the_finger(tmp_path):
+    """A hand passing behind the rig (``velocity_mm_s``): Studio.at_time moves it, the
+    colour view shows it where v * t puts it, and the true finger mask never changes."""
+    from finray.config import load_config
+    from finray.emulator.camera import PinholeCamera
+    from finray.emulator.studio import Studio
+    from finray.render.result import load_fea_result
+    from helpers import write_synthetic_fea_result
+
+    res = load_fea_result(
+        write_synthetic_fea_result(
+            tmp_path / "result.npz", n_frames=3, max_displacement_mm=2.0, size_mm=1.0
+        )
+    )
+    look = dict(load_config("config/smoke.yaml")["lab"]["look"])
+    cam = PinholeCamera.looking_at(
+        (5.0, 38.0, 0.0), width=320, height=240, hfov_deg=69.4, distance_mm=200
+    )
+    hand = {"kind": "hand", "centre_mm": [-60.0, 20.0], "size_mm": [30.0, 20.0]}
+    hand |= {"velocity_mm_s": [40.0, 0.0], "z_mm": -30.0}
+    skin = np.array([0.80, 0.52, 0.40])
+    centres, masks = [], []
+    outline = res.object_points_mm[0].astype(float)
+    with Studio(res.mesh, outline, cam, look | {"clutter": [hand]}, 20.0) as studio:
+        studio.pose(res.deformed_points(0), 0.0)
+        for t in (0.0, 1.0):
+            studio.at_time(t)
+            img = studio.render_colour().astype(float) / 255
+            masks.append(studio.render_mask().copy())
+            ratio = img / np.maximum(img.max(axis=-1, keepdims=True), 1e-6)
+            near = np.linalg.norm(ratio - skin / skin.max(), axis=-1) < 0.08
+            near &= img.max(axis=-1) > 0.2
+            cols = np.flatnonzero(near.any(axis=0))
+            centres.append(0.5 * (cols[0] + cols[-1]))
+    assert np.array_equal(masks[0], masks[1])
+    at = cam.project(np.array([[-60.0, 20.0, -30.0], [-20.0, 20.0, -30.0]]))  # 40 mm in 1 s
+    assert centres[1] - centres[0] == pytest.approx(at[1, 0] - at[0, 0], abs=6)
+
+
 def test_the_stress_reference_comes_from_the_training_shards(tmp_path):
     """The stress reference saved with a model is the one its shards' renders used
     (render.stress_ref_MPa); shards on two scales cannot train one network."""
