@@ -75,9 +75,6 @@ def test_same_seed_replays_the_same_augmentation():
     a = sample_augment(seed, img.shape, noise="high", occlusion="medium")
     b = sample_augment(seed, img.shape, noise="high", occlusion="medium")
     np.testing.assert_array_equal(apply_augment(img, a), apply_augment(img, b))
-    # the parameters alone replay it (kornia-style), also through JSON
-    replay = AugmentParams.from_dict(a.to_dict())
-    np.testing.assert_array_equal(apply_augment(img, replay), apply_augment(img, a))
     # another seed gives another corruption; applying never changes the input
     c = sample_augment(seed + 1, img.shape, noise="high", occlusion="medium")
     assert not np.array_equal(apply_augment(img, a), apply_augment(img, c))

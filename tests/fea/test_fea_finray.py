@@ -17,12 +17,12 @@ from finray.fea.simulate import (
     DeformableObject,
     SimulationError,
     SimulationOptions,
-    front_contact_circle,
     simulate,
 )
 from finray.fea.newton import NewtonOptions
 from finray.geometry.finger import FingerParams, mesh_finger
 from finray.geometry.mesh import triangulate_polygon
+from helpers import circle_polyline, front_contact_circle
 
 pytestmark = pytest.mark.slow  # not in `pytest -m "not slow"`
 
@@ -156,7 +156,6 @@ def test_initial_intersection_is_refused(finger):
 
 
 def test_object_blocked_by_the_clamp_is_reported(finger):
-    from finray.geometry.primitives import circle_polyline
     from finray.fea.simulate import RigidObject
 
     pts, edges = circle_polyline([-1.15, 0.0], 1.0, 64)  # aims at the clamped corner (0, 0)
@@ -298,8 +297,9 @@ SCENE = """
 import sys, numpy as np
 from finray.config import default_config_path, load_config
 from finray.fea.scene import material_law
-from finray.fea.simulate import SimulationOptions, front_contact_circle, simulate
+from finray.fea.simulate import SimulationOptions, simulate
 from finray.geometry.finger import FingerParams, mesh_finger
+from helpers import front_contact_circle
 law = material_law(load_config(default_config_path()), "ninjaflex")
 r = simulate(mesh_finger(FingerParams(), size_mm=2.0, arc_chord_mm=0.25),
              front_contact_circle(FingerParams(), 30.0, 20.0, gap_mm=0.1), law,
@@ -315,7 +315,11 @@ def test_scene_is_bit_reproducible_across_processes(tmp_path):
     env = {
         **os.environ,
         "PYTHONPATH": os.pathsep.join(
-            [str(Path(finray.__file__).parents[1]), os.environ.get("PYTHONPATH", "")]
+            [
+                str(Path(finray.__file__).parents[1]),
+                str(Path(__file__).resolve().parents[1]),  # tests/, for helpers
+                os.environ.get("PYTHONPATH", ""),
+            ]
         ),
     }
     out = [tmp_path / f"run{i}.npz" for i in range(2)]

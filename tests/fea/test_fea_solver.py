@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 
 from finray.fea.assembly import ElementBlock
-from finray.geometry.primitives import edge_load, rectangle_mesh
 from finray.fea.material import NeoHookean
 from finray.fea.newton import NewtonOptions, newton
 from finray.fea.problem import Model
+from helpers import edge_load, rectangle_mesh
 
 MAT = NeoHookean.from_E_nu(12.0, 0.45)
 

@@ -12,12 +12,12 @@ from finray.geometry.finger import (
     FingerParams,
     GeometryError,
     finger_polygon,
-    front_face_x,
     mesh_finger,
 )
 from finray.geometry.mesh import BOUNDARY_TAGS, TriMesh, quality, signed_areas
 from finray.geometry.objects import object_geometry, object_shape, place_object
 from finray.geometry.surface import check_watertight, extrude
+from helpers import front_face_x
 
 P = FingerParams()
 

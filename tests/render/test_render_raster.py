@@ -25,7 +25,7 @@ from finray.render import (
     write_png,
 )
 
-from helpers import write_synthetic_fea_result
+from helpers import mm_to_px, write_synthetic_fea_result
 
 
 def iou(a: np.ndarray, b: np.ndarray) -> float:
@@ -198,7 +198,7 @@ def test_pitched_view_projects_with_the_documented_camera(result_path, result, t
 
     surf = extrude(result.mesh, 20.0)
     xyz = surf.deformed(result.deformed_points(result.n_frames - 1))
-    px = params.mm_to_px(params.project(xyz, pitch))
+    px = mm_to_px(params, params.project(xyz, pitch))
     rows, cols = np.nonzero(mask)
     assert abs(rows.min() - px[:, 1].min()) < 1.5 and abs(rows.max() - px[:, 1].max()) < 1.5
     assert abs(cols.min() - px[:, 0].min()) < 1.5 and abs(cols.max() - px[:, 0].max()) < 1.5

@@ -3,12 +3,12 @@
 import re
 
 from finray.fea.material import NeoHookean
-from finray.fea.simulate import SimulationOptions, front_contact_circle, simulate
+from finray.fea.simulate import SimulationOptions, simulate
 from finray.geometry.finger import FingerParams, mesh_finger
 from finray.logs import Progress, log_to
 from finray.render import RenderParams, render_scene
 
-from helpers import write_synthetic_fea_result
+from helpers import front_contact_circle, write_synthetic_fea_result
 
 
 def test_fea_scene_logs_frame_travel_and_time(tmp_path):

@@ -86,20 +86,6 @@ class AugmentParams:
             "seed": self.seed,
         }
 
-    @classmethod
-    def from_dict(cls, d: dict) -> "AugmentParams":
-        return cls(
-            shape=tuple(d["shape"]),
-            noise_level=d["noise_level"],
-            density=d["density"],
-            salt=np.asarray(d["salt"], np.int64),
-            pepper=np.asarray(d["pepper"], np.int64),
-            occlusion_level=d["occlusion_level"],
-            disc_diameter_px=int(d["disc_diameter_px"]),
-            disc_centre_px=tuple(d["disc_centre_px"]),
-            seed=d.get("seed"),
-        )
-
 
 def augment_seed(base_seed: int, *keys) -> int:
     """A stable 63-bit seed from a base seed and keys (ints or strings, e.g. scene id,

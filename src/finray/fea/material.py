@@ -63,11 +63,6 @@ class NeoHookean:
     def nu(self) -> float:
         return self.lam / (2 * (self.lam + self.mu))
 
-    @property
-    def plane_strain_modulus(self) -> float:
-        """E / (1 - nu^2), MPa."""
-        return self.E / (1 - self.nu**2)
-
     # -- kinematics helpers -------------------------------------------------------
     @staticmethod
     def _det_inv(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -91,13 +86,6 @@ class NeoHookean:
             lnJ = np.log(np.where(J > 0, J, 1.0))
         W = 0.5 * self.mu * (I1 - 3.0) - self.mu * lnJ + 0.5 * self.lam * lnJ**2
         return np.where(J > 0, W, np.inf)
-
-    def pk1(self, F: np.ndarray) -> np.ndarray:
-        """First Piola-Kirchhoff stress P (MPa), (..., 2, 2)."""
-        J, Finv = self._det_inv(F)
-        FinvT = np.swapaxes(Finv, -1, -2)
-        lnJ = np.log(J)
-        return self.mu * (F - FinvT) + (self.lam * lnJ)[..., None, None] * FinvT
 
     def evaluate(self, F: np.ndarray, order: int = 2):
         """(W, P, A) with A = dP/dF as (..., 2, 2, 2, 2) [i, J, k, L] (order >= 2).

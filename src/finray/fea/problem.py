@@ -140,12 +140,6 @@ class Model:
         U.reshape(-1)[self._unknown] = q[self._unknown_dof]
         return U
 
-    def q_from_U(self, U: np.ndarray) -> np.ndarray:
-        q = np.zeros(self.n)
-        m = self.dof_map >= 0
-        q[self.dof_map[m]] = U[m]
-        return q
-
     def t(self, q: np.ndarray) -> np.ndarray:
         return q[self.t_index] if self.has_driver else np.zeros(2)
 

@@ -28,7 +28,6 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 
 from ..geometry.mesh import BOUNDARY_TAGS, TriMesh
-from ..geometry.primitives import circle_polyline
 from ..logs import Progress
 from .assembly import ElementBlock
 from .contact import ContactModel, ContactParams, split_p2_edges
@@ -174,11 +173,6 @@ class SimulationResult:
     #: (F,) mm: height (y) of the centroid of the contact forces on the object, their
     #: magnitudes the weights (the object's nodes at the frame); NaN without contact force
     contact_y_mm: np.ndarray | None = None
-
-    def as_dict(self) -> dict:
-        d = {k: v for k, v in self.__dict__.items() if k != "meta" and v is not None}
-        d["meta"] = self.meta
-        return d
 
 
 def boundary_loops(edges: np.ndarray) -> list[np.ndarray]:
@@ -672,24 +666,3 @@ def contact_centroid_y(y_mm: np.ndarray, f_nodes: np.ndarray) -> float:
 
 def asdict_shallow(o) -> dict:
     return {f: getattr(o, f) for f in o.__dataclass_fields__}
-
-
-def front_contact_circle(
-    params,
-    height_mm: float,
-    diameter_mm: float,
-    gap_mm: float = schema_default("placement.gap_mm"),
-    n: int | None = None,
-    size_mm: float = 0.25,
-) -> RigidObject:
-    """A rigid circle touching the finger's front face at ``height_mm`` with ``gap_mm``
-    clearance (for benchmarks; the project's placement lives in the geometry stage)."""
-    W, H = params.base_width_mm, params.apex_height_mm
-    t = np.array([W, H]) / np.hypot(W, H)  # along the front face
-    nrm = np.array([H, -W]) / np.hypot(W, H)  # into the finger
-    p = t * (height_mm / t[1])
-    R = 0.5 * diameter_mm
-    c = p - nrm * (R + gap_mm)
-    n = n or max(16, int(np.ceil(2 * np.pi * R / size_mm)))
-    pts, edges = circle_polyline(c, R, n)
-    return RigidObject(pts, edges, name=f"circle_d{diameter_mm:g}")

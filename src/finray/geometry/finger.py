@@ -86,11 +86,6 @@ def _front_normal(p: FingerParams) -> np.ndarray:
     return n / np.linalg.norm(n)
 
 
-def front_face_x(p: FingerParams, y_mm):
-    """x (mm) of the outer front face at height y."""
-    return np.asarray(y_mm) * p.base_width_mm / p.apex_height_mm
-
-
 #: Default longest chord of a fillet or tip arc (mm), independent of the element size
 #: (config ``mesh.arc_chord_mm``). The polygonal fillets of the cavities are inscribed
 #: in the round ones, so they add material at the rib joints, where the finger bends:

@@ -112,10 +112,6 @@ class PinholeCamera:
             [self.fx * pc[:, 0] / pc[:, 2] + self.cx, self.fy * pc[:, 1] / pc[:, 2] + self.cy]
         )
 
-    def view_angle_deg(self) -> float:
-        """The vertical field of view of the pinhole (deg)."""
-        return float(np.degrees(2 * np.arctan(0.5 * self.height / self.fy)))
-
     def undistorted_coords(self) -> tuple[np.ndarray, np.ndarray]:
         """Where each pixel (H, W) of the distorted image samples the pinhole image:
         row and column coordinates (float64), for ``scipy.ndimage.map_coordinates``."""

@@ -150,13 +150,6 @@ class RenderParams:
         v = yc + (xyz[..., 1] - yc) * np.cos(t) - xyz[..., 2] * np.sin(t)
         return np.stack([u, v], axis=-1)
 
-    def mm_to_px(self, uv: np.ndarray) -> np.ndarray:
-        """Continuous pixel coordinates (col, row) of image-plane points (..., 2) mm;
-        pixel centres sit at integers."""
-        col = (uv[..., 0] - self.window_x_mm[0]) * self.px_per_mm - 0.5
-        row = (self.window_y_mm[1] - uv[..., 1]) * self.px_per_mm - 0.5
-        return np.stack([col, row], axis=-1)
-
     def box_px(
         self, x_mm: tuple[float, float], y_mm: tuple[float, float]
     ) -> tuple[float, float, float, float]:

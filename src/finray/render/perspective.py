@@ -313,15 +313,3 @@ class PerspectiveRaster:
         out = np.empty((h, w, 3), dtype=np.uint8)
         _colour_kernel(owner, ss, face_rgb, bg, out)
         return out, (row0, col0)
-
-    def frame_coverage(self, points2d: np.ndarray, camera: PinholeCamera) -> np.ndarray:
-        """The coverage placed in the camera's full frame (camera.height, camera.width)
-        float32, clipped to it (0 where the finger is not)."""
-        cov, (row0, col0) = self.coverage(points2d, camera)
-        out = np.zeros((camera.height, camera.width), dtype=np.float32)
-        r0, c0 = max(row0, 0), max(col0, 0)
-        r1 = min(row0 + cov.shape[0], camera.height)
-        c1 = min(col0 + cov.shape[1], camera.width)
-        if r1 > r0 and c1 > c0:
-            out[r0:r1, c0:c1] = cov[r0 - row0 : r1 - row0, c0 - col0 : c1 - col0]
-        return out
