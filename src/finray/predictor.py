@@ -342,10 +342,6 @@ class Predictor:
             xt = torch.from_numpy(np.ascontiguousarray(x, np.float32)).to(self.device)
             return self.model.members(xt).cpu().numpy()
 
-    def force_members(self, frame: np.ndarray) -> np.ndarray:
-        """Each head's force (M,) in N of one frame (see :meth:`run_members`)."""
-        return self.run_members(self.network_input(self.segment(frame)))[0]
-
     def __call__(self, frame: np.ndarray) -> tuple[float, np.ndarray]:
         """Force (N, along the push) and the log-stress map (H, W) of one frame."""
         stress, force = self.run(self.network_input(self.segment(frame)))
