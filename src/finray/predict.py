@@ -118,6 +118,7 @@ def choose_finder(
     segmentation: str = "auto",
     finger_colour=None,
     calibration: dict | None = None,
+    rest: bool = False,
 ):
     """How the finger is found in ``frames`` (:mod:`finray.recording.finder`), set as
     ``p.finder``; returns the frames to predict (the first ones read here put back).
@@ -125,7 +126,9 @@ def choose_finder(
     else a calibration's (``segment``: its takes' colour, as ingest found it); else
     ``segmentation``: ``"grey"`` the model's grey-level threshold, ``"colour"`` the
     colour learned from the first frames, ``"auto"`` learned, or the grey threshold
-    where it finds the same finger (:func:`~finray.recording.finder.learn_finder`)."""
+    where it finds the same finger (:func:`~finray.recording.finder.learn_finder`).
+    ``rest`` (a video or a stream): where the colour is learned, its first frames' mask
+    pixels (median) become ``p.rest_px``, the reference of the check ``grown``."""
     import itertools
 
     from .recording.finder import LEARN_FRAMES, finder_from_spec, learn_finder
@@ -154,11 +157,14 @@ def choose_finder(
             f"{len(images)} frames (give --finger-colour)"
         )
     p.finder = finder
-    rest = itertools.chain(head, it)
+    if rest:
+        px = [np.count_nonzero(m) for m, _ in map(finder.find, images) if m is not None]
+        p.rest_px = float(np.median(px)) if px else None
+    rest_frames = itertools.chain(head, it)
     if isinstance(frames, _Live):
-        frames.iterator = rest
+        frames.iterator = rest_frames
         return frames
-    return rest
+    return rest_frames
 
 
 #: what a run of :func:`predict_files` leaves in its folder, besides the per-frame files
@@ -314,7 +320,9 @@ def _predict_files(run: _Run, model_path, old: list, threads, backend, device) -
 
         p.warm_up()
         run.frames.open()
-    run.frames = choose_finder(p, run.frames, run.segmentation, run.finger_colour, run.calibration)
+    run.frames = choose_finder(
+        p, run.frames, run.segmentation, run.finger_colour, run.calibration, rest=run.video
+    )
     if run.on_note is not None:
         for line in [f"finger found by {p.finder.describe()}", *p.notes]:
             run.on_note(line)
@@ -569,7 +577,8 @@ def check_setup(
     live = isinstance(frames, _Live)
     try:
         p = Predictor(model_path, 1, backend, device)
-        frames = choose_finder(p, frames, segmentation, finger_colour, calibration)
+        video = live or Path(source).suffix.lower() in VIDEO_SUFFIXES
+        frames = choose_finder(p, frames, segmentation, finger_colour, calibration, rest=video)
         picked = _pick(frames, n_frames, None if live else source)
     finally:
         if live:

@@ -137,6 +137,9 @@ class Predictor:
                 "shape, force or contact height"
             )
         self.limits = Limits()
+        # the finger's mask pixels in the first frames its colour was learned from (the
+        # validity check "grown"); None: not checked (finray.predict.choose_finder)
+        self.rest_px: float | None = None
         #: Heads of an adapted ensemble (:mod:`finray.sim2real.adapt`; 0: a single network).
         self.ensemble = int(self.meta.get("ensemble", 0))
         if self.ensemble and backend == "onnx":
@@ -248,8 +251,9 @@ class Predictor:
         outputs by name (``fx_N``..., ``contact_mm``) and the window (``box``, else
         :meth:`crop_box`)."""
         box = self.crop_box(mask) if box is None else box
+        px = float(np.count_nonzero(mask))
         return check_frame(
-            float(np.count_nonzero(mask)) / mask.size,
+            px / mask.size,
             window_outside(box, mask.shape),
             confidence,
             x,
@@ -257,6 +261,7 @@ class Predictor:
             self.trained,
             self.contact_min_force_N,
             self.limits,
+            growth=px / self.rest_px - 1.0 if self.rest_px else None,
         )
 
     def network_input(self, mask: np.ndarray, box=None) -> np.ndarray:

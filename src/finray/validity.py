@@ -10,6 +10,12 @@ A frame gets a list of flags (none: valid):
   a mask that is not the finger);
 - ``low_confidence``: the finger holds less than :attr:`Limits.min_confidence` of the
   frame's pixels of its colour or grey side (clutter of the finger's colour in view);
+- ``grown``: the mask holds more than :attr:`Limits.max_growth` more pixels than in the
+  first frames of the video or stream its colour was learned from (the finger at rest:
+  a push hides part of it behind the object, so on 36 emulated takes it never grew
+  past 1.003x; something of its colour touching it, e.g. a hand passing right behind
+  it, merges into it: up to 1.24x); not checked where the colour was given or for
+  separate images;
 - ``shape``: the silhouette in the window is unlike the training's (its IoU with the
   training's mean silhouette below the training's lowest, or its filled share of the
   window outside the training's range, each less a margin);
@@ -21,7 +27,7 @@ A frame gets a list of flags (none: valid):
 
 The training's side (:func:`training_ranges`) is saved with the model
 (``model.ts.json``'s ``trained``) by :func:`finray.train.export_torchscript`; a model
-exported before has none, and only the frame's own checks run (the first three).
+exported before has none, and only the frame's own checks run (the first four).
 """
 
 from __future__ import annotations
@@ -37,6 +43,7 @@ FLAGS = {
     "off_frame": "the finger's window reaches beyond the frame (cut off by its edge?)",
     "low_confidence": "much of the finger's colour lies outside the finger (clutter of its "
     "colour in view?)",
+    "grown": "the mask grew past the first frames' (something of the finger's colour touching it?)",
     "shape": "the silhouette is unlike the training's",
     "force_range": "the force is outside the training's range",
     "contact_range": "the contact height is outside the trained heights",
@@ -52,6 +59,7 @@ class Limits:
     max_mask_frac: float = 0.5
     max_off_frame: float = 0.1
     min_confidence: float = 0.8
+    max_growth: float = 0.05
     shape_margin: float = 0.15
     fill_margin: float = 0.05
     force_margin: float = 0.1
@@ -137,13 +145,15 @@ def check_frame(
     trained: dict | None,
     contact_min_force_N: float = 0.0,
     limits: Limits = Limits(),
+    growth: float | None = None,
 ) -> list[str]:
     """The flags (see the module's text) of one frame: ``mask_frac`` the mask's share of
     the frame, ``outside`` the window's share outside it (:func:`window_outside`),
     ``confidence`` the segmentation's (:class:`~finray.recording.finder.FingerFinder`),
     ``x`` the network input (1, 1, H, W) in [0, 1], ``forces`` the outputs by name
     (``fx_N``...; ``contact_mm`` for a model with the contact head); ``trained``:
-    :func:`training_ranges` of the model (None: the frame's own checks only)."""
+    :func:`training_ranges` of the model (None: the frame's own checks only);
+    ``growth``: the mask's pixels over the first frames' less 1 (None: not checked)."""
     flags = []
     if mask_frac > limits.max_mask_frac:
         flags.append("fills_frame")
@@ -151,6 +161,8 @@ def check_frame(
         flags.append("off_frame")
     if confidence < limits.min_confidence:
         flags.append("low_confidence")
+    if growth is not None and growth > limits.max_growth:
+        flags.append("grown")
     if not trained:
         return flags
     mean = np.asarray(trained["silhouette"], np.float32)

@@ -250,6 +250,49 @@ def test_a_contact_outside_the_trained_heights_is_flagged(model, tmp_path):
     assert p.check(mask, conf, p.network_input(mask), out) == []
 
 
+def test_something_of_the_fingers_colour_touching_it_is_flagged_grown(model, tmp_path):
+    """A video whose first frames show the finger alone, then a patch of its colour
+    touching its side (one blob with it: the colour finder's confidence stays high):
+    those frames are flagged ``grown`` against the first frames' mask, the others not;
+    separate images have no first frames to compare with, and are not checked."""
+    from scipy import ndimage as ndi
+
+    from finray.predict import predict_files
+
+    frames, touched = [], []
+    for k in range(12):
+        img, truth = frame(0.1 * k, seed=k)
+        if k >= 8:
+            band = ndi.binary_dilation(truth, iterations=12) & ~truth
+            rows = np.flatnonzero(truth.any(axis=1))
+            band[: rows[0] + (rows[-1] - rows[0]) // 3] = False  # its upper two thirds
+            band[rows[0] + 2 * (rows[-1] - rows[0]) // 3 :] = False
+            img[band] = FINGER_RGB.astype(np.uint8)
+        frames.append(img)
+        touched.append(k >= 8)
+    write_video(tmp_path / "take.mp4", frames, 30.0, pix_fmt="yuv444p")
+    res = predict_files(
+        model / "model.ts",
+        tmp_path / "take.mp4",
+        tmp_path / "out",
+        force_only=True,
+        segmentation="colour",
+    )
+    valid = [r["valid"] for r in res["rows"]]
+    assert ["grown" in v for v in valid] == touched, valid
+    assert set(valid[:8]) == {"ok"}
+    assert check_frame(0.1, 0.0, 1.0, np.zeros((1, 1, 8, 4)), {}, None, growth=0.04) == []
+    assert check_frame(0.1, 0.0, 1.0, np.zeros((1, 1, 8, 4)), {}, None, growth=0.06) == ["grown"]
+    for k, img in enumerate(frames):
+        from PIL import Image
+
+        Image.fromarray(img).save(tmp_path / f"f{k:02d}.png")
+    res = predict_files(
+        model / "model.ts", tmp_path, tmp_path / "images", force_only=True, segmentation="colour"
+    )
+    assert not any("grown" in r["valid"] for r in res["rows"])
+
+
 def test_force_shape_and_window_checks():
     x = np.zeros((1, 1, 64, 32), np.float32)
     x[..., 10:, 4:20] = 1.0
