@@ -12,6 +12,7 @@ test module anywhere under it writes ``from helpers import ...``.
   contract).
 - ``ROOT``, ``DATA``: the repository's root and tests/data (whatever folder a test is in).
 - ``PREPROCESS``: the preprocessing block of the small exported test networks.
+- ``CAMERA_PREPROCESS``: the same with the base band of a camera frame's crop.
 - ``toy``, ``CFG``: a learnable toy training set and a quick training configuration.
 - Test geometry and FEA oracles (none used by the package): ``graded_coords``,
   ``rectangle_mesh``, ``circle_polyline``, ``arc_polyline``, ``segment_polyline``,
@@ -47,6 +48,10 @@ PREPROCESS = {
     },
 }
 
+
+#: PREPROCESS with the base band a camera frame's crop uses (the validity tests and the
+#: real-time study's synthetic finger)
+CAMERA_PREPROCESS = {**PREPROCESS, "base_band": 0.03}
 
 FIXTURE_HEIGHT_MM = 30.0  # contact height of the fabricated object
 

@@ -30,24 +30,11 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tests"))
 
 from recording_synth import background, render_frame  # noqa: E402
+from helpers import CAMERA_PREPROCESS as PREPROCESS  # noqa: E402
 
 from finray.model import FinRayNet, NetConfig  # noqa: E402
 from finray.predict import Predictor  # noqa: E402
 from finray.train import export_onnx, export_torchscript  # noqa: E402
-
-PREPROCESS = {
-    "base_width_mm": 30.0,
-    "crop_x_mm": [-5.0, 35.0],
-    "crop_y_mm": [0.0, 80.0],
-    "base_band": 0.03,
-    "segment": {
-        "threshold": "isodata",
-        "foreground": "bright",
-        "min_object_frac": 1e-3,
-        "max_hole_frac": 2e-4,
-        "keep_largest": True,
-    },
-}
 
 
 def frames_at(h, w, n=12, render_like=False):

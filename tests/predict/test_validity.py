@@ -15,21 +15,9 @@ from finray.predict import Predictor
 from finray.recording.finder import FingerFinder, finder_from_spec, learn_finder
 from finray.train import export_torchscript
 from finray.validity import check_frame, training_ranges
+from helpers import CAMERA_PREPROCESS as PREPROCESS
 from recording_synth import APEX, FINGER_RGB, background, render_frame, write_video
 
-PREPROCESS = {
-    "base_width_mm": 30.0,
-    "crop_x_mm": [-5.0, 35.0],
-    "crop_y_mm": [0.0, 80.0],
-    "base_band": 0.03,
-    "segment": {
-        "threshold": "isodata",
-        "foreground": "bright",
-        "min_object_frac": 1e-3,
-        "max_hole_frac": 2e-4,
-        "keep_largest": True,
-    },
-}
 SIZE = (360, 480)  # a camera frame (H, W)
 PPM = SIZE[0] / 120.0
 ORIGIN = (0.45 * SIZE[1], 0.88 * SIZE[0])
@@ -354,13 +342,11 @@ def test_apex_is_in_view():
     assert rows[0] > 0 and rows[-1] < SIZE[0] - 1 and APEX[1] * PPM < SIZE[0]
 
 
-def test_the_emulated_rig_draws_clutter_that_the_finder_flags(tmp_path):
-    """The emulated rig's scene with a second object of the finger's colour and a hand:
-    the label view (the true mask) leaves them out; the colour finder keeps the finger
-    and flags the frame low_confidence."""
+def _emulated_rig(tmp_path):
+    """A synthetic FEA result, the smoke config's look of the emulated rig and a
+    320 x 240 camera on it: what a Studio needs."""
     from finray.config import load_config
     from finray.emulator.camera import PinholeCamera
-    from finray.emulator.studio import Studio
     from finray.render.result import load_fea_result
     from helpers import write_synthetic_fea_result
 
@@ -373,6 +359,16 @@ def test_the_emulated_rig_draws_clutter_that_the_finder_flags(tmp_path):
     cam = PinholeCamera.looking_at(
         (5.0, 38.0, 0.0), width=320, height=240, hfov_deg=69.4, distance_mm=200
     )
+    return res, look, cam
+
+
+def test_the_emulated_rig_draws_clutter_that_the_finder_flags(tmp_path):
+    """The emulated rig's scene with a second object of the finger's colour and a hand:
+    the label view (the true mask) leaves them out; the colour finder keeps the finger
+    and flags the frame low_confidence."""
+    from finray.emulator.studio import Studio
+
+    res, look, cam = _emulated_rig(tmp_path)
     outline = res.object_points_mm[0].astype(float)
     views = {}
     for name, clutter in (
@@ -405,21 +401,9 @@ def test_the_emulated_rig_draws_clutter_that_the_finder_flags(tmp_path):
 def test_the_emulated_rig_moves_clutter_behind_the_finger(tmp_path):
     """A hand passing behind the rig (``velocity_mm_s``): Studio.at_time moves it, the
     colour view shows it where v * t puts it, and the true finger mask never changes."""
-    from finray.config import load_config
-    from finray.emulator.camera import PinholeCamera
     from finray.emulator.studio import Studio
-    from finray.render.result import load_fea_result
-    from helpers import write_synthetic_fea_result
 
-    res = load_fea_result(
-        write_synthetic_fea_result(
-            tmp_path / "result.npz", n_frames=3, max_displacement_mm=2.0, size_mm=1.0
-        )
-    )
-    look = dict(load_config("config/smoke.yaml")["lab"]["look"])
-    cam = PinholeCamera.looking_at(
-        (5.0, 38.0, 0.0), width=320, height=240, hfov_deg=69.4, distance_mm=200
-    )
+    res, look, cam = _emulated_rig(tmp_path)
     hand = {"kind": "hand", "centre_mm": [-60.0, 20.0], "size_mm": [30.0, 20.0]}
     hand |= {"velocity_mm_s": [40.0, 0.0], "z_mm": -30.0}
     skin = np.array([0.80, 0.52, 0.40])
