@@ -2,11 +2,14 @@
 with ``auto``, when torch sees one), else the CPU; bfloat16 autocast where the device
 runs it natively, float32 elsewhere.
 
-bfloat16 autocast makes a training step faster only on CPUs whose convolutions run it in
-hardware (AVX-512 BF16 or AMX); on the others oneDNN emulates it and the step is many
+bfloat16 autocast can make a training step faster only on CPUs whose convolutions run it
+in hardware (AVX-512 BF16 or AMX); on the others oneDNN emulates it and the step is many
 times slower than in float32 (the step times per CPU are in docs/studies/run-cost.md and in each
-model's ``history.json``). ``train.bf16: auto`` picks from what the CPU offers to the
-kernels torch will really use: the ATen dispatch level (``ATEN_CPU_CAPABILITY`` lowers
+model's ``history.json``). Hardware is not enough: with AVX-512 BF16 but no AMX a
+bfloat16 step can be slower than a float32 one, so on such a CPU the training times both
+(:mod:`finray.train.precision_trial`) and this module only says whether bfloat16 is worth
+timing. ``train.bf16: auto`` reads what the CPU offers to the kernels torch will really
+use: the ATen dispatch level (``ATEN_CPU_CAPABILITY`` lowers
 it) and oneDNN's instruction set (``ONEDNN_MAX_CPU_ISA`` caps it), beside the
 hardware flags. On a GPU, ``auto`` means bfloat16 where the GPU has native bfloat16
 units (NVIDIA Ampere and later).

@@ -72,6 +72,9 @@ class History:
     epoch_time_s: list = field(default_factory=list)  # training loop + validation (s)
     precision: str = ""  # "bfloat16" or "float32", as resolved from TrainConfig.bf16
     precision_reason: str = ""
+    # train.bf16: auto on a CPU with bfloat16 hardware: each type's measured step (CPU
+    # ms, median) and the steps timed (finray.train.precision_trial); None: not measured
+    precision_trial_ms: dict | None = None
     device: str = ""  # where it trained: "cpu (<CPU>)" or "cuda:0 (<GPU>)"
     step_ms: float = float("nan")  # median training step, wall (batch, augmentation included)
     step_cpu_ms: float = float("nan")  # the same in the thread's CPU time (less load-dependent)

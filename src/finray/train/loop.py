@@ -57,6 +57,7 @@ from torch import nn
 
 from ..model import FinRayNet, NetConfig
 from ..precision import device_name, resolve_bf16, resolve_device
+from .precision_trial import time_precisions
 from .config import KEEP, SCHEDULES, History, TrainConfig
 from ..schema import schema_default
 
@@ -138,6 +139,18 @@ def _masked_mse(pred: torch.Tensor, target: torch.Tensor, mask: torch.Tensor) ->
 
 def _use_bf16(cfg: TrainConfig, device: torch.device) -> bool:
     return resolve_bf16(cfg.bf16, device=device)[0] if isinstance(cfg.bf16, str) else bool(cfg.bf16)
+
+
+def _precision_trial(model: FinRayNet, data: _TrainData, cfg: TrainConfig, device):
+    """Training steps of each numeric type timed on a copy of ``model``, on the first
+    batch of training frames (:mod:`finray.train.precision_trial`)."""
+    idx = torch.arange(min(cfg.batch_size, data.n))
+    x, s = data.x[idx], data.s[idx]
+    return time_precisions(
+        model,
+        lambda m, bf16: _batch_loss(m, data, idx, x, s, cfg, device, bf16)[0],
+        lr=cfg.lr,
+    )
 
 
 def _step_times(hist: History, step_s: list[tuple[float, float]]) -> None:
@@ -523,6 +536,18 @@ def train(
     torch.set_num_threads(cfg.threads)
     gen = seed_everything(cfg.seed)
     bf16, why = resolve_bf16(cfg.bf16, device=device)
+    data = _TrainData.checked(
+        images, stress, force_N, camera_images, force_weight, contact_mm, net_cfg, cfg
+    )
+    model, mean, scale = _new_model(net_cfg, data, init_state)
+    model = model.to(device)  # initialised on the CPU: the same weights on any device
+    if cfg.channels_last:
+        model = model.to(memory_format=torch.channels_last)
+    trial = None
+    if cfg.bf16 == "auto" and device.type == "cpu" and bf16:
+        # the CPU computes bfloat16 in hardware: whether it is faster is measured
+        trial = _precision_trial(model, data, cfg, device)
+        bf16, why = trial.bf16, trial.describe()
     if device.type == "cuda" and not bf16:
         # cuDNN convolutions default to TF32 (10-bit mantissa) on Ampere and later: a
         # float32 run is float32, as on the CPU
@@ -531,18 +556,12 @@ def train(
     cfg = replace(cfg, bf16=bf16)
     log(f"precision: {why}")
     log(f"device: {device_name(device)}")
-    data = _TrainData.checked(
-        images, stress, force_N, camera_images, force_weight, contact_mm, net_cfg, cfg
-    )
-    model, mean, scale = _new_model(net_cfg, data, init_state)
-    model = model.to(device)  # initialised on the CPU: the same weights on any device
-    if cfg.channels_last:
-        model = model.to(memory_format=torch.channels_last)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
     vset = _ValSet.of(val, data.contact)
     hist = History(
         precision="bfloat16" if bf16 else "float32",
         precision_reason=why,
+        precision_trial_ms=trial.as_dict() if trial else None,
         device=device_name(device),
         force_mean_N=mean.tolist(),
         force_std_N=scale.tolist(),
