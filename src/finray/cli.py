@@ -3,12 +3,76 @@
 from __future__ import annotations
 
 import argparse
+import math
+import os
 import re
 import sys
 from pathlib import Path
 
 from . import __version__
 from .errors import BadInput, ConfigError, FinrayError, GeometryError, UsageError
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line, ``<prog>: <message>`` (exit code
+    2), as every other bad input of ``finray``."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: {message}\n")
+
+
+class _Once(argparse._StoreAction):
+    """An option that takes one value: given again, it is refused (the last one once
+    won silently). :func:`build_parser` makes every single-valued option one."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        given = namespace.__dict__.setdefault("_given_once", {})
+        if self.dest in given:
+            raise argparse.ArgumentError(
+                None,
+                f"{option_string} takes one value, got {given[self.dest]} and {values}",
+            )
+        given[self.dest] = values
+        super().__call__(parser, namespace, values, option_string)
+
+
+#: the number options (argparse dests) of every subcommand: (unit in words, lowest,
+#: whether the lowest itself is allowed, highest or None); checked by :func:`_check_numbers`
+_NUMBERS = {
+    "size_mm": ("mm", 0, False, None),
+    "minor_mm": ("mm", 0, False, None),
+    "wall_mm": ("mm", 0, False, None),
+    "angle_deg": ("degrees", -360, True, 360),
+    "fillet_mm": ("mm", 0, True, None),
+    "height_mm": ("mm", 0, False, None),
+    "mesh_size_mm": ("mm", 0, False, None),
+    "check": ("frames", 1, True, None),
+    "threads": ("threads (this machine's CPUs)", 1, True, os.cpu_count() or 1),
+}
+
+
+def _check_numbers(args) -> None:
+    """Every number given on the command line finite and in its range, or a one-line
+    :class:`UsageError` with its unit (``--angle-deg nan`` once ended in a GEOS
+    exception, ``--threads 99999999999`` in an overflow)."""
+
+    def shown(v) -> str:
+        return str(v) if isinstance(v, int) else f"{v:g}"
+
+    for dest, (unit, lo, lo_ok, hi) in _NUMBERS.items():
+        value = getattr(args, dest, None)
+        for v in value if isinstance(value, list) else [value]:
+            if v is None or isinstance(v, bool):
+                continue
+            opt = "--" + dest.replace("_", "-")
+            if isinstance(v, float) and not math.isfinite(v):  # an int: any size
+                raise UsageError(f"{opt} must be a finite number of {unit}, got {shown(v)}")
+            if hi is not None and not lo <= v <= hi:
+                raise UsageError(f"{opt} must be between {lo} and {hi} {unit}, got {shown(v)}")
+            if v < lo or (v == lo and not lo_ok):
+                raise UsageError(
+                    f"{opt} must be {'>=' if lo_ok else '>'} {lo} {unit}, got {shown(v)}"
+                )
 
 
 def _positive(args, *names: str) -> None:
@@ -109,13 +173,17 @@ def _geometry_parser(sub) -> None:
 def _raw_config(path: Path | None) -> dict:
     """The config mapping of ``--config``; without it, the source tree's config if there
     is one, else ``{}``. A ``--config`` that does not exist is an error."""
-    from .config import default_config_path, read_config_file
+    from .config import check_config, default_config_path, read_config_file
 
     if path is None:
         path = default_config_path()
         if not path.is_file():
             return {}
-    return read_config_file(path)
+    raw = read_config_file(path)
+    # the schema of every config (unknown keys, types, ranges, finite numbers) before
+    # any work; the mapping itself is returned as read
+    check_config(raw, whole=False)
+    return raw
 
 
 def _object_spec(args) -> tuple[str, dict] | None:
@@ -657,10 +725,11 @@ def _ingest_parser(sub) -> None:
 def _ingest_params(raw: dict):
     """Ingest's settings from a config mapping: the dataset's sizes and crop, the
     finger's base width (never ``lab:``)."""
+    from .config import section_params
     from .dataset.params import DatasetParams
     from .recording import IngestParams
 
-    d = DatasetParams.from_config(raw.get("dataset"))
+    d = section_params("dataset", DatasetParams.from_config, raw.get("dataset"))
     base = float((raw.get("finger") or {}).get("base_width_mm", 30.0))
     return IngestParams(
         sizes=d.sizes, crop_x_mm=d.crop_x_mm, crop_y_mm=d.crop_y_mm, base_width_mm=base
@@ -730,8 +799,14 @@ def _run_calibrate(args) -> int:
     from .sim2real.calibration import calibrate_takes
     from .sim2real.experiment import Sim2RealConfig
 
+    from .config import section_params
+
     raw = _raw_config(args.config)
-    c = Sim2RealConfig.from_params((raw.get("evaluate") or {}).get("sim2real") or {})
+    c = section_params(
+        "evaluate.sim2real",
+        Sim2RealConfig.from_params,
+        (raw.get("evaluate") or {}).get("sim2real") or {},
+    )
     if args.no_context is not None and not args.no_context.is_file():
         raise UsageError(f"--no-context: no file at {args.no_context}")
     if args.no_context is not None and not c.sim_replay_frames:
@@ -770,7 +845,7 @@ def _run_calibrate(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="finray",
         description="Force and stress of a soft Fin Ray finger from camera images, "
         "learned from finite-element simulations. Units: mm, N, MPa, deg.",
@@ -782,6 +857,10 @@ def build_parser() -> argparse.ArgumentParser:
     _predict_parser(sub)
     _ingest_parser(sub)
     _calibrate_parser(sub)
+    for p in sub.choices.values():  # every option that takes one value: once
+        for action in p._actions:
+            if type(action) is argparse._StoreAction and action.option_strings:
+                action.__class__ = _Once
     return parser
 
 
@@ -790,6 +869,7 @@ def main(argv: list[str] | None = None) -> int:
     (one line on stderr that names the subcommand)."""
     args = build_parser().parse_args(argv)
     try:
+        _check_numbers(args)
         return args.func(args)
     except (ConfigError, GeometryError) as exc:
         print(f"finray {args.command}: config error: {exc}", file=sys.stderr)

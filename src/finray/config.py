@@ -8,8 +8,10 @@ whose message is one line naming the key and the reason.
 from __future__ import annotations
 
 import copy
+import difflib
 import functools
 import json
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -50,7 +52,17 @@ def _schema_error_message(err: jsonschema.ValidationError) -> ConfigError:
         allowed = set(err.schema.get("properties", {}))
         extra = sorted(set(err.instance) - allowed)
         key = _key(path + extra[:1])
-        return ConfigError(key, f"unknown key (allowed here: {', '.join(sorted(allowed))})")
+        near = difflib.get_close_matches(str(extra[0]), sorted(allowed), n=1) if extra else []
+        if near:
+            return ConfigError(key, f"not a config key; did you mean '{near[0]}'?")
+        return ConfigError(key, f"not a config key (allowed here: {', '.join(sorted(allowed))})")
+    if "propertyNames" in err.relative_schema_path:  # a map's key: a name, often a path
+        return ConfigError(
+            _key(path),
+            f"{err.instance!r} is not a name (letters, digits, '_' and '-'"
+            + (f"; {err.message}" if err.validator != "pattern" else "")
+            + ")",
+        )
     if err.validator == "required":
         missing = err.message.split("'")[1] if "'" in err.message else err.message
         return ConfigError(_key(path + [missing]), "is required here")
@@ -59,20 +71,54 @@ def _schema_error_message(err: jsonschema.ValidationError) -> ConfigError:
     return ConfigError(_key(path), err.message)
 
 
-def validate_config(config: dict, base_dir: str | Path = ".") -> dict:
-    """Return a validated copy of ``config`` with defaults filled in.
+def _non_finite(value, path: tuple = ()) -> tuple | None:
+    """``(path, value)`` of the first float in ``value`` (a config, walked) that is NaN or
+    infinite; None where there is none. JSON schema's ``type: number`` takes NaN, and
+    NaN passes every ``minimum`` and ``maximum``."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return path, value
+    if isinstance(value, dict):
+        items = value.items()
+    elif isinstance(value, (list, tuple)):
+        items = enumerate(value)
+    else:
+        return None
+    for k, v in items:
+        found = _non_finite(v, path + (k,))
+        if found is not None:
+            return found
+    return None
 
-    Checks, in order: the JSON schema (types, units' ranges, unknown keys), the
-    references between sections, the finger geometry (ribs fit) and that every
-    object (the generated ones added, see ``generated``) can be placed at every
-    contact height. Relative polygon-file paths are resolved against ``base_dir``.
-    """
+
+def check_config(config: dict, whole: bool = True) -> dict:
+    """``config`` checked against the JSON schema (types, units' ranges, unknown keys,
+    with the nearest known key named), every number finite: a copy with the defaults
+    filled in, or a one-line :class:`ConfigError`. ``whole=False``: a part of a config,
+    as a subcommand reads (``finray ingest --config``), where no key is required."""
     cfg = copy.deepcopy(config) if config is not None else {}
-    validator = _Validator(load_schema())
+    found = _non_finite(cfg)
+    if found is not None:
+        raise ConfigError(_key(found[0]), f"must be a finite number, got {found[1]}")
+    schema = load_schema()
+    if not whole:
+        schema.pop("required", None)
+    validator = _Validator(schema)
     errors = sorted(validator.iter_errors(cfg), key=lambda e: (len(e.absolute_path), e.path))
     if errors:
         best = jsonschema.exceptions.best_match(errors)
         raise _schema_error_message(best)
+    return cfg
+
+
+def validate_config(config: dict, base_dir: str | Path = ".") -> dict:
+    """Return a validated copy of ``config`` with defaults filled in.
+
+    Checks, in order: the JSON schema and finite numbers (:func:`check_config`), the
+    references between sections, the finger geometry (ribs fit) and that every
+    object (the generated ones added, see ``generated``) can be placed at every
+    contact height. Relative polygon-file paths are resolved against ``base_dir``.
+    """
+    cfg = check_config(config)
     mats = cfg["materials"]
     if cfg["finger"]["material"] not in mats:
         raise ConfigError(
@@ -282,10 +328,24 @@ def _check_lab(cfg: dict, finger: FingerParams) -> None:
         raise ConfigError(exc.key, str(exc).split(": ", 1)[1]) from None
 
 
-def _check_stage_sections(cfg: dict) -> None:
-    """Cross-key checks of the render, dataset and train sections."""
+def section_params(section: str, build, value):
+    """``build(value)``, the parameters of config section ``section``; its cross-key
+    checks' ``ValueError`` or ``TypeError`` as a one-line :class:`ConfigError` naming
+    the key."""
     import re
 
+    try:
+        return build(value)
+    except (ValueError, TypeError) as exc:
+        if isinstance(exc, ConfigError):
+            raise
+        m = re.match(rf"({section}\.[A-Za-z_]+)[: ]+(.*)", str(exc))
+        key, msg = (m.group(1), m.group(2)) if m else (section, str(exc))
+        raise ConfigError(key, msg) from None
+
+
+def _check_stage_sections(cfg: dict) -> None:
+    """Cross-key checks of the render, dataset and train sections."""
     from .dataset.params import DatasetParams
     from .dataset.splits import pitch_object
     from .render.params import RenderParams
@@ -294,12 +354,7 @@ def _check_stage_sections(cfg: dict) -> None:
         ("render", RenderParams.from_config),
         ("dataset", DatasetParams.from_config),
     ):
-        try:
-            build(cfg[section])
-        except (ValueError, TypeError) as exc:
-            m = re.match(rf"({section}\.[A-Za-z_]+)[: ]+(.*)", str(exc))
-            key, msg = (m.group(1), m.group(2)) if m else (section, str(exc))
-            raise ConfigError(key, msg) from None
+        section_params(section, build, cfg[section])
     if cfg["dataset"].get("pitch_object"):  # a named one must exist (else: the first shape)
         try:
             pitch_object(cfg)

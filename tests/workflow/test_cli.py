@@ -197,7 +197,12 @@ def test_sizes_of_zero_or_below_are_refused(tmp_path, option, value):
         "--out",
         str(tmp_path / "out"),
     )
-    assert f"{option} must be > 0, got " in one_line_error(r, "finray simulate: ")
+    expected = (
+        f"{option} must be a finite number of mm, got nan"
+        if value == "nan"
+        else f"{option} must be > 0 mm, got {value}"
+    )
+    assert expected in one_line_error(r, "finray simulate: ")
     assert not (tmp_path / "out").exists()
 
 
@@ -257,7 +262,7 @@ def test_predict_refuses_zero_threads_and_an_out_that_is_a_file(tmp_path):
         "--out",
         str(tmp_path / "o"),
     )
-    assert "--threads must be > 0, got 0" in one_line_error(r, "finray predict: ")
+    assert "--threads must be between 1 and " in one_line_error(r, "finray predict: ")
     r = run(
         "predict",
         "--model",
@@ -325,7 +330,8 @@ def test_ctrl_c_during_simulate_is_one_line(tmp_path):
     out, rest = p.communicate(timeout=60)
     assert p.returncode == 130
     lines = [ln for ln in rest.strip().splitlines() if ln]
-    assert lines == ["finray simulate: interrupted"], rest
+    assert lines == ["finray simulate: interrupted; nothing written"], rest
+    assert not (tmp_path / "out").exists() and not list(tmp_path.glob("out.part-*"))
 
 
 def test_predict_help_examples_parse():

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
-from pathlib import Path
+from pathlib import Path, PurePath
 
 import numpy as np
 
@@ -95,8 +95,34 @@ def read_take_json(path: Path) -> dict:
     if err is not None:
         where = "/".join(str(p) for p in err.absolute_path) or "top level"
         raise TakeError(f"{path}: {where}: {err.message}")
+    bad = _non_finite(meta)  # JSON's NaN and Infinity pass the schema's numbers
+    if bad is not None:
+        raise TakeError(f"{path}: {bad[0]}: must be a finite number, got {bad[1]}")
+    video = meta.get("video")
+    if video is not None:
+        v = PurePath(video)
+        if v.is_absolute() or ".." in v.parts or not v.parts:
+            raise TakeError(f"{path}: video: {video!r} is not a file in the take's own folder")
     meta.setdefault("camera", {})
     return meta
+
+
+def _non_finite(value, where: str = "") -> tuple[str, float] | None:
+    """``(where, value)`` of the first NaN or infinite number in a JSON value, else None."""
+    if isinstance(value, float) and not np.isfinite(value):
+        return where or "top level", value
+    items = (
+        value.items()
+        if isinstance(value, dict)
+        else enumerate(value)
+        if isinstance(value, list)
+        else ()
+    )
+    for k, v in items:
+        found = _non_finite(v, f"{where}/{k}" if where else str(k))
+        if found is not None:
+            return found
+    return None
 
 
 def _times(values: np.ndarray, name: str) -> np.ndarray:

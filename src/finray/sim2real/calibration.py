@@ -338,7 +338,51 @@ def read_calibration(path: str | Path) -> dict:
     samples = cal.get("posterior", {}).get("samples") if isinstance(cal, dict) else None
     if not samples or np.asarray(samples).ndim != 2 or np.asarray(samples).shape[1] != len(PARAMS):
         raise CalibrationError(f"{path} has no posterior samples ({', '.join(PARAMS)})")
+    if not np.isfinite(np.asarray(samples, dtype=np.float64)).all():
+        raise CalibrationError(f"{path}: posterior samples that are not finite numbers")
+    level = cal.get("level", 0.9)
+    if isinstance(level, bool) or not isinstance(level, (int, float)) or not 0 < level < 1:
+        raise CalibrationError(
+            f"{path}: level must be a number in (0, 1) (the predictive interval's), got {level!r}"
+        )
+    if "model" in cal and not _in_folder(cal["model"]):
+        raise CalibrationError(
+            f"{path}: model {cal['model']!r} is not a file in the calibration's own folder"
+        )
     return cal
+
+
+def _in_folder(name) -> bool:
+    """Whether ``name`` (a calibration's ``model``) names a path inside the folder it is
+    relative to: not absolute, no ``..``, not the folder itself."""
+    from pathlib import PurePath
+
+    if not isinstance(name, str) or not name:
+        return False
+    p = PurePath(name)
+    return not p.is_absolute() and bool(p.parts) and ".." not in p.parts
+
+
+def take_folder_names(takes) -> list[str]:
+    """The names of the take folders (``<out>.ingest/<name>/`` of :func:`calibrate_takes`),
+    or a one-line :class:`CalibrationError`: a take whose path ends in ``.`` or ``..``
+    (no name of its own), or two takes of one name (the second would overwrite the
+    first's ingest)."""
+    names: dict[str, Path] = {}
+    for take in map(Path, takes):
+        name = take.name
+        if name in ("", ".", ".."):
+            raise CalibrationError(
+                f"take {take}: its path has no folder name of its own (give the folder, "
+                f"e.g. {take.resolve().name or take.resolve()})"
+            )
+        if name in names:
+            raise CalibrationError(
+                f"takes {names[name]} and {take} have the same folder name '{name}' "
+                "(each take is ingested into a folder of its name): rename one"
+            )
+        names[name] = take
+    return list(names)
 
 
 def corner_figure(calibration: dict, title: str = ""):
@@ -512,6 +556,7 @@ def calibrate_takes(
     from ..recording.ingest import check_take
     from ..train import load_checkpoint
 
+    take_folder_names(takes)  # each take's ingest folder its own, inside <out>.ingest/
     out_json = Path(out_json)
     model_path = Path(model_path)
     pt = model_path if model_path.suffix == ".pt" else model_path.with_suffix(".pt")
