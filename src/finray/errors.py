@@ -71,6 +71,12 @@ class InputError(BadInput):
     """Input that cannot be predicted (model, source or frame)."""
 
 
+class ModelError(InputError):
+    """A model file that cannot be used: not a model, one that would run code when
+    loaded, or one that does not match the settings beside it (another network's, or a
+    file changed since it was exported)."""
+
+
 class DeviceInputError(InputError, DeviceError):
     """A device this machine does not have (``device="cuda"`` without a GPU)."""
 

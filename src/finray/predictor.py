@@ -36,7 +36,7 @@ import numpy as np
 import torch
 
 from .dataset.imageops import EmptyMaskError, base_anchored_box, segment, silhouette_input
-from .errors import DeviceInputError, FrameError, InputError
+from .errors import DeviceInputError, FrameError, InputError, ModelError
 from .media import one_line
 from .precision import DeviceError, resolve_device
 from .recording.finder import FingerFinder
@@ -47,6 +47,30 @@ from .validity import Limits, check_frame, window_outside
 DEFAULT_STRESS_REF_MPA = 1e-3
 
 BACKENDS = ("auto", "onnx", "torchscript")
+
+
+def _check_meta(meta, meta_path: Path) -> None:
+    """Refuse, in one line, settings that are not a model's: the input size (``height``,
+    ``width``, one channel), the force names."""
+    if not isinstance(meta, dict):
+        raise ModelError(f"{meta_path} is not a model's settings (not a mapping)")
+    for k in ("height", "width"):
+        v = meta.get(k)
+        if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+            raise ModelError(
+                f"{meta_path} is not a model's settings ({k}: {v!r}, not a size in pixels)"
+            )
+    if meta.get("in_channels", 1) != 1:
+        raise ModelError(
+            f"{meta_path}: in_channels {meta['in_channels']!r}, not the 1 of a silhouette input"
+        )
+    forces = meta.get("forces")
+    if forces is not None and (
+        not isinstance(forces, list) or not forces or not all(isinstance(f, str) for f in forces)
+    ):
+        raise ModelError(f"{meta_path}: forces is not a list of output names")
+    if not isinstance(meta.get("preprocess", {}), dict):
+        raise ModelError(f"{meta_path}: preprocess is not a mapping")
 
 
 class Predictor:
@@ -104,6 +128,7 @@ class Predictor:
             raise InputError(
                 f"{meta_path} is not the model's JSON settings ({one_line(exc)})"
             ) from None
+        _check_meta(self.meta, meta_path)
         self.size = (self.meta["height"], self.meta["width"])
         #: Names of the force outputs, in order (``fx_N`` first; exports before the force
         #: vector had ``fx_N`` only).
@@ -157,6 +182,13 @@ class Predictor:
                 have = False
             backend = "onnx" if have else "torchscript"
         self.backend = backend
+        # the settings describe these files (their SHA-256), else a note (an old export)
+        from .train.export import check_sealed
+
+        roles = ("onnx", "onnx_force") if backend == "onnx" else ("torchscript",)
+        note = check_sealed(model_path, self.meta, roles)
+        if note is not None:
+            self.notes.append(note)
         if backend == "onnx":
             import onnxruntime as ort
 
@@ -205,6 +237,37 @@ class Predictor:
             self.has_contact = hasattr(self.model, "force_contact")
         #: The smallest |fx| (N) the contact height was trained on.
         self.contact_min_force_N = float(self.meta.get("contact_min_force_N") or 0.0)
+        self._check_network(model_path, meta_path)
+
+    def _check_network(self, model_path: Path, meta_path: Path) -> None:
+        """Run the network once on a blank input of the settings' size: its outputs must
+        have the shapes they describe (a map of that size, one force per name), else a
+        one-line :class:`ModelError` (settings of another network)."""
+        h, w = self.size
+        x = np.zeros((1, 1, h, w), np.float32)
+        try:
+            stress, force, contact = self.run_contact(x)
+            force_only, contact_only = self.run_force_contact(x)
+        except Exception as exc:  # torch's, ONNX Runtime's own error types
+            raise ModelError(
+                f"{model_path} does not run on the input that {meta_path.name} describes "
+                f"({h}x{w}): another network's settings? ({one_line(exc)})"
+            ) from None
+        n = len(self.force_names)
+        want = {
+            "stress map": ((1, 1, h, w), np.shape(stress)),
+            "forces": ((1, n), np.shape(force)),
+            "forces (force path)": ((1, n), np.shape(force_only)),
+            "contact height": ((1,), np.shape(contact)),
+            "contact height (force path)": ((1,), np.shape(contact_only)),
+        }
+        for what, (shape, got) in want.items():
+            if tuple(got) != shape:
+                raise ModelError(
+                    f"{model_path}'s {what} has shape {tuple(got)}, not the {shape} that "
+                    f"{meta_path.name} describes: the settings of another network; put "
+                    "the model's own settings beside it"
+                )
 
     def crop_box(self, mask: np.ndarray) -> tuple[float, float, float, float]:
         """Training window in pixel edges ``(col0, row0, col1, row1)`` from the mask

@@ -2,6 +2,7 @@
 predict` on a render and on a never-seen image (other size, plain background)."""
 
 import csv
+import json
 
 import numpy as np
 import pytest
@@ -273,21 +274,16 @@ def test_cli_predict_bad_input_is_one_line(exported, render_png, tmp_path, capsy
     bad_ts = tmp_path / "bad.ts"
     bad_ts.write_bytes(b"not a model")
     (tmp_path / "bad.ts.json").write_text((d / "model.ts.json").read_text())
-    assert (
-        main(
-            [
-                "predict",
-                "--model",
-                str(bad_ts),
-                str(render_png),
-                "--out",
-                out,
-                "--backend",
-                "torchscript",
-            ]
-        )
-        == 2
+    bad = ["predict", "--model", str(bad_ts), str(render_png), "--out", out]
+    assert main([*bad, "--backend", "torchscript"]) == 2
+    assert "bad.ts is not the model that bad.ts.json describes (its SHA-256 differs" in (
+        one_line_error(capsys, "finray predict: ")
     )
+    # settings without the hashes (an old export): the file itself is refused
+    meta = json.loads((d / "model.ts.json").read_text())
+    del meta["sha256"]
+    (tmp_path / "bad.ts.json").write_text(json.dumps(meta))
+    assert main([*bad, "--backend", "torchscript"]) == 2
     assert "bad.ts is not a TorchScript model" in one_line_error(capsys, "finray predict: ")
     assert not (tmp_path / "out").exists()  # every refusal above left nothing behind
 

@@ -5,12 +5,13 @@ The ranks are defined here once. A module may import finray modules of its own r
 or lower. The top-level modules that are not stages get the rank of what they import:
 
 - ``errors``, ``logs``, ``precision``, ``paper_reference``, ``media``, ``annotate``,
-  ``lazy``, ``schema``, ``numba_cache``: import nothing of finray but ``errors``; shared
+  ``lazy``, ``schema``, ``numba_cache``, ``outputs``: import nothing of finray but
+  ``errors``; shared
   helpers (rank 0; ``errors`` holds the package's exceptions, ``media`` reads camera
   frames for predict and recording, ``annotate`` draws predict's output over them,
   ``lazy`` loads a package's names on first use, ``schema`` reads the config schema's
   defaults for every stage's settings, ``numba_cache`` points Numba's cache away from
-  the source tree).
+  the source tree; ``outputs``, where every command's outputs go).
 - ``config``: validates every section, so it imports geometry (shapes), render and
   dataset (their parameters): above dataset, below train. No stage below it may
   import it (the FEA studies do, from ``benchmarks``).
@@ -48,6 +49,7 @@ RANK = {
     "lazy": 0,
     "schema": 0,
     "numba_cache": 0,
+    "outputs": 0,
     "geometry": 10,
     "fea": 20,
     "render": 30,

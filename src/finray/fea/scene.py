@@ -238,6 +238,7 @@ def run_scene(
     scene: dict | None = None,
     vtu: bool = True,
     failure_report: str | Path | None = None,
+    shown_dir: str | Path | None = None,
 ) -> dict:
     """Simulate one scene and write its files.
 
@@ -247,7 +248,9 @@ def run_scene(
     the frames that converged before it to ``partial_forces.csv`` (in ``outdir`` and
     beside the report, ``<report>.partial_forces.csv``), then raises
     :class:`SimulationError` with a one-line message naming the scene.
-    A successful run removes a stale ``failure_report``.
+    A successful run removes a stale ``failure_report``. ``shown_dir``: where
+    ``outdir``'s files will be once moved into place (``finray simulate`` writes under a
+    temporary name), the folder that the report and the message name.
     """
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
@@ -290,8 +293,11 @@ def run_scene(
                     comments="",
                     fmt="%.8g",
                 )
-            report["partial_forces"] = str(paths[-1])
-            msg = report["error"] = f"{msg}; the {n} frames that converged are in {paths[-1]}"
+            shown = paths[-1]
+            if failure_report is None and shown_dir is not None:
+                shown = Path(shown_dir) / shown.name
+            report["partial_forces"] = str(shown)
+            msg = report["error"] = f"{msg}; the {n} frames that converged are in {shown}"
         text = json.dumps(report, indent=2)
         (outdir / "summary.json").write_text(text)
         if failure_report is not None:

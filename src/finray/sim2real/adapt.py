@@ -123,7 +123,7 @@ class SimAnchor:
         fitted beside each fit's context frames; None where ``frames`` is 0."""
         if frames <= 0:
             return None
-        saved = torch.load(path, weights_only=True)
+        saved = check_no_context(model, path)
         if "anchor" not in saved:
             raise CalibrationError(
                 f"{path}: no simulated frames (written before sim_replay_frames); "
@@ -274,6 +274,28 @@ def _member_tail(tail: nn.Sequential, ops: list, m: int) -> nn.Sequential:
     return tail
 
 
+def check_no_context(model: FinRayNet, path) -> dict:
+    """The mapping of a no-context file (:func:`finray.sim2real.experiment.save_no_context`),
+    checked: tensors and plain data only (:func:`finray.train.export.load_plain`), heads
+    that fit ``model``; else a one-line :class:`~finray.errors.BadInput`."""
+    from ..train.export import load_plain
+
+    what = "a no-context fit (no_context.pt)"
+    saved = load_plain(path, what)
+    heads = saved.get("heads")
+    if not isinstance(heads, (list, tuple)) or not heads:
+        raise CalibrationError(f"{path} is not {what} (no heads)")
+    try:
+        for state in heads:
+            head_from_state(model, state)
+    except (TypeError, KeyError, ValueError, RuntimeError, AttributeError) as exc:
+        first = (str(exc).strip().splitlines() or [""])[0]
+        raise CalibrationError(
+            f"{path}: its heads are not of this model's encoder ({type(exc).__name__}: {first})"
+        ) from None
+    return saved
+
+
 def head_from_state(model: FinRayNet, state: dict, component: int = 0) -> nn.Module:
     """A head :func:`fit_heads` fitted on ``model``, from its ``state_dict``."""
     head = _single_output(model.force_head, component).eval()
@@ -363,3 +385,6 @@ def export_ensemble(
             indent=1,
         )
     )
+    from ..train.export import seal
+
+    seal(path)

@@ -248,9 +248,9 @@ def save_no_context(result: dict, path) -> None:
 def load_no_context(model, path) -> tuple[list, dict, dict]:
     """The no-context heads on ``model`` (as :func:`finray.sim2real.adapt.fit_heads` returns them),
     their calibration and the simulated test's check, from :func:`save_no_context`'s file."""
-    import torch
+    from ..train.export import load_plain
 
-    saved = torch.load(path, weights_only=True)
+    saved = load_plain(path, "a no-context fit (no_context.pt)")
     info = json.loads(saved["info"])
     return (
         [head_from_state(model, state) for state in saved["heads"]],

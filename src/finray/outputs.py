@@ -1,0 +1,231 @@
+"""Where a ``finray`` command's outputs go: one policy for every subcommand.
+
+- A used ``--out`` (a folder that holds files, a file) is refused in one line unless
+  ``--overwrite``; an empty folder is not used.
+- The outputs are written under a temporary name beside ``--out``
+  (``<out>.part-<pid>``) and moved into place (:func:`os.replace`) only when complete;
+  with ``--overwrite`` the earlier outputs are replaced only then, so a run that fails
+  or is stopped leaves them as they were.
+- A run that fails, or that SIGINT (Ctrl-C) or SIGTERM stops at any moment, removes its
+  temporary folder: ``--out`` holds the complete outputs or none.
+
+:class:`Staged` is the policy; :func:`catch_signals` makes SIGTERM stop a run as Ctrl-C
+does (:class:`Terminated`, a :class:`KeyboardInterrupt`) and :func:`held` keeps a signal
+from cutting the moving into place or the clean-up short (it is raised after).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import signal
+import threading
+from pathlib import Path
+
+from .errors import UsageError
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised in the main thread while :func:`catch_signals` is on."""
+
+
+class _Signals:
+    """What :func:`catch_signals` saw: ``signum``, the first signal caught (None: none);
+    ``pending``, one that came while :func:`held`."""
+
+    def __init__(self):
+        self.signum: int | None = None
+        self.pending: int | None = None
+        self.hold = 0
+
+    def handler(self, signum, frame):
+        self.signum = self.signum or signum
+        if self.hold:
+            self.pending = signum
+            return
+        raise _exception(signum)
+
+
+def _exception(signum: int) -> KeyboardInterrupt:
+    return Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
+
+
+_SIGNALS = _Signals()
+#: the outputs moved into place by this process (:meth:`Staged.commit`)
+COMMITTED: list[Path] = []
+
+
+@contextlib.contextmanager
+def catch_signals():
+    """SIGINT raises :class:`KeyboardInterrupt`, SIGTERM :class:`Terminated` in the main
+    thread (where the process does not ignore them); yields the record (``signum``: the
+    signal caught, else None). The earlier handlers come back after."""
+    global _SIGNALS
+    _SIGNALS = record = _Signals()
+    old = {}
+    if threading.current_thread() is threading.main_thread():
+        for s in (signal.SIGINT, signal.SIGTERM):
+            if signal.getsignal(s) is not signal.SIG_IGN:  # nohup, a background job
+                old[s] = signal.signal(s, record.handler)
+    try:
+        yield record
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+
+
+@contextlib.contextmanager
+def held():
+    """A signal that comes in this block is raised at its end (not inside it)."""
+    record = _SIGNALS
+    record.hold += 1
+    try:
+        yield
+    finally:
+        record.hold -= 1
+    if not record.hold and record.pending is not None:
+        signum, record.pending = record.pending, None
+        raise _exception(signum)
+
+
+def _listing(files: list[str]) -> str:
+    return f"{len(files)}: {', '.join(files[:2])}{', ...' if len(files) > 2 else ''}"
+
+
+class Staged:
+    """The outputs of one run at ``out``, written under :attr:`tmp` (``<out>.part-<pid>``)
+    and moved into place by :meth:`commit`.
+
+    ``kind="folder"``: ``out`` is a folder; write into :attr:`path` (the temporary
+    folder). ``kind="file"``: ``out`` is a file, written at :attr:`path` (in the
+    temporary folder, under its own name) with its companions beside it, whose names
+    start with ``siblings`` (e.g. ``calibration.`` for ``calibration.model.ts``); each
+    entry of the temporary folder goes beside ``out``.
+
+    :meth:`open` refuses, in one line (:class:`UsageError`), a folder ``out`` that is a
+    file, a file ``out`` that is a folder, and without ``overwrite`` a used one (a
+    folder that holds files; a file, or one of its companions, that exists). Used as a
+    context manager, it commits at the end of the block, also on an exception of a type
+    in ``keep`` (a failure whose report is the output), and discards on any other."""
+
+    def __init__(
+        self,
+        out: str | Path,
+        overwrite: bool = False,
+        kind: str = "folder",
+        siblings: tuple[str, ...] = (),
+        option: str = "--out",
+        keep: tuple[type[BaseException], ...] = (),
+    ):
+        if kind not in ("folder", "file"):
+            raise ValueError(f"kind must be 'folder' or 'file', not {kind!r}")
+        self.out, self.overwrite, self.kind = Path(out), bool(overwrite), kind
+        self.siblings, self.option, self.keep = tuple(siblings), option, tuple(keep)
+        self.tmp = self.out.parent / f"{self.out.name}.part-{os.getpid()}"
+        self.path = self.tmp if kind == "folder" else self.tmp / self.out.name
+        self._made: Path | None = None  # the first folder above out made here
+
+    def _used(self) -> list[str]:
+        """The names that make ``out`` used (empty: free)."""
+        out = self.out
+        if self.kind == "folder":
+            if out.is_dir():
+                return sorted(p.name for p in out.iterdir())
+            return [out.name] if out.exists() or out.is_symlink() else []
+        used = [out.name] if out.exists() else []
+        if self.siblings and out.parent.is_dir():
+            used += sorted(
+                p.name
+                for p in out.parent.iterdir()
+                if p.name != out.name
+                and p.name.startswith(self.siblings)
+                and ".part-" not in p.name
+            )
+        return used
+
+    def check(self) -> None:
+        """Refuse an ``out`` of the wrong kind, or a used one without ``overwrite``."""
+        out, opt = self.out, self.option
+        if self.kind == "folder" and out.exists() and not out.is_dir():
+            raise UsageError(f"{opt} {out} is a file, not a folder")
+        if self.kind == "file" and out.is_dir():
+            raise UsageError(f"{opt} {out} is a folder, not a file")
+        used = self._used()
+        if used and not self.overwrite:
+            what = (
+                f"holds another run's results ({_listing(used)})"
+                if self.kind == "folder"
+                else f"exists ({_listing(used)})"
+            )
+            raise UsageError(f"{opt} {out} {what}; give --overwrite to replace, or another {opt}")
+
+    def open(self) -> Path:
+        """Check, make the temporary folder (and the folders above ``out``); returns
+        :attr:`path`, where the run writes."""
+        self.check()
+        missing = [p for p in [self.out.parent, *self.out.parent.parents] if not p.exists()]
+        try:
+            with held():
+                self.out.parent.mkdir(parents=True, exist_ok=True)
+                self._made = missing[-1] if missing else None
+                shutil.rmtree(self.tmp, ignore_errors=True)  # an earlier process's pid
+                self.tmp.mkdir()
+        except OSError as exc:
+            raise UsageError(
+                f"{self.option} {self.out} cannot be created ({exc.strerror or exc})"
+            ) from None
+        return self.path
+
+    def shown(self, text: str) -> str:
+        """``text`` with the temporary folder's paths as they are once in place."""
+        if self.kind == "folder":
+            return text.replace(str(self.tmp), str(self.out))
+        return text.replace(str(self.tmp) + os.sep, str(self.out.parent) + os.sep)
+
+    def commit(self) -> None:
+        """Move the complete outputs into place (the earlier ones, if any, replaced)."""
+        with held():
+            if self.kind == "folder":
+                _replace(self.tmp, self.out)
+            else:
+                for entry in sorted(self.tmp.iterdir()):
+                    _replace(entry, self.out.parent / entry.name)
+                self.tmp.rmdir()
+            COMMITTED.append(self.out)
+
+    def discard(self) -> None:
+        """Remove the temporary folder (and the folders made above ``out``, if empty)."""
+        with held():
+            shutil.rmtree(self.tmp, ignore_errors=True)
+            if self._made is not None:
+                for p in [self.out.parent, *self.out.parent.parents]:
+                    try:
+                        p.rmdir()
+                    except OSError:
+                        break
+                    if p == self._made:
+                        break
+
+    def __enter__(self) -> Staged:
+        self.open()
+        return self
+
+    def __exit__(self, kind, exc, tb) -> bool:
+        if exc is None or isinstance(exc, self.keep):
+            self.commit()
+        else:
+            self.discard()
+        return False
+
+
+def _replace(src: Path, dest: Path) -> None:
+    """``src`` at ``dest``; an earlier folder there is moved aside first, removed after."""
+    if dest.is_dir() and not dest.is_symlink():
+        old = dest.with_name(f"{dest.name}.old-{os.getpid()}")
+        shutil.rmtree(old, ignore_errors=True)
+        dest.rename(old)
+        src.rename(dest)
+        shutil.rmtree(old, ignore_errors=True)
+    else:
+        os.replace(src, dest)
