@@ -98,6 +98,23 @@ def _out_dir(path: Path) -> Path:
     return path
 
 
+def _add_overwrite(p, what: str = "an earlier run's outputs in --out") -> None:
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help=f"replace {what}, once the new ones are complete (refused without it)",
+    )
+
+
+def _staged(args, **kw):
+    """The run's outputs at ``--out`` under one policy (:class:`finray.outputs.Staged`):
+    written beside it under a temporary name, moved into place when complete; a used
+    ``--out`` refused without ``--overwrite``."""
+    from .outputs import Staged
+
+    return Staged(args.out, getattr(args, "overwrite", False), **kw)
+
+
 GEOMETRY_HELP = """\
 Build the finger mesh and place objects at contact heights.
 
@@ -167,6 +184,7 @@ def _geometry_parser(sub) -> None:
         "--deformable", action="store_true", help="mesh the object (default: rigid, boundary only)"
     )
     p.add_argument("--plot", action="store_true", help="also draw a PNG of each scene")
+    _add_overwrite(p)
     p.set_defaults(func=_run_geometry)
 
 
@@ -226,9 +244,6 @@ def _word(value: float) -> str:
 
 def _run_geometry(args) -> int:
     from .config import validate_config
-    from .geometry.build import build_finger, build_object
-    from .geometry.gallery import gallery, scene_figure
-    from .geometry.mesh import TriMesh
 
     raw = _raw_config(args.config)
     one = _object_spec(args)
@@ -241,10 +256,20 @@ def _run_geometry(args) -> int:
     if not raw.get("objects"):
         raise UsageError("no config found; give --config or --object")
     cfg = validate_config(raw, base_dir=Path.cwd())
-    out = _out_dir(args.out)
+    with _staged(args) as st:
+        _geometry(args, cfg, one, st.path, lambda m: print(st.shown(m)))
+    return 0
+
+
+def _geometry(args, cfg: dict, one, out: Path, say) -> None:
+    """``finray geometry``'s files into ``out``; ``say``: a progress line."""
+    from .geometry.build import build_finger, build_object
+    from .geometry.gallery import gallery, scene_figure
+    from .geometry.mesh import TriMesh
+
     summary = build_finger(cfg, out)
     q = summary["quality"]
-    print(
+    say(
         f"finger: {q['n_triangles']} P{q['order']} triangles, {q['n_nodes']} nodes, "
         f"min angle {q['min_angle_deg']:.1f} deg -> {out / 'finger.npz'}"
     )
@@ -259,7 +284,7 @@ def _run_geometry(args) -> int:
             obj = build_object(cfg, name, h, f, deformable)
             placed.setdefault(name, []).append(obj)
             ref = obj.meta["reference_point_mm"]
-            print(f"{name} at {h:g} mm: reference point ({ref[0]:.3f}, {ref[1]:.3f}) mm -> {f}")
+            say(f"{name} at {h:g} mm: reference point ({ref[0]:.3f}, {ref[1]:.3f}) mm -> {f}")
             if args.plot:
                 scene_figure(finger, obj, f.with_suffix(".png"))
     if one is None:
@@ -270,8 +295,7 @@ def _run_geometry(args) -> int:
             out / "gallery.png",
             {n: s["split"] for n, s in cfg["objects"].items()},
         )
-        print(f"gallery -> {out / 'gallery.pdf'}")
-    return 0
+        say(f"gallery -> {out / 'gallery.pdf'}")
 
 
 SIMULATE_HELP = """\
@@ -316,6 +340,7 @@ def _simulate_parser(sub) -> None:
     )
     p.add_argument("--mesh-size-mm", type=float, help="element edge length of the finger (mm)")
     p.add_argument("--no-vtu", action="store_true", help="skip the ParaView series")
+    _add_overwrite(p)
     p.set_defaults(func=_run_simulate)
 
 
@@ -324,6 +349,7 @@ def _run_simulate(args) -> int:
     import logging
 
     from .config import object_is_meshed, validate_config
+    from .errors import SimulationError
     from .fea.scene import run_scene
     from .geometry.build import finger_from_config
     from .geometry.finger import mesh_finger
@@ -347,7 +373,9 @@ def _run_simulate(args) -> int:
     if args.mesh_size_mm is not None:
         raw.setdefault("mesh", {})["size_mm"] = args.mesh_size_mm
     cfg = validate_config(raw, base_dir=Path.cwd())
-    _out_dir(args.out)
+    # a failed solve's report (summary.json, partial_forces.csv) is its output
+    staged = _staged(args, keep=(SimulationError,))
+    staged.check()  # before the meshing
     m = cfg["mesh"]
     finger = mesh_finger(
         finger_from_config(cfg), m["size_mm"], m["min_angle_deg"], m["order"], m["arc_chord_mm"]
@@ -374,7 +402,17 @@ def _run_simulate(args) -> int:
     logger.addHandler(progress)
     logger.setLevel(logging.INFO)
     try:
-        out = run_scene(cfg, finger, obj, args.material, args.out, scene, vtu=not args.no_vtu)
+        with staged:
+            out = run_scene(
+                cfg,
+                finger,
+                obj,
+                args.material,
+                staged.path,
+                scene,
+                vtu=not args.no_vtu,
+                shown_dir=args.out,
+            )
     finally:  # a SimulationError: main's exit code 1
         logger.removeHandler(progress)
         logger.setLevel(level)
@@ -481,11 +519,7 @@ def _predict_parser(sub) -> None:
         help="no per-frame stress map files (a long video or a stream; "
         "--annotate still draws the maps)",
     )
-    p.add_argument(
-        "--overwrite",
-        action="store_true",
-        help="replace an earlier run's forces.csv and stress maps in --out (refused without it)",
-    )
+    _add_overwrite(p)
     p.add_argument(
         "--annotate",
         action="store_true",
@@ -559,14 +593,9 @@ def _calibrated_line(row: dict) -> str:
 
 def _run_predict(args) -> int:
     _positive(args, "threads")
-    created = not args.out.exists()
-    _out_dir(args.out)
-    try:
+    with _staged(args) as staged:
+        args.into = staged.path  # where the run writes; --out once complete
         return _predict(args)
-    except BaseException:
-        if created and args.out.is_dir() and not any(args.out.iterdir()):
-            args.out.rmdir()  # nothing left behind by a run that wrote nothing
-        raise
 
 
 def _predict(args) -> int:
@@ -608,7 +637,7 @@ def _predict(args) -> int:
     out = predict_files(
         args.model,
         args.source,
-        args.out,
+        args.into,
         args.threads,
         args.backend,
         args.force_only,
@@ -618,7 +647,6 @@ def _predict(args) -> int:
             f"finray predict: skipped {msg}", file=sys.stderr, flush=True
         ),
         device=args.device,
-        overwrite=args.overwrite,
         annotate=args.annotate,
         maps=args.maps,
         on_annotated=window.show if window else None,
@@ -664,7 +692,7 @@ def _check(args, cal) -> int:
     rep = check_setup(
         args.model,
         args.source,
-        args.out,
+        args.into,
         args.check,
         args.segmentation,
         args.finger_colour,
@@ -719,6 +747,7 @@ def _ingest_parser(sub) -> None:
         help="YAML config whose dataset sizes and crop (mm) and finger base width "
         "(mm) to use (default: config/config.yaml of the source tree)",
     )
+    _add_overwrite(p)
     p.set_defaults(func=_run_ingest)
 
 
@@ -740,7 +769,8 @@ def _run_ingest(args) -> int:
     from .recording import ingest
 
     params = _ingest_params(_raw_config(args.config))
-    ingest(args.take, args.out, params, log=lambda m: print(m, flush=True))
+    with _staged(args) as st:
+        ingest(args.take, st.path, params, log=lambda m: print(st.shown(m), flush=True))
     return 0
 
 
@@ -792,6 +822,7 @@ def _calibrate_parser(sub) -> None:
         help="YAML config (dataset crop, finger base width, evaluate.sim2real; "
         "default: config/config.yaml of the source tree)",
     )
+    _add_overwrite(p, "an earlier calibration at --out (and its <out>.* files)")
     p.set_defaults(func=_run_calibrate)
 
 
@@ -815,20 +846,23 @@ def _run_calibrate(args) -> int:
             "on the takes alone",
             flush=True,
         )
-    cal = calibrate_takes(
-        args.takes,
-        args.model,
-        args.out,
-        _ingest_params(raw),
-        c.heads,
-        c.folds,
-        c.priors,
-        c.sampler,
-        c.level,
-        log=lambda m: print(m, flush=True),
-        no_context=args.no_context,
-        replay_frames=c.sim_replay_frames,
-    )
+    # calibration.json and its companions <stem>.model.ts(.json), .corner.png, .ingest/
+    staged = _staged(args, kind="file", siblings=(f"{args.out.with_suffix('').name}.",))
+    with staged:
+        cal = calibrate_takes(
+            args.takes,
+            args.model,
+            staged.path,
+            _ingest_params(raw),
+            c.heads,
+            c.folds,
+            c.priors,
+            c.sampler,
+            c.level,
+            log=lambda m: print(staged.shown(m), flush=True),
+            no_context=args.no_context,
+            replay_frames=c.sim_replay_frames,
+        )
     sm, dg = cal["summary"], cal["diagnostics"]
     for k in ("gain", "offset_N", "sigma_N", "rho", "kappa", "nu"):
         if k in cal.get("fixed", {}):  # held (prior sd 0): the heads are fitted to the sensor
@@ -864,10 +898,44 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _interrupted(command: str, signum: int, committed: list) -> int:
+    """The line of a run stopped by SIGINT (Ctrl-C) or SIGTERM; its exit code (128 + the
+    signal's number: 130, 143). The outputs are complete or absent
+    (:mod:`finray.outputs`); ``committed``: the ones moved into place before it came."""
+    import signal
+
+    what = "terminated" if signum == signal.SIGTERM else "interrupted"
+    where = f"the outputs were complete: {', '.join(map(str, committed))}"
+    print(
+        f"finray {command}: {what}; {where if committed else 'nothing written'}",
+        file=sys.stderr,
+    )
+    return 128 + signum
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run a subcommand: 0 done, 1 failed part way (solver, skipped frames), 2 bad input
-    (one line on stderr that names the subcommand)."""
+    (one line on stderr that names the subcommand); 130 and 143 stopped by SIGINT
+    (Ctrl-C) and SIGTERM, with the outputs complete or none (:mod:`finray.outputs`)."""
     args = build_parser().parse_args(argv)
+    from .outputs import COMMITTED, Terminated, catch_signals
+
+    n_committed = len(COMMITTED)
+    with catch_signals() as caught:
+        try:
+            return _main(args)
+        except KeyboardInterrupt as exc:
+            signum = 15 if isinstance(exc, Terminated) else 2
+            return _interrupted(args.command, signum, COMMITTED[n_committed:])
+        except BaseException:
+            if caught.signum is None:
+                raise
+            # an error that the signal caused (an import cut short: ImportError)
+            return _interrupted(args.command, caught.signum, COMMITTED[n_committed:])
+
+
+def _main(args) -> int:
+    """:func:`main` once the signals are caught."""
     try:
         _check_numbers(args)
         return args.func(args)
@@ -880,9 +948,6 @@ def main(argv: list[str] | None = None) -> int:
     except FinrayError as exc:  # failed part way (an FEA scene: SimulationError)
         print(f"finray {args.command}: {exc}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
-        print(f"finray {args.command}: interrupted", file=sys.stderr)
-        return 130
 
 
 if __name__ == "__main__":

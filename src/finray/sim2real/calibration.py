@@ -555,6 +555,7 @@ def calibrate_takes(
     from ..recording import ingest
     from ..recording.ingest import check_take
     from ..train import load_checkpoint
+    from ..train.export import check_sealed, check_settings
 
     take_folder_names(takes)  # each take's ingest folder its own, inside <out>.ingest/
     out_json = Path(out_json)
@@ -566,8 +567,24 @@ def calibrate_takes(
             f"{model_path}: need the trained model's model.pt and "
             "model.ts.json side by side (results/train/<model>/)"
         )
+    # the model proves what it is before any take is ingested
     model, _ = load_checkpoint(pt)
-    meta = json.loads(ts_meta.read_text())
+    try:
+        meta = json.loads(ts_meta.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise CalibrationError(
+            f"{ts_meta} is not the model's JSON settings ({type(exc).__name__}: {exc})"
+        ) from None
+    if not isinstance(meta, dict):
+        raise CalibrationError(f"{ts_meta} is not the model's JSON settings (not a mapping)")
+    check_settings(meta, model, ts_meta.name)
+    note = check_sealed(pt.with_suffix(".ts"), meta, ("checkpoint",))
+    if note is not None:
+        log(f"note: {note}")
+    if no_context is not None:
+        from .adapt import check_no_context
+
+        check_no_context(model, no_context)
     stem = out_json.with_suffix("")
     for take in map(Path, takes):  # every take checked before any is ingested (~25 s each)
         check_take(take)
