@@ -317,3 +317,31 @@ def test_a_config_file_given_to_a_command_is_not_changed(tmp_path):
     check_config(raw, whole=False)
     assert raw == {"dataset": {"crop_x_mm": [-5.0, 35.0]}}
     assert yaml.safe_dump(raw)
+
+
+def test_every_mapping_of_the_schema_is_closed_or_its_keys_are_names():
+    """Each mapping of the config schema refuses unknown keys (additionalProperties:
+    false), or, where its keys are free (objects, materials, train.models, ...), takes
+    names only: a key that becomes a folder or a file name cannot be a path."""
+    from finray.schema import load_schema
+
+    def walk(node, where):
+        if isinstance(node, list):
+            for i, n in enumerate(node):
+                yield from walk(n, f"{where}[{i}]")
+            return
+        if not isinstance(node, dict):
+            return
+        kind = node.get("type")
+        if kind == "object" or (isinstance(kind, list) and "object" in kind):
+            yield where, node
+        for k, v in node.items():
+            if k not in ("default", "if"):
+                yield from walk(v, f"{where}/{k}")
+
+    open_maps = []
+    for where, node in walk(load_schema(), ""):
+        extra = node.get("additionalProperties")
+        if extra is None or (extra is not False and "propertyNames" not in node):
+            open_maps.append(where)
+    assert not open_maps, open_maps
