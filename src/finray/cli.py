@@ -86,18 +86,6 @@ def _positive(args, *names: str) -> None:
             raise UsageError(f"--{n.replace('_', '-')} must be > 0, got {v:g}")
 
 
-def _out_dir(path: Path) -> Path:
-    """``--out`` as a folder, created here: a file of that name, or a folder that cannot
-    be created, is a one-line error before any work."""
-    if path.exists() and not path.is_dir():
-        raise UsageError(f"--out {path} is a file, not a folder")
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UsageError(f"--out {path} cannot be created ({exc.strerror or exc})") from None
-    return path
-
-
 def _add_overwrite(p, what: str = "an earlier run's outputs in --out") -> None:
     p.add_argument(
         "--overwrite",

@@ -87,18 +87,34 @@ def video_info(path: str | Path) -> VideoInfo:
                 raise MediaError(f"{path} has no video stream")
             s = c.streams.video[0]
             rate = float(s.average_rate or s.guessed_rate or 0)
-            n = int(s.frames or 0)
-            if not n and s.duration and rate:
-                n = int(round(float(s.duration * s.time_base) * rate))
+            n = _frame_count(c, s, rate)
     except (av.FFmpegError, OSError) as exc:
         raise MediaError(f"{path} is not a readable video ({one_line(exc)})") from None
     return VideoInfo(rate, n)
 
 
+def _frame_count(container, stream, rate: float) -> int:
+    """The frames a video's stream should hold: as the container counts them, else (a
+    Matroska or WebM file counts none) its duration times the frame rate: the stream's
+    duration, else the container's where the video is its only stream (an audio track
+    may run longer); 0 where unknown."""
+    import av
+
+    n = int(stream.frames or 0)
+    if n or not rate:
+        return n
+    if stream.duration and stream.time_base:
+        return int(round(float(stream.duration * stream.time_base) * rate))
+    if container.duration and len(container.streams) == 1:
+        return int(round(container.duration / av.time_base * rate))
+    return 0
+
+
 def video_frames(path: str | Path, threads: bool = False):
     """Every :class:`Frame` of a video's first stream, lazily, RGB (H, W, 3) uint8.
     Opening it raises :class:`MediaError` here (not readable, no video stream). The
-    frames come in the decoder's order; the frames the container counts that never came
+    frames come in the decoder's order; the frames the container counts (or its duration
+    holds at the frame rate, where it counts none: Matroska, WebM) that never came
     out of it (a packet that does not decode, or a frame that depends on a lost one)
     come after them as error frames, each with its rank and time; without time stamps
     or a frame rate, a packet that does not decode gives an error frame where it fails.
@@ -119,6 +135,7 @@ def video_frames(path: str | Path, threads: bool = False):
         stream.thread_type = "AUTO"
     rate = float(stream.average_rate or stream.guessed_rate or 0)
     start = stream.start_time or 0
+    expected = _frame_count(container, stream, rate)
 
     def stamp(pts, time_base):
         if pts is None or not time_base:
@@ -161,7 +178,8 @@ def video_frames(path: str | Path, threads: bool = False):
                     yield Frame(k, t, r, fr.to_ndarray(format="rgb24"))
                     k += 1
         if rate and None not in ranks:
-            for r in range(int(stream.frames or 0)):
+            # the frames the container holds (a truncated Matroska file: its duration's)
+            for r in range(expected):
                 if r not in ranks:
                     yield Frame(
                         k,
@@ -170,7 +188,9 @@ def video_frames(path: str | Path, threads: bool = False):
                         None,
                         why.pop(0)
                         if why
-                        else "the frame was not decoded (a frame it depends on was lost)",
+                        else "the frame was not decoded (a frame it depends on was lost)"
+                        if ranks and r < max(ranks)
+                        else "the frame is missing: the video ends before it (cut short?)",
                     )
                     k += 1
 

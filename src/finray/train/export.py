@@ -67,7 +67,12 @@ def load_plain(path: str | Path, what: str = "a finray model checkpoint") -> dic
         raise ModelError(f"no file at {path} ({what})")
     try:
         saved = torch.load(path, map_location="cpu", weights_only=True)
-    except pickle.UnpicklingError:
+    except pickle.UnpicklingError as exc:
+        text = str(exc)
+        if "Unsupported global" not in text and "GLOBAL" not in text:  # not a pickle at all
+            why = [ln.strip() for ln in text.splitlines() if ln.strip()]
+            why = next((w for w in why if w.startswith("Unsupported")), why[0] if why else "")
+            raise ModelError(f"{path} is not {what} (UnpicklingError: {why})") from None
         raise ModelError(
             f"{path} is not {what}: it holds objects that are not tensors or plain data "
             "(refused unread: loading them could run code)"

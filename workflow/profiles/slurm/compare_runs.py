@@ -216,7 +216,7 @@ def compare_checkpoint(a, b):
     def load(p):
         if p.suffix == ".ts":
             return {"state_dict": dict(torch.jit.load(str(p), map_location="cpu").state_dict())}
-        return torch.load(p, map_location="cpu", weights_only=False)
+        return torch.load(p, map_location="cpu", weights_only=True)  # no code run
 
     fa, fb = flat(load(Path(a))), flat(load(Path(b)))
     ta = {k: v for k, v in fa.items() if isinstance(v, torch.Tensor)}
