@@ -1,6 +1,7 @@
 """The Snakemake DAG on the smoke config: lint, dry run of the full config, a real run."""
 
 import json
+import re
 import subprocess
 import sys
 
@@ -438,6 +439,11 @@ STUDY_RULES = {
 
 def _planned(tmp_path, *targets):
     """The rules a dry run of the smoke config plans for ``targets`` (none: rule all)."""
+    return set(_planned_jobs(tmp_path, *targets))
+
+
+def _planned_jobs(tmp_path, *targets) -> dict[str, int]:
+    """Jobs per rule of a dry run of the smoke config for ``targets`` (none: rule all)."""
     r = snakemake(
         "-n",
         "--configfile",
@@ -449,10 +455,32 @@ def _planned(tmp_path, *targets):
     )
     assert r.returncode == 0, r.stderr
     return {
-        line.split()[0]
+        line.split()[0]: int(line.split()[1])
         for line in r.stdout.splitlines()
-        if len(line.split()) == 2 and line.split()[1].isdigit()
+        if len(line.split()) == 2 and line.split()[1].isdigit() and line.split()[0] != "total"
     }
+
+
+def _benchmarked_rules() -> set[str]:
+    """The rules with a ``benchmark:`` directive (read from the rule files)."""
+    rules, rule = set(), None
+    for f in sorted((ROOT / "workflow").rglob("*.smk")) + [ROOT / "workflow" / "Snakefile"]:
+        for line in f.read_text().splitlines():
+            m = re.match(r"(?:rule|checkpoint) (\w+):", line)
+            rule = m.group(1) if m else rule
+            if re.match(r"\s+benchmark:", line) and rule:
+                rules.add(rule)
+    return rules
+
+
+def test_the_speed_job_waits_for_every_benchmarked_job(tmp_path):
+    """speed.json counts the DAG's benchmark files: every benchmarked job of the product
+    is upstream of it, so its count does not depend on the order the scheduler picks."""
+    bench = _benchmarked_rules()
+    assert {"fea_scene", "train_model", "lab_take", "sim2real"} <= bench
+    every = {r: n for r, n in _planned_jobs(tmp_path).items() if r in bench}
+    speed = _planned_jobs(tmp_path, "results/evaluate/speed/speed.json")
+    assert every == {r: n for r, n in speed.items() if r in bench}
 
 
 def test_default_run_plans_no_study_and_each_study_has_its_target(tmp_path):
@@ -502,3 +530,40 @@ def test_pitch_augmentation_matches_the_pitched_renders(smoke_run):
         front = d0["input_128x64"] >= 128
         iou0 = (front & true).sum((1, 2)) / (front | true).sum((1, 2))
         assert iou.min() >= 0.9 and iou0.mean() < 0.8, (pitch, iou.min(), iou0.mean())
+
+
+def test_an_interrupted_run_resumes_with_the_readme_command(tmp_path):
+    """Ctrl-C in the middle of a job, then the README's `snakemake --cores 2` again: the
+    default profile (workflow/profiles/default, copied verbatim beside a one-rule
+    Snakefile) is picked up and its rerun-incomplete reruns the interrupted job."""
+    import os
+    import shutil
+    import signal
+    import time
+
+    wf = tmp_path / "workflow"
+    shutil.copytree(ROOT / "workflow" / "profiles" / "default", wf / "profiles" / "default")
+    (wf / "Snakefile").write_text(
+        'rule a:\n    output: "a.txt"\n'
+        '    shell: "echo start > {output}; sleep ${{TOY_SLEEP:-0}}; echo done >> {output}"\n'
+    )
+    cmd = [sys.executable, "-m", "snakemake", "--cores", "2"]
+    first = subprocess.Popen(  # in its own process group, as a terminal's job is
+        cmd,
+        cwd=tmp_path,
+        env={**os.environ, "TOY_SLEEP": "60"},
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    for _ in range(600):  # the job has started once its output exists
+        if (tmp_path / "a.txt").exists():
+            break
+        time.sleep(0.1)
+    os.killpg(first.pid, signal.SIGINT)  # Ctrl-C: the signal goes to the whole group
+    first.communicate(timeout=60)
+    assert first.returncode != 0 and (tmp_path / "a.txt").read_text() == "start\n"
+    again = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True)
+    assert again.returncode == 0, again.stderr[-2000:]
+    assert "workflow specific profile workflow/profiles/default" in again.stderr
+    assert (tmp_path / "a.txt").read_text() == "start\ndone\n"

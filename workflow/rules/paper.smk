@@ -44,10 +44,15 @@ rule evaluate_speed:
     input:
         fea_scenes=f"{RESULTS}/benchmarks/fea_scenes.csv",
         latency=f"{RESULTS}/benchmarks/inference_latency.json",
-        # every stage has run, so that its benchmark files are complete
+        # every benchmarked job of the product has run, so that the count and the
+        # span are those of the whole DAG whatever order the scheduler picks (the
+        # emulated lab, the rig prior and sim-to-real included)
         stages=[f"{DATASET}/manifest.csv"]
         + expand(f"{TRAIN}/{{model}}/model.ts", model=model_names())
         + expand(f"{EVALUATE}/{{experiment}}/metrics.json", experiment=EXPERIMENTS)
+        + [f"{EVALUATE}/baseline/fit.json", f"{RESULTS}/lab/qa.json"]
+        + [f"{EVALUATE}/sim2real/summary.json"]
+        + ([f"{EVALUATE}/sim2real/rigs/summary.json"] if rig_names() else [])
         + diversity_files(),
         # (with generated training objects: the comparison)
         # the studies' timings where they were built (never a reason to build one)
