@@ -911,15 +911,27 @@ def main(argv: list[str] | None = None) -> int:
     n_committed = len(COMMITTED)
     with catch_signals() as caught:
         try:
-            return _main(args)
+            code = _main(args)
         except KeyboardInterrupt as exc:
             signum = 15 if isinstance(exc, Terminated) else 2
-            return _interrupted(args.command, signum, COMMITTED[n_committed:])
+            code = _interrupted(args.command, signum, COMMITTED[n_committed:])
         except BaseException:
             if caught.signum is None:
                 raise
             # an error that the signal caused (an import cut short: ImportError)
-            return _interrupted(args.command, caught.signum, COMMITTED[n_committed:])
+            code = _interrupted(args.command, caught.signum, COMMITTED[n_committed:])
+    if argv is None:  # the command line's process
+        if caught.signum is not None:
+            # CPython kills itself with SIGINT at exit where a KeyboardInterrupt went
+            # through code it ran for an import, even one caught here: this exit code
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os._exit(code)
+        import signal
+
+        for s in (signal.SIGINT, signal.SIGTERM):  # the work is done: its code stands
+            signal.signal(s, signal.SIG_IGN)
+    return code
 
 
 def _main(args) -> int:

@@ -1149,3 +1149,31 @@ def test_force_time_figure_adds_the_contact_height(tmp_path):
     )
     h = [Image.open(tmp_path / n).size[1] for n in ("c.png", "f.png")]
     assert h[0] > 1.5 * h[1]  # a second panel
+
+
+def test_a_truncated_mkv_reports_its_lost_frames(exported, render_png, tmp_path, capsys):
+    """A Matroska file cut short: the container counts no frames, so its duration at the
+    frame rate says how many to expect; the frames it lost are reported and skipped
+    (exit code 1), as a corrupt frame of an MP4 is (it was 12 of 30 frames, exit 0)."""
+    _, d = exported
+    frames = [
+        np.asarray(Image.open(f).convert("RGB"))
+        for f in sorted(render_png.parent.glob("image_*.png"))
+    ]
+    video = write_video(tmp_path / "clip.mkv", (frames * 10)[:30])
+    whole = [isinstance(f, np.ndarray) for _, f, _ in read_frames(video)]
+    assert whole == [True] * 30  # the whole file: none lost
+    data = video.read_bytes()
+    video.write_bytes(data[: int(0.5 * len(data))])
+    out = tmp_path / "out"
+    argv = ["predict", "--model", str(d / "model.ts"), str(video), "--out", str(out)]
+    assert main([*argv, "--backend", "torchscript", "--force-only"]) == 1
+    err = err_lines(capsys.readouterr().err)
+    rows = list(csv.DictReader(open(out / "forces.csv")))
+    n_lost = 30 - len(rows)
+    assert 0 < len(rows) < 30 and len(err) == n_lost + 1, err
+    assert err[-1].startswith(f"finray predict: {n_lost} of 30 frames skipped")
+    assert err[-2] == (
+        "finray predict: skipped clip_00029: the frame is missing: the video "
+        "ends before it (cut short?)"
+    )
