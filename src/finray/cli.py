@@ -100,7 +100,11 @@ def _staged(args, **kw):
     ``--out`` refused without ``--overwrite``."""
     from .outputs import Staged
 
-    return Staged(args.out, getattr(args, "overwrite", False), **kw)
+    # what the run reads: --overwrite never replaces a folder that holds one of them
+    names = ("take", "source", "model", "calibration", "no_context", "config", "object_file")
+    inputs = [getattr(args, n, None) for n in names] + list(getattr(args, "takes", None) or [])
+    inputs = [Path(str(p)) for p in inputs if p is not None]
+    return Staged(args.out, getattr(args, "overwrite", False), inputs=inputs, **kw)
 
 
 GEOMETRY_HELP = """\

@@ -105,7 +105,9 @@ class Staged:
 
     :meth:`open` refuses, in one line (:class:`UsageError`), a folder ``out`` that is a
     file, a file ``out`` that is a folder, and without ``overwrite`` a used one (a
-    folder that holds files; a file, or one of its companions, that exists). Used as a
+    folder that holds files; a file, or one of its companions, that exists); with it,
+    one whose replacing would take away one of the run's ``inputs`` (paths) or the
+    current folder. Used as a
     context manager, it commits at the end of the block, also on an exception of a type
     in ``keep`` (a failure whose report is the output), and discards on any other."""
 
@@ -117,10 +119,15 @@ class Staged:
         siblings: tuple[str, ...] = (),
         option: str = "--out",
         keep: tuple[type[BaseException], ...] = (),
+        inputs=(),
     ):
         if kind not in ("folder", "file"):
             raise ValueError(f"kind must be 'folder' or 'file', not {kind!r}")
-        self.out, self.overwrite, self.kind = Path(out), bool(overwrite), kind
+        out = Path(out)
+        if out.name in ("", ".", ".."):  # "." has no name to put a temporary beside
+            out = Path(os.path.abspath(out))
+        self.out, self.overwrite, self.kind = out, bool(overwrite), kind
+        self.inputs = [Path(p) for p in inputs if p is not None]
         self.siblings, self.option, self.keep = tuple(siblings), option, tuple(keep)
         self.tmp = self.out.parent / f"{self.out.name}.part-{os.getpid()}"
         self.path = self.tmp if kind == "folder" else self.tmp / self.out.name
@@ -159,6 +166,15 @@ class Staged:
                 else f"exists ({_listing(used)})"
             )
             raise UsageError(f"{opt} {out} {what}; give --overwrite to replace, or another {opt}")
+        if used:  # replaced: never an input of the run, nor the folder it runs in
+            gone = [Path(os.path.realpath(out))]
+            if self.kind == "file":
+                gone += [Path(os.path.realpath(out.parent / n)) for n in used]
+            for p in [*self.inputs, Path.cwd()]:
+                rp = Path(os.path.realpath(p))
+                if any(rp == g or g in rp.parents for g in gone):
+                    what = "the current folder" if p == Path.cwd() else f"the input {p}"
+                    raise UsageError(f"{opt} {out} holds {what}: --overwrite would remove it")
 
     def open(self) -> Path:
         """Check, make the temporary folder (and the folders above ``out``); returns

@@ -290,3 +290,43 @@ def test_simulate_replaces_an_earlier_run_whole_and_sigterm_leaves_none(tmp_path
     assert r.returncode == 0, r.stderr
     assert names(out) == ["forces.csv", "result.npz", "summary.json"]
     assert [p.name for p in tmp_path.iterdir()] == ["out"]
+
+
+def test_overwrite_never_removes_an_input_or_the_current_folder(tmp_path, monkeypatch, capsys):
+    """``ingest take --out take --overwrite`` would have replaced the take by its shard."""
+    write_take(tmp_path / "take", **SMALL_TAKE)
+    before = names(tmp_path / "take")
+    for out in [tmp_path / "take", tmp_path]:
+        assert main(["ingest", str(tmp_path / "take"), "--out", str(out), "--overwrite"]) == 2
+        assert f"--out {out} holds the input {tmp_path / 'take'}: --overwrite would remove it" in (
+            one_line(capsys, "finray ingest: ")
+        )
+    (tmp_path / "here").mkdir()
+    (tmp_path / "here" / "x").write_text("")
+    monkeypatch.chdir(tmp_path / "here")
+    with pytest.raises(UsageError, match="holds the current folder"):
+        Staged(".", overwrite=True).check()
+    cal = Staged(tmp_path / "model.pt", overwrite=True, kind="file", inputs=["model.pt"])
+    (tmp_path / "model.pt").write_text("")
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(UsageError, match="holds the input model.pt"):
+        cal.check()
+    assert names(tmp_path / "take") == before
+
+
+def test_an_error_that_a_signal_caused_is_an_interruption(tmp_path, monkeypatch, capsys):
+    """Ctrl-C in an import gave ``ImportError: initialization failed``: the signal, not
+    the error it caused, is what the line reports (SIGTERM here, as SIGINT)."""
+    import finray.recording
+
+    def cut_short(*args, **kwargs):
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)  # (a pytest-xdist worker ignores SIGINT)
+            time.sleep(1)
+        except KeyboardInterrupt:
+            raise ImportError("initialization failed") from None
+
+    monkeypatch.setattr(finray.recording, "ingest", cut_short)
+    assert main(["ingest", str(tmp_path), "--out", str(tmp_path / "out")]) == 143
+    assert one_line(capsys, "finray ingest: ") == "finray ingest: terminated; nothing written"
+    assert names(tmp_path) == []
