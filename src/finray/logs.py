@@ -8,9 +8,42 @@ import time
 from pathlib import Path
 
 
+#: The start of the last line ``log_to`` writes: the job's CPU time in s (its process and
+#: the children it waited for, since the process started), which the speed table reads
+#: (:func:`job_cpu_s`). Snakemake's benchmark files sample a job's CPU every 30 s after
+#: its first 15 s and keep the last sample, so a long job's reads up to 30 s low; its
+#: sampling interval has no public setting (snakemake/snakemake#851).
+JOB_CPU = "finray job CPU: "
+
+
+def process_cpu_s() -> float:
+    """User and system CPU time (s) of this process and of its children it waited for."""
+    import resource
+
+    own, kids = (resource.getrusage(w) for w in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
+    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+
+
+def job_cpu_s(log: str | Path) -> float | None:
+    """The CPU time (s) that :func:`log_to` wrote at the end of ``log``; None without one
+    (no such file, or a job that did not log through ``log_to``)."""
+    try:
+        lines = Path(log).read_text(errors="replace").splitlines()
+    except OSError:
+        return None
+    for line in reversed(lines):
+        if line.startswith(JOB_CPU):
+            try:
+                return float(line[len(JOB_CPU) :].split()[0])
+            except (IndexError, ValueError):
+                return None
+    return None
+
+
 @contextlib.contextmanager
 def log_to(path: str | Path):
-    """Redirect stdout/stderr and the ``logging`` root to ``path`` for the block."""
+    """Redirect stdout/stderr and the ``logging`` root to ``path`` for the block; its last
+    line is the process's CPU time so far (:data:`JOB_CPU`)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     # line-buffered, so that a running job's log can be followed (tail -f)
@@ -27,6 +60,7 @@ def log_to(path: str | Path):
             yield f
         finally:
             logging.getLogger().removeHandler(handler)
+            print(f"{JOB_CPU}{process_cpu_s():.3f} s (this process and its children)", file=f)
 
 
 class Progress:

@@ -24,7 +24,7 @@ rule fea_pareto:
         ),
         summary=f"{RESULTS}/benchmarks/fea_pareto.md",
     log:
-        f"{RESULTS}/logs/fea/benchmark_pareto.log",
+        f"{RESULTS}/logs/studies/fea_pareto.log",
     benchmark:
         f"{RESULTS}/benchmarks/studies/fea_pareto.tsv"
     conda:

@@ -9,7 +9,7 @@ rule fea_stability:
         table=f"{RESULTS}/benchmarks/fea_stability.csv",
         summary=f"{RESULTS}/benchmarks/fea_stability.md",
     log:
-        f"{RESULTS}/logs/fea/benchmark_stability.log",
+        f"{RESULTS}/logs/studies/fea_stability.log",
     benchmark:
         f"{RESULTS}/benchmarks/studies/fea_stability.tsv"
     conda:

@@ -17,7 +17,7 @@ rule fea_sweep_batch:
     output:
         table=f"{RESULTS}/benchmarks/fea_sweep/batch_{{batch}}.csv",
     log:
-        f"{RESULTS}/logs/fea/sweep_batch_{{batch}}.log",
+        f"{RESULTS}/logs/studies/fea_sweep_batch_{{batch}}.log",
     benchmark:
         f"{RESULTS}/benchmarks/studies/fea_sweep_batch_{{batch}}.tsv"
     wildcard_constraints:

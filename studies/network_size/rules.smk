@@ -25,7 +25,7 @@ rule train_pareto:
         ),
         summary=f"{RESULTS}/benchmarks/train_pareto.md",
     log:
-        f"{RESULTS}/logs/train/benchmark_pareto.log",
+        f"{RESULTS}/logs/studies/train_pareto.log",
     benchmark:
         f"{RESULTS}/benchmarks/studies/train_pareto.tsv"
     conda:

@@ -25,7 +25,7 @@ rule realtime_benchmark:
         json=f"{RESULTS}/benchmarks/realtime.json",
         table=f"{RESULTS}/benchmarks/realtime.md",
     log:
-        f"{RESULTS}/logs/train/benchmark_realtime.log",
+        f"{RESULTS}/logs/studies/realtime.log",
     benchmark:
         f"{RESULTS}/benchmarks/studies/realtime.tsv"
     conda:

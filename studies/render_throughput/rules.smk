@@ -18,7 +18,7 @@ rule render_benchmark:
     output:
         json=f"{RESULTS}/benchmarks/render_throughput.json",
     log:
-        f"{RESULTS}/logs/render/benchmark.log",
+        f"{RESULTS}/logs/studies/render_throughput.log",
     benchmark:
         f"{RESULTS}/benchmarks/studies/render_throughput.tsv"
     conda:

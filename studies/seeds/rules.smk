@@ -36,7 +36,7 @@ rule spread_train:
         history=f"{SPREAD}/{{variant}}/train/{{model}}/history.json",
         curves=f"{SPREAD}/{{variant}}/train/{{model}}/curves.png",
     log:
-        f"{RESULTS}/logs/spread/{{variant}}/train_{{model}}.log",
+        f"{RESULTS}/logs/studies/spread/{{variant}}_train_{{model}}.log",
     benchmark:
         f"{RESULTS}/benchmarks/studies/spread/{{variant}}_train_{{model}}.tsv"
     conda:
@@ -68,7 +68,7 @@ use rule evaluate_experiment as spread_experiment with:
         heights=f"{SPREAD}/{{variant}}/{{experiment}}/heights.csv",
         checks=f"{SPREAD}/{{variant}}/{{experiment}}/checks.json",
     log:
-        f"{RESULTS}/logs/spread/{{variant}}/{{experiment}}.log",
+        f"{RESULTS}/logs/studies/spread/{{variant}}_experiment_{{experiment}}.log",
     benchmark:
         f"{RESULTS}/benchmarks/studies/spread/{{variant}}_experiment_{{experiment}}.tsv"
 
@@ -81,7 +81,7 @@ use rule sim2real_no_context as spread_sim2real_no_context with:
     output:
         no_context=f"{SPREAD}/{{variant}}/sim2real/no_context.pt",
     log:
-        f"{RESULTS}/logs/spread/{{variant}}/sim2real_no_context.log",
+        f"{RESULTS}/logs/studies/spread/{{variant}}_sim2real_no_context.log",
     benchmark:
         f"{RESULTS}/benchmarks/studies/spread/{{variant}}_sim2real_no_context.tsv"
 
@@ -99,7 +99,7 @@ use rule sim2real as spread_sim2real with:
         calibrations=f"{SPREAD}/{{variant}}/sim2real/calibrations.json",
         corner=f"{SPREAD}/{{variant}}/sim2real/corner.pdf",
     log:
-        f"{RESULTS}/logs/spread/{{variant}}/sim2real.log",
+        f"{RESULTS}/logs/studies/spread/{{variant}}_sim2real.log",
     benchmark:
         f"{RESULTS}/benchmarks/studies/spread/{{variant}}_sim2real.tsv"
 
@@ -118,7 +118,7 @@ use rule rig_sim2real as spread_rig_sim2real with:
         calibrations=f"{SPREAD}/{{variant}}/sim2real/rigs/{{rig}}/calibrations.json",
         corner=f"{SPREAD}/{{variant}}/sim2real/rigs/{{rig}}/corner.pdf",
     log:
-        f"{RESULTS}/logs/spread/{{variant}}/sim2real_{{rig}}.log",
+        f"{RESULTS}/logs/studies/spread/{{variant}}_sim2real_{{rig}}.log",
     benchmark:
         f"{RESULTS}/benchmarks/studies/spread/{{variant}}_sim2real_{{rig}}.tsv"
 

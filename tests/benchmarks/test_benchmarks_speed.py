@@ -1,10 +1,15 @@
-"""Stage times, study times and the DAG's wall time from Snakemake's benchmark files."""
+"""Stage times, study times and the DAG's wall time from Snakemake's benchmark files (and
+each job's CPU time from its log)."""
 
 import os
+import time
 
 import numpy as np
 import pytest
 
+from finray.benchmarks.timing import benchmark_log, job_cpu_s
+from finray.logs import JOB_CPU, log_to
+from finray.logs import job_cpu_s as logged_cpu_s
 from finray.benchmarks.speed import DAG_SPAN_COVERS, dag_span, speed_table, stage_times, study_times
 
 HEADER = "s\th:m:s\tmax_rss\tmax_vms\tmax_uss\tmax_pss\tio_in\tio_out\tmean_load\tcpu_time\n"
@@ -105,3 +110,24 @@ def test_a_stage_counts_its_sub_folders(bench):
     assert d["jobs"] == 8 and d["job_cpu_s"] == pytest.approx(218.5 + 48.0)
     # the 60-110 s gap beside plain is filled: idle 0-5 s (one core), 5-10 s (both), 130-150 s (one)
     assert d["idle_core_s"] == pytest.approx(5 + 10 + 20)
+
+
+def test_a_job_s_cpu_time_is_its_log_s_where_it_has_one(tmp_path):
+    """log_to ends a job's log with the process's CPU time; the speed table takes it over
+    Snakemake's sampled figure, which reads a long job up to 30 s low."""
+    bench = tmp_path / "results" / "benchmarks"
+    _tsv(bench / "fea" / "a.tsv", 40.0, 15.0, 1_700_000_040.0)  # sampled: 15 of ~40 s
+    _tsv(bench / "fea" / "b.tsv", 10.0, 9.5, 1_700_000_050.0)  # a job without its log
+    log = tmp_path / "results" / "logs" / "fea" / "a.log"
+    with log_to(log):
+        t = time.process_time()
+        while time.process_time() - t < 0.2:
+            pass
+        print("the job's output")
+    assert log.read_text().splitlines()[-1].startswith(JOB_CPU)
+    assert benchmark_log(bench / "fea" / "a.tsv") == log
+    cpu, own = job_cpu_s(bench / "fea" / "a.tsv")
+    assert own and cpu >= 0.2 and cpu == logged_cpu_s(log)
+    assert job_cpu_s(bench / "fea" / "b.tsv") == (9.5, False)
+    assert stage_times(bench)["fea"]["cpu_s"] == pytest.approx(cpu + 9.5)
+    assert dag_span(bench)["jobs_cpu_from_log"] == 1

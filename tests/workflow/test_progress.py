@@ -5,7 +5,7 @@ import re
 from finray.fea.material import NeoHookean
 from finray.fea.simulate import SimulationOptions, simulate
 from finray.geometry.finger import FingerParams, mesh_finger
-from finray.logs import Progress, log_to
+from finray.logs import JOB_CPU, Progress, log_to
 from finray.render import RenderParams, render_scene
 
 from helpers import front_contact_circle, write_synthetic_fea_result
@@ -22,6 +22,7 @@ def test_fea_scene_logs_frame_travel_and_time(tmp_path):
             SimulationOptions(push_mm=1.0, frame_step_mm=0.5, log_every_s=0),
         )
     lines = (tmp_path / "fea.log").read_text().splitlines()
+    assert lines.pop().startswith(JOB_CPU)  # log_to's last line: the job's CPU time
     assert lines[0].startswith("FEA circle_d20: push 1 mm in 2 frames")
     pat = r"FEA circle_d20: frame (\d)/2, travel ([\d.]+)/1 mm, \d+ load steps, [\d.]+ s"
     got = [re.fullmatch(pat, line) for line in lines[1:]]
@@ -58,6 +59,7 @@ def test_render_logs_frame_travel_and_time(tmp_path):
             log_every_s=0,
         )
     lines = (tmp_path / "render.log").read_text().splitlines()
+    assert lines.pop().startswith(JOB_CPU)  # log_to's last line: the job's CPU time
     assert lines[0] == "render c10_steel_h30: 3 frames at pitch 0 deg (raster)"
     travel = [f"{f['displacement_mm']:.2f}" for f in index["frames"]]
     pat = r"render c10_steel_h30: frame (\d)/3, travel ([\d.]+) mm, [\d.]+ s"

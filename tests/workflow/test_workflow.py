@@ -461,16 +461,38 @@ def _planned_jobs(tmp_path, *targets) -> dict[str, int]:
     }
 
 
+def _rule_paths(directive: str) -> dict[str, str]:
+    """Rule -> the first path of its ``directive`` (``benchmark`` or ``log``), read from
+    the workflow's and the studies' rule files (``use rule ... as <name>`` included)."""
+    files = sorted((ROOT / "workflow").rglob("*.smk")) + sorted((ROOT / "studies").rglob("*.smk"))
+    paths, rule, want = {}, None, False
+    for f in [*files, ROOT / "workflow" / "Snakefile"]:
+        for line in f.read_text().splitlines():
+            m = re.match(r"(?:rule|checkpoint) (\w+)|use rule \w+ .*as (\w+)", line)
+            if m:
+                rule, want = m.group(1) or m.group(2), False
+            elif re.match(rf"\s+{directive}:", line):
+                want = True
+            elif want and line.strip():
+                paths.setdefault(rule, line.strip().rstrip(","))
+                want = False
+    return paths
+
+
 def _benchmarked_rules() -> set[str]:
     """The rules with a ``benchmark:`` directive (read from the rule files)."""
-    rules, rule = set(), None
-    for f in sorted((ROOT / "workflow").rglob("*.smk")) + [ROOT / "workflow" / "Snakefile"]:
-        for line in f.read_text().splitlines():
-            m = re.match(r"(?:rule|checkpoint) (\w+):", line)
-            rule = m.group(1) if m else rule
-            if re.match(r"\s+benchmark:", line) and rule:
-                rules.add(rule)
-    return rules
+    return set(_rule_paths("benchmark"))
+
+
+def test_every_benchmarked_job_logs_beside_its_benchmark_file():
+    """A job's CPU time is its log's last line (finray.logs.log_to), found from its
+    benchmark file's path (finray.benchmarks.timing.benchmark_log): the two mirror each
+    other under results/benchmarks and results/logs."""
+    bench, logs = _rule_paths("benchmark"), _rule_paths("log")
+    assert len(bench) > 20
+    for rule, path in bench.items():
+        expected = path.replace("/benchmarks/", "/logs/", 1).replace(".tsv", ".log")
+        assert logs.get(rule) == expected, rule
 
 
 def test_the_speed_job_waits_for_every_benchmarked_job(tmp_path):

@@ -12,7 +12,7 @@ rule inference_latency:
     output:
         json=f"{RESULTS}/benchmarks/inference_latency.json",
     log:
-        f"{RESULTS}/logs/train/benchmark_latency.log",
+        f"{RESULTS}/logs/studies/inference_latency.log",
     benchmark:
         f"{RESULTS}/benchmarks/studies/inference_latency.tsv"
     conda:

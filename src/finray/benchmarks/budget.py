@@ -33,8 +33,10 @@ PANELS = (
 
 
 def cpu_seconds(benchmark_tsv: str | Path) -> float:
-    """Job CPU time (s) of a Snakemake benchmark file (its ``cpu_time`` column)."""
-    return float(pd.read_csv(benchmark_tsv, sep="\t")["cpu_time"].iloc[0])
+    """Job CPU time (s) of a benchmarked job (:func:`finray.benchmarks.timing.job_cpu_s`)."""
+    from .timing import job_cpu_s
+
+    return job_cpu_s(benchmark_tsv)[0]
 
 
 def with_worst(figures: dict[str, float]) -> dict[str, float]:

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .timing import job_cpu_s
 from ..paper_reference import paper_value
 
 
@@ -58,24 +59,27 @@ DAG_SPAN_COVERS = (
 
 
 def _jobs(files) -> pd.DataFrame:
-    """One row per Snakemake benchmark file: wall ``s``, ``cpu_time`` (s), ``end`` (its
-    mtime, epoch s) and ``start`` (= end - s). A file with repeats counts as one job
-    (its rows summed)."""
+    """One row per Snakemake benchmark file: wall ``s``, ``cpu_time`` (s; the job's own
+    figure from its log where there is one, ``cpu_from_log``: :func:`~.timing.job_cpu_s`),
+    ``end`` (its mtime, epoch s) and ``start`` (= end - s). A file with repeats counts as
+    one job (its rows summed)."""
     rows = []
     for f in files:
         t = pd.read_csv(f, sep="\t")
         end = Path(f).stat().st_mtime
         s = float(t["s"].sum())
+        cpu, own = job_cpu_s(f)
         rows.append(
             {
                 "file": str(f),
                 "s": s,
-                "cpu_time": float(t["cpu_time"].sum()),
+                "cpu_time": cpu,
+                "cpu_from_log": own,
                 "end": end,
                 "start": end - s,
             }
         )
-    return pd.DataFrame(rows, columns=["file", "s", "cpu_time", "end", "start"])
+    return pd.DataFrame(rows, columns=["file", "s", "cpu_time", "cpu_from_log", "end", "start"])
 
 
 def _totals(jobs: pd.DataFrame) -> dict:
@@ -103,7 +107,8 @@ def _stage_files(stage_dir: Path) -> list[Path]:
 def stage_times(benchmark_dir) -> dict[str, dict]:
     """Per pipeline stage (sub-folder of ``benchmark_dir`` with its own sub-folders, in
     pipeline order; not ``studies/``): jobs, summed wall s, summed CPU s and the longest
-    job (s), from the ``.tsv`` files Snakemake writes (``benchmark:`` of each rule)."""
+    job (s), from the ``.tsv`` files Snakemake writes (``benchmark:`` of each rule) and
+    the jobs' logs (their CPU time, :func:`_jobs`)."""
     out = {}
     for d in _stage_dirs(benchmark_dir):
         files = _stage_files(d)
@@ -143,6 +148,8 @@ def dag_span(benchmark_dir) -> dict:
         "jobs": int(len(every)),
         "job_s": float(every["s"].sum()),
         "job_cpu_s": float(every["cpu_time"].sum()),
+        # the jobs whose CPU time is their own (their log's last line), not Snakemake's sample
+        "jobs_cpu_from_log": int(every["cpu_from_log"].sum()),
         "idle_core_s": idle_core_s(every, DAG_CORES),
         "cores": DAG_CORES,
         "covers": DAG_SPAN_COVERS,

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -81,3 +82,32 @@ def time_calls(
         n,
         float(np.percentile(wall, 90)),
     )
+
+
+def benchmark_log(benchmark_tsv: str | Path) -> Path:
+    """The log of the job that wrote the Snakemake benchmark file ``benchmark_tsv``:
+    the same path with its ``benchmarks`` folder read as ``logs`` and ``.log`` for
+    ``.tsv`` (every benchmarked rule keeps the two parallel; a test checks the rules)."""
+    p = Path(benchmark_tsv)
+    parts = list(p.with_suffix(".log").parts)
+    i = len(parts) - 1 - parts[::-1].index("benchmarks")
+    parts[i] = "logs"
+    return Path(*parts)
+
+
+def job_cpu_s(benchmark_tsv: str | Path) -> tuple[float, bool]:
+    """A benchmarked job's CPU time (s) and whether it is the job's own: the last line
+    of its log (:func:`finray.logs.job_cpu_s`, written by ``log_to``) where there is
+    one, else the benchmark file's ``cpu_time`` (its rows summed), which Snakemake
+    samples every 30 s after a job's first 15 s: a long job's reads up to 30 s low."""
+    import pandas as pd
+
+    from ..logs import job_cpu_s as logged_cpu_s
+
+    try:
+        own = logged_cpu_s(benchmark_log(benchmark_tsv))
+    except ValueError:  # a path without a benchmarks folder: no log to find
+        own = None
+    if own is not None:
+        return own, True
+    return float(pd.read_csv(benchmark_tsv, sep="\t")["cpu_time"].sum()), False
