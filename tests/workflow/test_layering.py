@@ -73,6 +73,9 @@ RANK = {
     "evaluate": 60,
     "benchmarks": 70,
     "cli": 80,
+    # the `finray` command's entry point (`python -m finray`, the console script)
+    "_start": 80,
+    "__main__": 80,
 }
 
 

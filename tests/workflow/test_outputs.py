@@ -176,8 +176,8 @@ def test_predict_overwrite_with_an_unreadable_input_keeps_the_earlier_run(
 
 
 def _start(args, cwd):
-    return subprocess.Popen(
-        [sys.executable, "-m", "finray.cli", *args],
+    return subprocess.Popen(  # as the `finray` command starts (finray._start)
+        [sys.executable, "-m", "finray", *args],
         cwd=cwd,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
@@ -290,6 +290,35 @@ def test_simulate_replaces_an_earlier_run_whole_and_sigterm_leaves_none(tmp_path
     assert r.returncode == 0, r.stderr
     assert names(out) == ["forces.csv", "result.npz", "summary.json"]
     assert [p.name for p in tmp_path.iterdir()] == ["out"]
+
+
+@pytest.mark.slow
+def test_a_signal_while_the_command_starts_is_one_line(tmp_path):
+    """Before finray.cli.main catches signals (its modules still loading), a SIGINT or
+    SIGTERM ends the command in one line too (finray._start); only one in Python's own
+    start, before finray's first line, ends it as the signal does, silently. Nothing
+    is written either way."""
+    out = tmp_path / "out"
+    args = ["simulate", "--object", "circle", "--size-mm", "20", "--height-mm", "30"]
+    args += ["--mesh-size-mm", "3", "--no-vtu", "--out", str(out)]
+    handled = 0
+    for delay in (0.05, 0.1, 0.2):
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            p = _start(args, tmp_path)
+            time.sleep(delay)
+            p.send_signal(sig)
+            _, err = p.communicate(timeout=60)
+            what = "interrupted" if sig == signal.SIGINT else "terminated"
+            if p.returncode == -sig:  # in Python's own start
+                assert err == ""
+            else:
+                assert (p.returncode, err) == (
+                    128 + sig,
+                    f"finray simulate: {what}; nothing written\n",
+                )
+                handled += 1
+            assert not out.exists() and list(tmp_path.iterdir()) == []
+    assert handled >= 4
 
 
 def test_overwrite_never_removes_an_input_or_the_current_folder(tmp_path, monkeypatch, capsys):

@@ -1,0 +1,5 @@
+"""``python -m finray``: the ``finray`` command."""
+
+from ._start import run
+
+run()
