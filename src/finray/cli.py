@@ -20,6 +20,17 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message):
         self.exit(2, f"{self.prog}: {message}\n")
 
+    def parse_args(self, args=None, namespace=None):
+        """argparse's, with an unknown argument refused by the subcommand's parser
+        (``finray geometry: unrecognized arguments: --bogus``), as its other errors
+        (argparse's own names ``finray`` only)."""
+        args, extra = self.parse_known_args(args, namespace)
+        if extra:
+            subs = self._subparsers._group_actions[0].choices if self._subparsers else {}
+            parser = subs.get(getattr(args, "command", None), self)
+            parser.error(f"unrecognized arguments: {' '.join(extra)}")
+        return args
+
 
 class _Once(argparse._StoreAction):
     """An option that takes one value: given again, it is refused (the last one once
@@ -610,7 +621,17 @@ def _predict(args) -> int:
         raise UsageError("give --model (or --calibration)")
     if (args.annotate or args.show) and args.force_only:
         raise UsageError("--annotate and --show draw the stress map: leave out --force-only")
-    window = None
+    # held: --show's line and the notes, said with the first frame's line (a run refused
+    # at a door says one line)
+    window, held = None, []
+
+    def say(msg: str | None = None, err: bool = True) -> None:
+        """A line (stderr, or stdout), after the held one."""
+        while held:
+            print(held.pop(0), file=sys.stderr, flush=True)
+        if msg is not None:
+            print(msg, file=sys.stderr if err else sys.stdout, flush=True)
+
     if args.show:
         from .annotate import Window
 
@@ -618,13 +639,11 @@ def _predict(args) -> int:
         try:
             window = Window(f"finray predict {args.source}")
         except RuntimeError as exc:
-            print(
-                f"finray predict: --show: {exc}; writing the annotated files only",
-                file=sys.stderr,
-                flush=True,
-            )
+            held.append(f"finray predict: --show: {exc}; writing the annotated files only")
     if args.check is not None:
-        return _check(args, cal)
+        code = _check(args, cal)
+        say()
+        return code
     line = _calibrated_line if cal is not None else _force_line
     out = predict_files(
         args.model,
@@ -634,18 +653,17 @@ def _predict(args) -> int:
         args.backend,
         args.force_only,
         calibration=cal,
-        on_frame=lambda r: print(line(r), flush=True),
-        on_skip=lambda name, msg: print(
-            f"finray predict: skipped {msg}", file=sys.stderr, flush=True
-        ),
+        on_frame=lambda r: say(line(r), err=False),
+        on_skip=lambda name, msg: say(f"finray predict: skipped {msg}"),
         device=args.device,
         annotate=args.annotate,
         maps=args.maps,
         on_annotated=window.show if window else None,
         segmentation=args.segmentation,
         finger_colour=args.finger_colour,
-        on_note=lambda msg: print(f"finray predict: note: {msg}", file=sys.stderr, flush=True),
+        on_note=lambda msg: held.append(f"finray predict: note: {msg}"),
     )
+    say()
     if window is not None:
         window.close()
     if out["flagged"]:
