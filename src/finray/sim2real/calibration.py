@@ -560,6 +560,8 @@ def calibrate_takes(
     take_folder_names(takes)  # each take's ingest folder its own, inside <out>.ingest/
     out_json = Path(out_json)
     model_path = Path(model_path)
+    if model_path.name in ("", ".", ".."):  # no file name (with_suffix: a ValueError)
+        raise CalibrationError(f"{str(model_path)!r} is not a model file (model.pt)")
     pt = model_path if model_path.suffix == ".pt" else model_path.with_suffix(".pt")
     ts_meta = Path(str(pt.with_suffix(".ts")) + ".json")
     if not pt.is_file() or not ts_meta.is_file():
