@@ -376,6 +376,11 @@ def _run_simulate(args) -> int:
     if args.mesh_size_mm is not None:
         raw.setdefault("mesh", {})["size_mm"] = args.mesh_size_mm
     cfg = validate_config(raw, base_dir=Path.cwd())
+    if object_is_meshed(cfg, name) and spec["type"] != "ring":  # was a ValueError in the FEA
+        raise UsageError(
+            f"--material {args.material} is deformable, which only a ring can be (the FEA "
+            "pushes a deformable object at its inner edge): give --object ring or a rigid one"
+        )
     # a failed solve's report (summary.json, partial_forces.csv) is its output
     staged = _staged(args, keep=(SimulationError,))
     staged.check()  # before the meshing
@@ -856,6 +861,8 @@ def _run_calibrate(args) -> int:
             "on the takes alone",
             flush=True,
         )
+    if args.out.name in ("", ".", ".."):  # a folder: no file name to write (was a ValueError)
+        raise UsageError(f"--out {str(args.out)!r} is a folder: give a file, calibration.json")
     # calibration.json and its companions <stem>.model.ts(.json), .corner.png, .ingest/
     staged = _staged(args, kind="file", siblings=(f"{args.out.with_suffix('').name}.",))
     with staged:

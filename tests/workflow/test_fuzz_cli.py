@@ -2,9 +2,11 @@
 subcommand's real parser (its options, with valid values, edge numbers, empty strings,
 missing paths, files of the wrong kind, repeated and unknown flags) and configs mutated
 from config/smoke.yaml at keys of the config schema. One invariant for every run: exit 0
-with complete outputs, or exit 1 / 2 with one line on stderr (``finray <command>:
-...``), never a traceback, and nothing half-written: ``--out`` absent or as it was, or
-complete; the inputs untouched.
+with complete outputs, or exit 2 with exactly one line on stderr (``finray <command>:
+...``), or exit 1 (failed part way: a solve, skipped frames) ending with that line;
+never a traceback; nothing half-written: ``--out`` absent or as it was, or complete,
+nothing else written, the inputs untouched (a folder of them given as ``--out
+--overwrite`` may be replaced, whole, where it holds none of the run's inputs).
 
 The CLI runs in-process (:func:`finray.cli.main`) on tiny inputs (a coarse mesh and a
 0.5 mm push, a 64 x 32 network, three frames, a 2 s take), seeded
@@ -512,6 +514,8 @@ def _run_and_check(command, argv, ws, before, world, root, file_out, capfd):
             changed -= {os.path.dirname(rel)}
         changed -= {k for k in changed if (ws / k).is_dir() and rel.startswith(k + "/")}
         assert not changed, (changed, why)
+    if code == 0 and after == before:  # its outputs beside the inputs (--out there)
+        assert out is not None and ws not in Path(os.path.normpath(out)).parents, why
     assert not [k for k in after if ".part-" in k], why
     _check_inputs(command, argv, code, world, ws, why)
     beside = [p.name for p in root.iterdir() if p != ws]  # e.g. <out>.part-* of --out .
