@@ -339,13 +339,13 @@ def _out_path(kind: str, ws: Path, world: dict, file_out: bool) -> str:
     if kind == "abs":
         return str(ws / "abs" / name)
     if kind == "empty_dir":
-        (ws / "emptydir").mkdir()
+        (ws / "emptydir").mkdir(exist_ok=True)
         return "emptydir"
     if kind == "used":  # an earlier run's outputs
         if file_out:
             (ws / "cal.json").write_text('{"earlier": true}')
             return "cal.json"
-        (ws / "used").mkdir()
+        (ws / "used").mkdir(exist_ok=True)
         (ws / "used" / "earlier.txt").write_text("an earlier run\n")
         return "used"
     if kind in ("file", "under_file"):
@@ -459,9 +459,9 @@ def check_run(tokens: list[str], world: dict, root: Path, capfd) -> tuple[int, s
     ws.mkdir()
     os.chdir(ws)
     file_out = command == "calibrate"
-    argv = [_resolve(t, ws, world, file_out) for t in tokens]
-    before = _state(ws)
-    try:
+    try:  # an --out drawn twice: made ready once
+        argv = [_resolve(t, ws, world, file_out) for t in tokens]
+        before = _state(ws)
         return _run_and_check(command, argv, ws, before, world, root, file_out, capfd)
     finally:
         os.chdir(root)
