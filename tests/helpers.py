@@ -274,3 +274,21 @@ def mm_to_px(params, uv: np.ndarray) -> np.ndarray:
     col = (uv[..., 0] - params.window_x_mm[0]) * params.px_per_mm - 0.5
     row = (params.window_y_mm[1] - uv[..., 1]) * params.px_per_mm - 0.5
     return np.stack([col, row], axis=-1)
+
+
+def start_finray(args, cwd):
+    """The ``finray`` command (``python -m finray``, as its console script starts) as a
+    subprocess with pipes, SIGINT at its default (a pytest-xdist worker ignores SIGINT,
+    and a child inherits that): for the tests that signal it part way."""
+    import signal
+    import subprocess
+    import sys
+
+    return subprocess.Popen(
+        [sys.executable, "-m", "finray", *args],
+        cwd=cwd,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )

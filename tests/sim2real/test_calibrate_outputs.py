@@ -5,8 +5,6 @@ leaves the earlier calibration as it was, in one line, exit code 130 / 143."""
 
 import json
 import signal
-import subprocess
-import sys
 import time
 
 import pytest
@@ -15,7 +13,7 @@ import torch
 from finray.model import FinRayNet, NetConfig
 from finray.train import History, export_torchscript, save_checkpoint
 
-from helpers import PREPROCESS
+from helpers import PREPROCESS, start_finray
 from recording_synth import write_take
 
 pytestmark = pytest.mark.slow
@@ -24,18 +22,6 @@ CONFIG = (
     "evaluate:\n"
     "  sim2real: {heads: {members: 2, epochs: 0, steps: 50}, sampler: {max_steps: 2000}}\n"
 )
-
-
-def _run(args, cwd):
-    return subprocess.Popen(
-        [sys.executable, "-m", "finray.cli", *args],
-        cwd=cwd,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        # a worker of pytest-xdist ignores SIGINT, and a child inherits that
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
-    )
 
 
 def _state(folder):
@@ -54,7 +40,7 @@ def test_calibrate_moves_its_outputs_into_place_whole(tmp_path):
     out = tmp_path / "rig" / "calibration.json"
     args = ["calibrate", "t1", "--model", "model.pt", "--out", str(out), "--config", "c.yaml"]
     t0 = time.perf_counter()
-    p = _run(args, tmp_path)
+    p = start_finray(args, tmp_path)
     log, err = p.communicate(timeout=300)
     wall = time.perf_counter() - t0
     assert p.returncode in (0, 1), err  # 1: a chain that did not converge, all written
@@ -66,7 +52,7 @@ def test_calibrate_moves_its_outputs_into_place_whole(tmp_path):
     # the adapted model's settings keep its hash: predict checks it (no note)
     meta = json.loads((out.parent / "calibration.model.ts.json").read_text())
     assert set(meta["sha256"]) == {"torchscript"}
-    p = _run(args, tmp_path)
+    p = start_finray(args, tmp_path)
     _, err = p.communicate(timeout=60)
     assert p.returncode == 2 and "calibration.json exists (" in err and "--overwrite" in err
     # stopped part way, --overwrite: the earlier calibration stays as it was
@@ -75,7 +61,7 @@ def test_calibrate_moves_its_outputs_into_place_whole(tmp_path):
         (0.5, signal.SIGTERM, "terminated"),
         (0.8, signal.SIGINT, "interrupted"),
     ]:
-        p = _run([*args, "--overwrite"], tmp_path)
+        p = start_finray([*args, "--overwrite"], tmp_path)
         time.sleep(frac * wall)
         p.send_signal(sig)
         _, err = p.communicate(timeout=300)

@@ -17,7 +17,7 @@ from finray.cli import main
 from finray.errors import UsageError
 from finray.outputs import Staged, catch_signals, held
 
-from helpers import PREPROCESS
+from helpers import PREPROCESS, start_finray
 from recording_synth import write_take
 
 SMALL_TAKE = dict(size=(320, 240), duration_s=2.5, starts=(0.3, 1.35), ramp=0.35, hold=0.2)
@@ -175,29 +175,26 @@ def test_predict_overwrite_with_an_unreadable_input_keeps_the_earlier_run(
 # -- signals: subprocesses sent SIGINT / SIGTERM part way --------------------------------
 
 
-def _start(args, cwd):
-    return subprocess.Popen(  # as the `finray` command starts (finray._start)
-        [sys.executable, "-m", "finray", *args],
-        cwd=cwd,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        # a worker of pytest-xdist ignores SIGINT, and a child inherits that
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
-    )
+def _complete_or_none(args, out: Path, tmp_path):
+    """Run ``args`` uninterrupted (the reference: its outputs and wall time), then three
+    times, each sent a signal at a point of its run (as it loads its modules, part way,
+    near the end): --out complete or absent, one line."""
+    import shutil
 
-
-def _complete_or_none(args, out: Path, reference: list[str], wall_s: float, tmp_path):
-    """Run ``args`` three times, each sent a signal at a point of its run (as it loads its
-    modules, part way, near the end; ``wall_s``: an uninterrupted run's): --out complete
-    or absent, one line."""
+    t0 = time.perf_counter()
+    p = start_finray(args, tmp_path)
+    _, err = p.communicate(timeout=120)
+    wall_s = time.perf_counter() - t0
+    assert p.returncode == 0, err
+    reference = names(out)
+    shutil.rmtree(out)
     command, stopped = args[0], 0
     for delay, sig in [
         (max(0.8, 0.2 * wall_s), "INT"),
         (0.5 * wall_s, "TERM"),
         (0.85 * wall_s, "INT"),
     ]:
-        p = _start(args, tmp_path)
+        p = start_finray(args, tmp_path)
         time.sleep(delay)
         signum = getattr(signal, f"SIG{sig}")
         p.send_signal(signum)
@@ -226,16 +223,7 @@ def test_a_signal_during_ingest_leaves_the_outputs_complete_or_none(tmp_path):
     write_take(tmp_path / "take", **SMALL_TAKE)
     out = tmp_path / "out"
     args = ["ingest", str(tmp_path / "take"), "--out", str(out)]
-    t0 = time.perf_counter()
-    p = _start(args, tmp_path)
-    _, err = p.communicate(timeout=120)
-    wall = time.perf_counter() - t0
-    assert p.returncode == 0, err
-    reference = names(out)
-    import shutil
-
-    shutil.rmtree(out)
-    _complete_or_none(args, out, reference, wall, tmp_path)
+    _complete_or_none(args, out, tmp_path)
 
 
 @pytest.mark.slow
@@ -250,16 +238,7 @@ def test_a_signal_during_predict_leaves_the_outputs_complete_or_none(
     out = tmp_path / "out"
     args = ["predict", "--model", str(small_model), str(frames), "--out", str(out)]
     args += ["--backend", "torchscript"]
-    t0 = time.perf_counter()
-    p = _start(args, tmp_path)
-    _, err = p.communicate(timeout=120)
-    wall = time.perf_counter() - t0
-    assert p.returncode == 0, err
-    reference = names(out)
-    import shutil
-
-    shutil.rmtree(out)
-    _complete_or_none(args, out, reference, wall, tmp_path)
+    _complete_or_none(args, out, tmp_path)
 
 
 @pytest.mark.slow
@@ -273,7 +252,7 @@ def test_simulate_replaces_an_earlier_run_whole_and_sigterm_leaves_none(tmp_path
     args = [*scene, "--mesh-size-mm", "3", "--no-vtu", "--out", str(out)]
     r = subprocess.run([sys.executable, "-m", "finray.cli", *args], capture_output=True, text=True)
     assert r.returncode == 2 and "holds another run's results (2: finger.pvd, vtu)" in r.stderr
-    p = _start([*args, "--overwrite"], tmp_path)
+    p = start_finray([*args, "--overwrite"], tmp_path)
     err = ""
     while "frame" not in err:  # the solver's first progress line: it is simulating
         line = p.stderr.readline()
@@ -304,7 +283,7 @@ def test_a_signal_while_the_command_starts_is_one_line(tmp_path):
     handled = 0
     for delay in (0.05, 0.1, 0.2):
         for sig in (signal.SIGINT, signal.SIGTERM):
-            p = _start(args, tmp_path)
+            p = start_finray(args, tmp_path)
             time.sleep(delay)
             p.send_signal(sig)
             _, err = p.communicate(timeout=60)
