@@ -3,6 +3,16 @@ learned from finite-element simulations. Units: mm, N, MPa, degrees."""
 
 __version__ = "0.1.0"
 
+import sys as _sys
+
+if _sys.argv[:1] == ["-m"] or _sys.argv[:1] and _sys.argv[0].rsplit("/", 1)[-1] == "finray":
+    # the `finray` command is starting (python -m finray[.cli], whose argv[0] is "-m"
+    # while its packages load; the console script): a signal while its modules load
+    # ends it in one line (finray._start)
+    from ._start import catch_while_starting
+
+    catch_while_starting()
+
 from .numba_cache import configure as _configure_numba_cache
 
 _configure_numba_cache()  # compiled kernels in the user's cache, not the source tree

@@ -1,5 +1,16 @@
-"""``python -m finray``: the ``finray`` command."""
+"""``python -m finray`` and the ``finray`` console script: the ``finray`` command."""
 
-from ._start import run
+import sys
 
-run()
+from ._start import catch_while_starting
+
+
+def run() -> None:
+    catch_while_starting()  # (already on where finray/__init__ saw the command start)
+    from .cli import main
+
+    sys.exit(main())
+
+
+if __name__ == "__main__":
+    run()

@@ -1,8 +1,10 @@
-"""The ``finray`` command's first code (the console script, ``python -m finray``): a
+"""The ``finray`` command's first code (``finray.__main__``: the console script,
+``python -m finray``): a
 SIGINT or SIGTERM that comes while Python loads the command's modules ends it with one
 line and 130 / 143, nothing written (later, :func:`finray.cli.main` catches them itself,
-:mod:`finray.outputs`). It imports nothing heavy, so that the window it leaves is
-Python's own start."""
+:mod:`finray.outputs`). ``finray/__init__`` installs it before anything else where the
+process is the command, and it imports nothing heavy, so that the window it leaves is
+Python's own start (tens of ms)."""
 
 import os
 import signal
@@ -16,10 +18,10 @@ def _stopped_while_starting(signum, frame):
     os._exit(128 + signum)
 
 
-def run() -> None:
+def catch_while_starting() -> None:
+    """SIGINT and SIGTERM end the starting command in one line (``finray/__init__`` calls
+    this first where ``finray`` is the command; :func:`finray.cli.main` then catches them
+    itself). A signal the parent ignores stays ignored."""
     for s in (signal.SIGINT, signal.SIGTERM):
-        if signal.getsignal(s) is not signal.SIG_IGN:  # a signal the parent ignores stays so
+        if signal.getsignal(s) is not signal.SIG_IGN:
             signal.signal(s, _stopped_while_starting)
-    from .cli import main
-
-    sys.exit(main())

@@ -5,7 +5,7 @@ The ranks are defined here once. A module may import finray modules of its own r
 or lower. The top-level modules that are not stages get the rank of what they import:
 
 - ``errors``, ``logs``, ``precision``, ``paper_reference``, ``media``, ``annotate``,
-  ``lazy``, ``schema``, ``numba_cache``, ``outputs``: import nothing of finray but
+  ``lazy``, ``schema``, ``numba_cache``, ``outputs``, ``_start``: import nothing of finray but
   ``errors``; shared
   helpers (rank 0; ``errors`` holds the package's exceptions, ``media`` reads camera
   frames for predict and recording, ``annotate`` draws predict's output over them,
@@ -73,8 +73,9 @@ RANK = {
     "evaluate": 60,
     "benchmarks": 70,
     "cli": 80,
-    # the `finray` command's entry point (`python -m finray`, the console script)
-    "_start": 80,
+    # the `finray` command's entry point (`python -m finray`, the console script) and
+    # its first code (imports nothing of finray; finray/__init__ runs it first)
+    "_start": 0,
     "__main__": 80,
 }
 

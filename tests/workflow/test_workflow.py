@@ -577,6 +577,8 @@ def test_an_interrupted_run_resumes_with_the_readme_command(tmp_path):
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,
+        # a pytest-xdist worker ignores SIGINT, and a child inherits that
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     for _ in range(600):  # the job has started once its output exists
         if (tmp_path / "a.txt").exists():
