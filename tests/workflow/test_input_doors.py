@@ -345,3 +345,13 @@ def test_every_mapping_of_the_schema_is_closed_or_its_keys_are_names():
         if extra is None or (extra is not False and "propertyNames" not in node):
             open_maps.append(where)
     assert not open_maps, open_maps
+
+
+@pytest.mark.parametrize("key", ["frame_step_mm", "max_step_mm"])
+def test_an_fea_step_too_small_to_finish_is_refused(key):
+    """A step of 1e-6 mm passed and started a push of millions of solves (the fuzz test)."""
+    with pytest.raises(
+        ConfigError, match=rf"^fea\.{key}: 1e-06 is less than the minimum of 0\.01$"
+    ):
+        check_config({"fea": {key: 1e-6}}, whole=False)
+    assert check_config({"fea": {key: 0.01}}, whole=False)["fea"][key] == 0.01
