@@ -11,7 +11,6 @@ import copy
 import difflib
 import functools
 import json
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -22,7 +21,7 @@ from .geometry.blobs import blob_name, generated_objects
 from .geometry.finger import FingerParams, GeometryError, check_ribs, finger_polygon
 from .geometry.objects import object_shape, place_object
 from .errors import ConfigError
-from .schema import load_schema
+from .schema import load_schema, non_finite
 
 
 def _extend_with_default(validator_class):
@@ -71,32 +70,13 @@ def _schema_error_message(err: jsonschema.ValidationError) -> ConfigError:
     return ConfigError(_key(path), err.message)
 
 
-def _non_finite(value, path: tuple = ()) -> tuple | None:
-    """``(path, value)`` of the first float in ``value`` (a config, walked) that is NaN or
-    infinite; None where there is none. JSON schema's ``type: number`` takes NaN, and
-    NaN passes every ``minimum`` and ``maximum``."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return path, value
-    if isinstance(value, dict):
-        items = value.items()
-    elif isinstance(value, (list, tuple)):
-        items = enumerate(value)
-    else:
-        return None
-    for k, v in items:
-        found = _non_finite(v, path + (k,))
-        if found is not None:
-            return found
-    return None
-
-
 def check_config(config: dict, whole: bool = True) -> dict:
     """``config`` checked against the JSON schema (types, units' ranges, unknown keys,
     with the nearest known key named), every number finite: a copy with the defaults
     filled in, or a one-line :class:`ConfigError`. ``whole=False``: a part of a config,
     as a subcommand reads (``finray ingest --config``), where no key is required."""
     cfg = copy.deepcopy(config) if config is not None else {}
-    found = _non_finite(cfg)
+    found = non_finite(cfg)
     if found is not None:
         raise ConfigError(_key(found[0]), f"must be a finite number, got {found[1]}")
     schema = load_schema()

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import copy
 import functools
+import math
 from importlib import resources
 
 import yaml
@@ -54,3 +55,22 @@ def schema_default(path: str, convert=frozen):
     if "default" not in node:
         raise KeyError(f"{path}: the config schema gives no default")
     return convert(copy.deepcopy(node["default"]))
+
+
+def non_finite(value, path: tuple = ()) -> tuple[tuple, float] | None:
+    """``(path, value)`` of the first NaN or infinite float in ``value`` (a config or any
+    JSON value, walked); None where there is none. JSON schema's ``type: number`` takes
+    NaN, and NaN passes every ``minimum`` and ``maximum``."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return path, value
+    if isinstance(value, dict):
+        items = value.items()
+    elif isinstance(value, (list, tuple)):
+        items = enumerate(value)
+    else:
+        return None
+    for k, v in items:
+        found = non_finite(v, path + (k,))
+        if found is not None:
+            return found
+    return None

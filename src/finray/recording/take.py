@@ -28,6 +28,7 @@ import numpy as np
 
 from ..media import VIDEO_SUFFIXES, MediaError, one_line, read_image, video_frames, video_info
 from ..errors import TakeError
+from ..schema import non_finite
 
 FORCE_COLUMNS = ("fx_N", "fy_N", "fz_N")
 #: Fewest sensor samples and frames a take may have (a clock offset needs a shape).
@@ -95,9 +96,10 @@ def read_take_json(path: Path) -> dict:
     if err is not None:
         where = "/".join(str(p) for p in err.absolute_path) or "top level"
         raise TakeError(f"{path}: {where}: {err.message}")
-    bad = _non_finite(meta)  # JSON's NaN and Infinity pass the schema's numbers
+    bad = non_finite(meta)  # JSON's NaN and Infinity pass the schema's numbers
     if bad is not None:
-        raise TakeError(f"{path}: {bad[0]}: must be a finite number, got {bad[1]}")
+        where = "/".join(str(k) for k in bad[0]) or "top level"
+        raise TakeError(f"{path}: {where}: must be a finite number, got {bad[1]}")
     video = meta.get("video")
     if video is not None:
         v = PurePath(video)
@@ -105,24 +107,6 @@ def read_take_json(path: Path) -> dict:
             raise TakeError(f"{path}: video: {video!r} is not a file in the take's own folder")
     meta.setdefault("camera", {})
     return meta
-
-
-def _non_finite(value, where: str = "") -> tuple[str, float] | None:
-    """``(where, value)`` of the first NaN or infinite number in a JSON value, else None."""
-    if isinstance(value, float) and not np.isfinite(value):
-        return where or "top level", value
-    items = (
-        value.items()
-        if isinstance(value, dict)
-        else enumerate(value)
-        if isinstance(value, list)
-        else ()
-    )
-    for k, v in items:
-        found = _non_finite(v, f"{where}/{k}" if where else str(k))
-        if found is not None:
-            return found
-    return None
 
 
 def _times(values: np.ndarray, name: str) -> np.ndarray:
