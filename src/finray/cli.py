@@ -938,7 +938,14 @@ def main(argv: list[str] | None = None) -> int:
     from .outputs import COMMITTED, Terminated, catch_signals
 
     n_committed = len(COMMITTED)
-    with catch_signals() as caught:
+
+    def stop(signum: int):  # the command's process: ends where the signal comes
+        code = _interrupted(args.command, signum, COMMITTED[n_committed:])
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+
+    with catch_signals(stop if argv is None else None) as caught:
         try:
             code = _main(args)
         except KeyboardInterrupt as exc:
@@ -949,17 +956,11 @@ def main(argv: list[str] | None = None) -> int:
                 raise
             # an error that the signal caused (an import cut short: ImportError)
             code = _interrupted(args.command, caught.signum, COMMITTED[n_committed:])
-    if argv is None:  # the command line's process
-        if caught.signum is not None:
-            # CPython kills itself with SIGINT at exit where a KeyboardInterrupt went
-            # through code it ran for an import, even one caught here: this exit code
-            sys.stdout.flush()
-            sys.stderr.flush()
-            os._exit(code)
-        import signal
+        if argv is None:  # the command's process: the work is done, its code stands
+            import signal
 
-        for s in (signal.SIGINT, signal.SIGTERM):  # the work is done: its code stands
-            signal.signal(s, signal.SIG_IGN)
+            for s in (signal.SIGINT, signal.SIGTERM):
+                signal.signal(s, signal.SIG_IGN)
     return code
 
 

@@ -11,7 +11,12 @@
 
 :class:`Staged` is the policy; :func:`catch_signals` makes SIGTERM stop a run as Ctrl-C
 does (:class:`Terminated`, a :class:`KeyboardInterrupt`) and :func:`held` keeps a signal
-from cutting the moving into place or the clean-up short (it is raised after).
+from cutting the moving into place or the clean-up short (it is raised after). In the
+``finray`` command's own process a signal is not raised but ends the process where it
+comes (``catch_signals(stop=...)``): the open temporary folders are removed, one line,
+exit code. An exception raised into whatever Python code runs at that moment can abort
+the process (a callback that C++ calls through pybind11: ``std::terminate``) or be lost
+(a ctypes callback's exception is printed and dropped), as CI saw (issue 55).
 """
 
 from __future__ import annotations
@@ -34,17 +39,27 @@ class _Signals:
     """What :func:`catch_signals` saw: ``signum``, the first signal caught (None: none);
     ``pending``, one that came while :func:`held`."""
 
-    def __init__(self):
+    def __init__(self, stop=None):
         self.signum: int | None = None
         self.pending: int | None = None
         self.hold = 0
+        self.stop = stop  # None: raise; else called with the signal's number, ends it
 
     def handler(self, signum, frame):
+        if self.stop is not None and self.signum is not None:
+            return  # stopping already (a second signal while the first is handled)
         self.signum = self.signum or signum
         if self.hold:
             self.pending = signum
             return
-        raise _exception(signum)
+        self.act(signum)
+
+    def act(self, signum: int) -> None:
+        if self.stop is None:
+            raise _exception(signum)
+        for staged in reversed(_OPEN):  # what a KeyboardInterrupt's unwinding would do
+            staged.discard()
+        self.stop(signum)
 
 
 def _exception(signum: int) -> KeyboardInterrupt:
@@ -54,15 +69,21 @@ def _exception(signum: int) -> KeyboardInterrupt:
 _SIGNALS = _Signals()
 #: the outputs moved into place by this process (:meth:`Staged.commit`)
 COMMITTED: list[Path] = []
+#: the open :class:`Staged` outputs (their temporary folders exist)
+_OPEN: list[Staged] = []
 
 
 @contextlib.contextmanager
-def catch_signals():
+def catch_signals(stop=None):
     """SIGINT raises :class:`KeyboardInterrupt`, SIGTERM :class:`Terminated` in the main
     thread (where the process does not ignore them); yields the record (``signum``: the
-    signal caught, else None). The earlier handlers come back after."""
+    signal caught, else None). The earlier handlers come back after.
+
+    ``stop``: where given (the command's own process), a signal is not raised: the open
+    temporary folders are removed and ``stop(signum)`` is called, which must end the
+    process (:func:`os._exit`); a signal in a :func:`held` block, at its end."""
     global _SIGNALS
-    _SIGNALS = record = _Signals()
+    _SIGNALS = record = _Signals(stop)
     old = {}
     if threading.current_thread() is threading.main_thread():
         for s in (signal.SIGINT, signal.SIGTERM):
@@ -71,8 +92,9 @@ def catch_signals():
     try:
         yield record
     finally:
-        for s, h in old.items():
-            signal.signal(s, h)
+        if stop is None:  # (the command's process keeps them to its end)
+            for s, h in old.items():
+                signal.signal(s, h)
 
 
 @contextlib.contextmanager
@@ -86,7 +108,7 @@ def held():
         record.hold -= 1
     if not record.hold and record.pending is not None:
         signum, record.pending = record.pending, None
-        raise _exception(signum)
+        record.act(signum)
 
 
 def _listing(files: list[str]) -> str:
@@ -187,6 +209,7 @@ class Staged:
                 self._made = missing[-1] if missing else None
                 shutil.rmtree(self.tmp, ignore_errors=True)  # an earlier process's pid
                 self.tmp.mkdir()
+                _OPEN.append(self)
         except OSError as exc:
             raise UsageError(
                 f"{self.option} {self.out} cannot be created ({exc.strerror or exc})"
@@ -209,11 +232,13 @@ class Staged:
                     _replace(entry, self.out.parent / entry.name)
                 self.tmp.rmdir()
             COMMITTED.append(self.out)
+            self._close()
 
     def discard(self) -> None:
         """Remove the temporary folder (and the folders made above ``out``, if empty)."""
         with held():
             shutil.rmtree(self.tmp, ignore_errors=True)
+            self._close()
             if self._made is not None:
                 for p in [self.out.parent, *self.out.parent.parents]:
                     try:
@@ -222,6 +247,10 @@ class Staged:
                         break
                     if p == self._made:
                         break
+
+    def _close(self) -> None:
+        if self in _OPEN:
+            _OPEN.remove(self)
 
     def __enter__(self) -> Staged:
         self.open()

@@ -61,17 +61,21 @@ def test_calibrate_moves_its_outputs_into_place_whole(tmp_path):
         (0.5, signal.SIGTERM, "terminated"),
         (0.8, signal.SIGINT, "interrupted"),
     ]:
-        p = start_finray([*args, "--overwrite"], tmp_path)
-        time.sleep(frac * wall)
-        p.send_signal(sig)
-        _, err = p.communicate(timeout=300)
-        assert "Traceback" not in err, err
-        if p.returncode in (0, 1):  # done before the signal came: the new outputs, whole
-            first = _state(out.parent)
-            continue
-        assert p.returncode == 128 + sig, err
-        stopped += 1
-        assert err.strip().splitlines()[-1] == f"finray calibrate: {what}; nothing written"
-        assert _state(out.parent) == first
-        assert [q.name for q in out.parent.iterdir() if ".part-" in q.name] == []
+        # the first run's time includes a cold start (and other tests' load): a run
+        # done before the signal came is run again with the signal sent sooner
+        for k in range(4):
+            p = start_finray([*args, "--overwrite"], tmp_path)
+            time.sleep(frac * wall * 0.5**k)
+            p.send_signal(sig)
+            _, err = p.communicate(timeout=300)
+            assert "Traceback" not in err, err
+            if p.returncode in (0, 1):  # done before the signal: the new outputs, whole
+                first = _state(out.parent)
+                continue
+            assert p.returncode == 128 + sig, err
+            stopped += 1
+            assert err.strip().splitlines()[-1] == f"finray calibrate: {what}; nothing written"
+            assert _state(out.parent) == first
+            assert [q.name for q in out.parent.iterdir() if ".part-" in q.name] == []
+            break
     assert stopped  # a signal came while it ran

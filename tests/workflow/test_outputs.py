@@ -94,6 +94,52 @@ def test_a_signal_in_a_held_block_is_raised_after_it():
     assert done == ["held block completed"] and caught.signum == signal.SIGTERM
 
 
+_IN_A_CALLBACK = """
+import ctypes, os, signal, sys
+from finray.outputs import Staged, catch_signals
+
+def stop(signum):
+    sys.stderr.write("stopped\\n")
+    os._exit(128 + signum)
+
+with catch_signals(stop if sys.argv[2] == "stop" else None):
+    with Staged(sys.argv[1]) as st:
+        (st.path / "half.csv").write_text("half")
+
+        def compare(a, b):  # Python that C calls back (as torch's pybind11, llvmlite's ctypes)
+            os.kill(os.getpid(), signal.SIGINT)
+            sum(range(10000))  # bytecode: the handler runs here, inside the callback
+            return 0
+
+        CMP = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p)
+        values = (ctypes.c_int * 2)(2, 1)
+        ctypes.CDLL(None).qsort(values, 2, ctypes.sizeof(ctypes.c_int), CMP(compare))
+print("the signal was lost")
+"""
+
+
+def test_the_commands_process_stops_where_a_signal_comes_even_in_a_callback(tmp_path):
+    """A KeyboardInterrupt raised in Python code that C calls back is dropped by ctypes
+    (the run went on, exit 0) and aborts the process through pybind11 (CI: -6): in the
+    command's process (``catch_signals(stop)``) the signal removes the temporary folder
+    and ends the process where it comes."""
+
+    def run(mode):
+        return subprocess.run(
+            [sys.executable, "-c", _IN_A_CALLBACK, str(tmp_path / mode), mode],
+            capture_output=True,
+            text=True,
+            timeout=60,
+            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+        )
+
+    p = run("stop")
+    assert (p.returncode, p.stdout, p.stderr) == (130, "", "stopped\n")
+    assert names(tmp_path) == []  # no --out, no <out>.part-<pid>
+    p = run("raise")  # what a raised KeyboardInterrupt does there (why stop exists)
+    assert p.returncode == 0 and "the signal was lost" in p.stdout, p
+
+
 def test_calibrate_refuses_an_out_that_exists_or_is_a_folder(tmp_path, capsys):
     """--out an existing file (was overwritten, exit 0) or a folder (IsADirectoryError):
     one line, exit code 2, nothing touched."""
