@@ -44,9 +44,10 @@ class _Signals:
         self.pending: int | None = None
         self.hold = 0
         self.stop = stop  # None: raise; else called with the signal's number, ends it
+        self.raising = 0  # > 0: in a raised() block
 
     def handler(self, signum, frame):
-        if self.stop is not None and self.signum is not None:
+        if self.stop is not None and self.signum is not None and not self.raising:
             return  # stopping already (a second signal while the first is handled)
         self.signum = self.signum or signum
         if self.hold:
@@ -55,7 +56,7 @@ class _Signals:
         self.act(signum)
 
     def act(self, signum: int) -> None:
-        if self.stop is None:
+        if self.stop is None or self.raising:
             raise _exception(signum)
         for staged in reversed(_OPEN):  # what a KeyboardInterrupt's unwinding would do
             staged.discard()
@@ -109,6 +110,19 @@ def held():
     if not record.hold and record.pending is not None:
         signum, record.pending = record.pending, None
         record.act(signum)
+
+
+@contextlib.contextmanager
+def raised():
+    """A signal that comes in this block is raised (:class:`KeyboardInterrupt`,
+    :class:`Terminated`), in the command's process too: for a loop that Ctrl-C ends
+    (a live stream's frames), which catches it."""
+    record = _SIGNALS
+    record.raising += 1
+    try:
+        yield
+    finally:
+        record.raising -= 1
 
 
 def _listing(files: list[str]) -> str:

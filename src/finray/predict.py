@@ -7,6 +7,7 @@ run's files are moved into place only when it ends, so nothing half-written is l
 
 from __future__ import annotations
 
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -22,6 +23,7 @@ from .media import (
     read_image,
     video_frames,
 )
+from .outputs import raised
 from .predictor import Predictor  # the API: finray.predict.Predictor
 
 
@@ -414,6 +416,10 @@ def _predict_loop(p, run: _Run, writer) -> dict:
         out_cols = [*p.force_names, *(["contact_mm"] if p.has_contact else [])]
         table.write(",".join(["frame", *time_cols, *out_cols, *cal_cols, "valid"]) + "\n")
         table.flush()
+        # a live source ends with Ctrl-C: there the signal is raised into the loop
+        # (finray.outputs.raised), to end it with the rows so far
+        live_end = raised() if isinstance(frames, _Live) else nullcontext()
+        live_end.__enter__()
         try:
             for name, frame, t_s in frames:
                 try:
@@ -534,6 +540,8 @@ def _predict_loop(p, run: _Run, writer) -> dict:
             if not isinstance(frames, _Live):
                 raise
             interrupted = True  # Ctrl-C is how a live source ends: the rows so far stand
+        finally:
+            live_end.__exit__(None, None, None)
     if not rows:
         if not skipped:
             raise InputError(f"{run.source} has no frames")
