@@ -115,6 +115,27 @@ def flops_per_step(cfg: dict, batch: int) -> float:
     return float(fc.get_total_flops())
 
 
+def flop_split(cfg: dict, batch: int = 16) -> dict[str, float]:
+    """Forward GFLOP of a batch per part of the network (the encoder, the U-Net stress
+    decoder, the force head, the contact head); backward costs about twice each."""
+    from torch.utils.flop_counter import FlopCounterMode
+
+    net = _setup(cfg, 64, batch, False, True, "per-tensor")["model"].eval()
+    x = torch.zeros(batch, net.cfg.in_channels, net.cfg.height, net.cfg.width)
+
+    def gflop(fn, *args):
+        with torch.no_grad(), FlopCounterMode(display=False) as fc:
+            out = fn(*args)
+        return out, fc.get_total_flops() / 1e9
+
+    (h, skips), enc = gflop(net.encode, x)
+    parts = {"encoder": enc, "stress decoder": gflop(net.decode, h, skips)[1]}
+    parts["force head"] = gflop(net.force_head, h)[1]
+    if getattr(net, "contact_head", None) is not None:
+        parts["contact head"] = gflop(net.contact_head, h)[1]
+    return parts
+
+
 def measure(steps: int, warmup: int, n: int = 4096) -> dict:
     torch.set_num_threads(1)
     cfg = load_config(ROOT / "config" / "config.yaml")
@@ -172,6 +193,7 @@ def measure(steps: int, warmup: int, n: int = 4096) -> dict:
         "peak_gflops_fp32": peak,
         "peak_how": peak_how,
         "steps": steps,
+        "forward_gflop_by_part": flop_split(cfg),
         "rows": rows,
         "auto": (
             {"picks": "bfloat16" if trial.bf16 else "float32", **trial.as_dict()}
@@ -199,6 +221,13 @@ def table(r: dict) -> str:
             f"{w['gflops']:.0f} | {100 * w['share_of_fp32_peak']:.0f} % / "
             f"{100 * w['fwd_bwd_share_of_fp32_peak']:.0f} % |"
         )
+    split = r["forward_gflop_by_part"]
+    total = sum(split.values())
+    lines += [
+        "",
+        "Forward FLOPs of a batch of 16 by part: "
+        + ", ".join(f"{k} {v:.3f} GFLOP ({100 * v / total:.1f} %)" for k, v in split.items()),
+    ]
     a = r["auto"]
     lines += [
         "",
