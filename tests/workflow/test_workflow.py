@@ -557,7 +557,8 @@ def test_pitch_augmentation_matches_the_pitched_renders(smoke_run):
 def test_an_interrupted_run_resumes_with_the_readme_command(tmp_path):
     """Ctrl-C in the middle of a job, then the README's `snakemake --cores 2` again: the
     default profile (workflow/profiles/default, copied verbatim beside a one-rule
-    Snakefile) is picked up and its rerun-incomplete reruns the interrupted job."""
+    Snakefile that ends the rate limit's timers as the workflow does) is picked up and its
+    rerun-incomplete reruns the interrupted job."""
     import os
     import shutil
     import signal
@@ -566,6 +567,7 @@ def test_an_interrupted_run_resumes_with_the_readme_command(tmp_path):
     wf = tmp_path / "workflow"
     shutil.copytree(ROOT / "workflow" / "profiles" / "default", wf / "profiles" / "default")
     (wf / "Snakefile").write_text(
+        "from finray.scheduler_timers import end_timers_at_exit\n\nend_timers_at_exit()\n\n"
         'rule a:\n    output: "a.txt"\n'
         '    shell: "echo start > {output}; sleep ${{TOY_SLEEP:-0}}; echo done >> {output}"\n'
     )

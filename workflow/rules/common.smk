@@ -18,6 +18,10 @@ from finray.config import (
 )
 from finray.dataset import pitch_object
 from finray.dataset.params import SHARD_KEYS
+from finray.scheduler_timers import end_timers_at_exit
+
+# the job-rate limit's timers (the profile's span: they never fire) end with the run
+end_timers_at_exit()
 
 #: the repository root (this workflow is workflow/Snakefile, the catalog's layout)
 REPO = os.path.dirname(workflow.basedir)
