@@ -418,130 +418,127 @@ def _predict_loop(p, run: _Run, writer) -> dict:
         table.flush()
         # a live source ends with Ctrl-C: there the signal is raised into the loop
         # (finray.outputs.raised), to end it with the rows so far
-        live_end = raised() if isinstance(frames, _Live) else nullcontext()
-        live_end.__enter__()
-        try:
-            for name, frame, t_s in frames:
-                try:
-                    if isinstance(frame, FrameError):
-                        raise frame
+        with raised() if isinstance(frames, _Live) else nullcontext():
+            try:
+                for name, frame, t_s in frames:
                     try:
-                        mask, confidence = p.find(frame)
-                    except FrameError:
-                        no_finger += 1
-                        raise
-                    box = p.crop_box(mask)
-                    x = p.network_input(mask, box)
-                    if run.force_only:
-                        fvec, cvec = p.run_force_contact(x)
-                    else:
-                        stress, fvec, cvec = p.run_contact(x)
-                        stress = stress[0, 0]
-                    fvec, force, contact = fvec[0], float(fvec[0, 0]), float(cvec[0])
-                except FrameError as exc:
-                    msg = f"{name}: {exc}"
-                    if run.one_image:
-                        raise InputError(msg) from None
-                    skipped.append((name, msg))
-                    if run.on_skip is not None and rows:
-                        run.on_skip(name, msg)
-                    elif run.on_skip is not None:
-                        pending.append((name, msg))
-                    continue
-                if not run.force_only and run.maps:
-                    stem = Path(name).stem
-                    written += [out_dir / f"{stem}_stress.exr", out_dir / f"{stem}_stress.png"]
-                    write_exr(
-                        written[-2],
-                        {"stress": stress.astype(np.float32)},
-                        {
-                            "source": str(name),
-                            "force_N": force,
-                            "stress_transform": "log10(1 + von_mises_MPa / stress_ref_MPa)",
-                            "stress_ref_MPa": p.stress_ref_MPa,
-                        },
-                    )
-                    s = np.clip(stress / max(float(stress.max()), 1e-6), 0, 1)
-                    write_png(written[-1], (cm.inferno(s)[..., :3] * 255).astype(np.uint8))
-                row = {
-                    "frame": name,
-                    **({"t_s": t_s} if video else {}),
-                    **{n: float(v) for n, v in zip(p.force_names, fvec)},
-                    **({"contact_mm": contact} if p.has_contact else {}),
-                }
-                flags = p.check(mask, confidence, x, row, box)
-                row["valid"] = "+".join(flags) or "ok"
-                if calibration is not None:
-                    from .sim2real.calibration import predictive, spread
+                        if isinstance(frame, FrameError):
+                            raise frame
+                        try:
+                            mask, confidence = p.find(frame)
+                        except FrameError:
+                            no_finger += 1
+                            raise
+                        box = p.crop_box(mask)
+                        x = p.network_input(mask, box)
+                        if run.force_only:
+                            fvec, cvec = p.run_force_contact(x)
+                        else:
+                            stress, fvec, cvec = p.run_contact(x)
+                            stress = stress[0, 0]
+                        fvec, force, contact = fvec[0], float(fvec[0, 0]), float(cvec[0])
+                    except FrameError as exc:
+                        msg = f"{name}: {exc}"
+                        if run.one_image:
+                            raise InputError(msg) from None
+                        skipped.append((name, msg))
+                        if run.on_skip is not None and rows:
+                            run.on_skip(name, msg)
+                        elif run.on_skip is not None:
+                            pending.append((name, msg))
+                        continue
+                    if not run.force_only and run.maps:
+                        stem = Path(name).stem
+                        written += [out_dir / f"{stem}_stress.exr", out_dir / f"{stem}_stress.png"]
+                        write_exr(
+                            written[-2],
+                            {"stress": stress.astype(np.float32)},
+                            {
+                                "source": str(name),
+                                "force_N": force,
+                                "stress_transform": "log10(1 + von_mises_MPa / stress_ref_MPa)",
+                                "stress_ref_MPa": p.stress_ref_MPa,
+                            },
+                        )
+                        s = np.clip(stress / max(float(stress.max()), 1e-6), 0, 1)
+                        write_png(written[-1], (cm.inferno(s)[..., :3] * 255).astype(np.uint8))
+                    row = {
+                        "frame": name,
+                        **({"t_s": t_s} if video else {}),
+                        **{n: float(v) for n, v in zip(p.force_names, fvec)},
+                        **({"contact_mm": contact} if p.has_contact else {}),
+                    }
+                    flags = p.check(mask, confidence, x, row, box)
+                    row["valid"] = "+".join(flags) or "ok"
+                    if calibration is not None:
+                        from .sim2real.calibration import predictive, spread
 
-                    members = p.run_members(x)[0]
-                    band = predictive(
-                        calibration,
-                        [members.mean()],
-                        spread(members[:, None]),
-                        calibration.get("level", 0.9),
-                        seed=len(rows),
-                    )
-                    row.update(
-                        force_N=float(band["median"][0]),
-                        lo_N=float(band["lo"][0]),
-                        hi_N=float(band["hi"][0]),
-                        level=band["level"],
-                    )
-                if run.annotate:
-                    from .annotate import annotate_frame
+                        members = p.run_members(x)[0]
+                        band = predictive(
+                            calibration,
+                            [members.mean()],
+                            spread(members[:, None]),
+                            calibration.get("level", 0.9),
+                            seed=len(rows),
+                        )
+                        row.update(
+                            force_N=float(band["median"][0]),
+                            lo_N=float(band["lo"][0]),
+                            hi_N=float(band["hi"][0]),
+                            level=band["level"],
+                        )
+                    if run.annotate:
+                        from .annotate import annotate_frame
 
-                    cal = (
-                        {k: row[k] for k in ("force_N", "lo_N", "hi_N", "level")}
-                        if calibration
-                        else None
+                        cal = (
+                            {k: row[k] for k in ("force_N", "lo_N", "hi_N", "level")}
+                            if calibration
+                            else None
+                        )
+                        label = name + (f"  t = {t_s:.3f} s" if t_s is not None else "")
+                        img = annotate_frame(
+                            frame,
+                            mask,
+                            box,
+                            stress,
+                            row,
+                            cal,
+                            label,
+                            crop_y_mm=p.crop_y_mm,
+                            contact_min_force_N=p.contact_min_force_N,
+                            stress_ref_MPa=p.stress_ref_MPa,
+                            flags=flags,
+                        )
+                        if run.on_annotated is not None:
+                            run.on_annotated(img)
+                        if writer is not None:
+                            writer.write(img)
+                        else:
+                            written.append(out_dir / f"{Path(name).stem}_annotated.png")
+                            write_png(written[-1], img)
+                    times = ["" if t_s is None else f"{t_s:.6f}"] if video else []
+                    table.write(
+                        ",".join(
+                            [
+                                name,
+                                *times,
+                                *(f"{row[n]:.6g}" for n in [*out_cols, *cal_cols]),
+                                row["valid"],
+                            ]
+                        )
+                        + "\n"
                     )
-                    label = name + (f"  t = {t_s:.3f} s" if t_s is not None else "")
-                    img = annotate_frame(
-                        frame,
-                        mask,
-                        box,
-                        stress,
-                        row,
-                        cal,
-                        label,
-                        crop_y_mm=p.crop_y_mm,
-                        contact_min_force_N=p.contact_min_force_N,
-                        stress_ref_MPa=p.stress_ref_MPa,
-                        flags=flags,
-                    )
-                    if run.on_annotated is not None:
-                        run.on_annotated(img)
-                    if writer is not None:
-                        writer.write(img)
-                    else:
-                        written.append(out_dir / f"{Path(name).stem}_annotated.png")
-                        write_png(written[-1], img)
-                times = ["" if t_s is None else f"{t_s:.6f}"] if video else []
-                table.write(
-                    ",".join(
-                        [
-                            name,
-                            *times,
-                            *(f"{row[n]:.6g}" for n in [*out_cols, *cal_cols]),
-                            row["valid"],
-                        ]
-                    )
-                    + "\n"
-                )
-                table.flush()  # a long video's forces can be read while it runs
-                rows.append(row)
-                for skip in pending:
-                    run.on_skip(*skip)
-                pending.clear()
-                if run.on_frame is not None:
-                    run.on_frame(row)
-        except KeyboardInterrupt:
-            if not isinstance(frames, _Live):
-                raise
-            interrupted = True  # Ctrl-C is how a live source ends: the rows so far stand
-        finally:
-            live_end.__exit__(None, None, None)
+                    table.flush()  # a long video's forces can be read while it runs
+                    rows.append(row)
+                    for skip in pending:
+                        run.on_skip(*skip)
+                    pending.clear()
+                    if run.on_frame is not None:
+                        run.on_frame(row)
+            except KeyboardInterrupt:
+                if not isinstance(frames, _Live):
+                    raise
+                interrupted = True  # Ctrl-C is how a live source ends: the rows so far stand
     if not rows:
         if not skipped:
             raise InputError(f"{run.source} has no frames")

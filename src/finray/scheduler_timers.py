@@ -3,7 +3,7 @@
 Snakemake 9 re-runs its scheduler after each pass through a ``threading.Timer`` of the
 limit's span (``--max-jobs-per-timespan``), and every finished job starts another such
 chain: on a full run hundreds of timers wake the scheduler, which re-reads the size of
-every ready job's inputs each time (a third of a core at the end of a 1000/10s run).
+every ready job's inputs each time.
 The default profile sets a span no run reaches (``1000000/1000d``), so the timers never
 fire; they are not daemon threads, though, and Python waits for them at exit.
 :func:`end_timers_at_exit` cancels them once the main thread is done, through the
