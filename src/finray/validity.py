@@ -23,7 +23,12 @@ A frame gets a list of flags (none: valid):
   :attr:`Limits.force_margin` of its span);
 - ``contact_range``: for a model with the contact head, a contact height outside the
   trained heights (by more than :attr:`Limits.contact_margin_mm`), where ``|fx|`` is
-  above the smallest force the height was trained on.
+  above the smallest force the height was trained on;
+- ``near_base``: for a model with the contact head, a contact below the highest contact
+  at which a training frame's force rose faster than :attr:`Limits.stiff_N_per_mm`
+  per mm of the push's travel (where ``|fx|`` is above that smallest force): close to
+  the clamped base the finger barely bends while the force climbs, so the image
+  cannot tell the force (docs/studies/face.md, "Near the base").
 
 The training's side (:func:`training_ranges`) is saved with the model
 (``model.ts.json``'s ``trained``) by :func:`finray.train.export_torchscript`; a model
@@ -47,6 +52,8 @@ FLAGS = {
     "shape": "the silhouette is unlike the training's",
     "force_range": "the force is outside the training's range",
     "contact_range": "the contact height is outside the trained heights",
+    "near_base": "the contact is where the finger is too stiff near its base for the "
+    "image to tell the force",
 }
 #: The silhouette grid (rows, columns) the shape is compared on.
 SHAPE_GRID = (32, 16)
@@ -64,6 +71,11 @@ class Limits:
     fill_margin: float = 0.05
     force_margin: float = 0.1
     contact_margin_mm: float = 2.0
+    #: the training frames' local stiffness (N per mm of travel) above which the image is
+    #: taken not to resolve the force (``near_base``); on the default training any value
+    #: of 4-8 gives the same height, 3 also counts the ribs jamming higher up
+    #: (docs/studies/face.md, "Near the base")
+    stiff_N_per_mm: float = 4.0
 
 
 def silhouette_grid(x: np.ndarray, grid: tuple[int, int] = SHAPE_GRID) -> np.ndarray:
@@ -92,12 +104,16 @@ def training_ranges(
     contact_mm: np.ndarray | None = None,
     contact_min_force_N: float = 0.0,
     chunk: int = 4096,
+    stiffness_N_per_mm: np.ndarray | None = None,
+    limits: Limits = Limits(),
 ) -> dict:
     """What the checks compare a frame with, from the training frames: ``images`` (N, 1,
     H, W) in [0, 1], or a list of such arrays (both views where the training saw both;
     read ``chunk`` frames at a time), ``force_N`` (N, F) named ``force_names``,
     ``contact_mm`` (N,) the contact heights (NaN where none; frames with ``|fx|`` above
-    ``contact_min_force_N`` count). JSON-ready."""
+    ``contact_min_force_N`` count); ``stiffness_N_per_mm`` (N,) each frame's local
+    stiffness (:func:`finray.train.data.frame_stiffness`): ``stiff_below_mm``, the
+    highest contact height of a frame stiffer than ``limits.stiff_N_per_mm``. JSON-ready."""
     parts = list(images) if isinstance(images, (list, tuple)) else [images]
     chunks = [p[i : i + chunk] for p in parts for i in range(0, len(p), chunk)]
     n = sum(len(c) for c in chunks)
@@ -123,6 +139,11 @@ def training_ranges(
         has = np.isfinite(c) & (np.abs(f[: len(c), 0]) > contact_min_force_N)
         if has.any():
             out["contact_mm"] = [float(c[has].min()), float(c[has].max())]
+        if stiffness_N_per_mm is not None:
+            k = np.asarray(stiffness_N_per_mm, dtype=np.float64).reshape(-1)
+            stiff = has & (np.nan_to_num(k, nan=0.0) > limits.stiff_N_per_mm)
+            if stiff.any():
+                out["stiff_below_mm"] = float(c[stiff].max())
     return out
 
 
@@ -190,6 +211,15 @@ def check_frame(
         and not span[0] - limits.contact_margin_mm <= c <= span[1] + limits.contact_margin_mm
     ):
         flags.append("contact_range")
+    below = trained.get("stiff_below_mm")
+    if (
+        c is not None
+        and below is not None
+        and math.isfinite(c)
+        and abs(forces.get("fx_N", 0.0)) > contact_min_force_N
+        and c < below
+    ):
+        flags.append("near_base")
     return flags
 
 

@@ -294,6 +294,26 @@ def test_force_shape_and_window_checks():
     assert check_frame(0.1, 0.3, 1.0, x, {"fx_N": 5.0}, None) == ["off_frame"]
 
 
+def test_a_contact_where_the_training_was_stiff_is_flagged_near_base():
+    x = np.zeros((4, 1, 64, 32), np.float32)
+    x[..., 10:, 4:20] = 1.0
+    force = np.array([[1.0], [8.0], [30.0], [6.0]])
+    contact = np.array([15.0, 9.0, 6.0, 40.0])
+    stiff = np.array([0.5, 5.0, 20.0, np.nan])  # N/mm: the frames at 9 and 6 mm are stiff
+    trained = training_ranges(x, force, ["fx_N"], contact, 0.2, stiffness_N_per_mm=stiff)
+    assert trained["stiff_below_mm"] == 9.0
+    one = x[:1]
+    assert check_frame(0.1, 0.0, 1.0, one, {"fx_N": 5.0, "contact_mm": 8.0}, trained, 0.2) == [
+        "near_base"
+    ]
+    assert check_frame(0.1, 0.0, 1.0, one, {"fx_N": 5.0, "contact_mm": 12.0}, trained, 0.2) == []
+    # unloaded, the contact head's height is a guess: not flagged
+    assert check_frame(0.1, 0.0, 1.0, one, {"fx_N": 0.1, "contact_mm": 8.0}, trained, 0.2) == []
+    # no frame above the limit: nothing to flag
+    soft = training_ranges(x, force, ["fx_N"], contact, 0.2, stiffness_N_per_mm=stiff / 10)
+    assert "stiff_below_mm" not in soft
+
+
 def test_the_stress_reference_saved_with_the_model_labels_the_colour_bar(model, tmp_path):
     """A model exported with another stress_ref: the bar's ticks (MPa) sit where the ramp
     has the colour the overlay gives a map value of that stress at the model's reference;

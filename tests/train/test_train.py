@@ -370,6 +370,23 @@ def test_relative_force_weights_divide_by_each_scenes_largest_force():
     np.testing.assert_allclose(w, raw / raw.mean(), rtol=1e-6)
 
 
+def test_frame_stiffness_is_the_slope_of_the_force_along_each_scenes_travel():
+    from finray.train.data import frame_stiffness
+
+    u = np.linspace(0.0, 4.0, 41)
+    # two scenes interleaved and shuffled: |fx| = 3 u (a) and 0.5 u^2 (b, pushed in -x)
+    ids = np.array(["a"] * 41 + ["b"] * 41 + ["c"])
+    uu = np.concatenate([u, u, [1.0]])
+    fx = np.concatenate([3.0 * u, -0.5 * u**2, [2.0]])
+    order = np.random.default_rng(0).permutation(len(ids))
+    k = frame_stiffness(ids[order], uu[order], fx[order])
+    back = np.empty_like(k)
+    back[order] = k
+    np.testing.assert_allclose(back[:41], 3.0)
+    np.testing.assert_allclose(back[42:81], u[1:40], rtol=1e-9)  # d(u^2/2)/du = u inside
+    assert np.isnan(back[82])  # one frame: no slope
+
+
 def test_uniform_force_weights_train_as_the_plain_loss():
     x, s, f = toy()
     net = NetConfig(height=32, width=16, base_channels=4)

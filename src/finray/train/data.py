@@ -51,6 +51,24 @@ def load_split(
     }
 
 
+def frame_stiffness(scene_id, displacement_mm, fx_N) -> np.ndarray:
+    """Each frame's local stiffness (N,): how fast ``|fx|`` (N) rises with the push's
+    travel (mm) at that frame of its scene, in N/mm (``np.gradient`` along the scene's
+    frames in travel order; NaN for a scene of one frame or no travel)."""
+    ids, inv = np.unique(np.asarray(scene_id), return_inverse=True)
+    u = np.asarray(displacement_mm, dtype=float)
+    f = np.abs(np.asarray(fx_N, dtype=float).reshape(len(u), -1)[:, 0])
+    out = np.full(len(u), np.nan)
+    for k in range(len(ids)):  # one pass per scene (about a hundred), not per frame
+        i = np.flatnonzero(inv == k)
+        i = i[np.argsort(u[i], kind="stable")]
+        if len(i) > 1 and np.ptp(u[i]) > 0:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                out[i] = np.gradient(f[i], u[i])
+    out[~np.isfinite(out)] = np.nan  # frames at one travel (a held push): no slope
+    return out
+
+
 def shard_stress_ref(shards) -> float | None:
     """The stress maps' reference (MPa) the shards' renders used (``render.stress_ref_MPa``,
     from each shard's ``meta``); None where no shard records it. One line where they

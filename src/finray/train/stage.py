@@ -18,6 +18,7 @@ from .config import FORCE_LOSS, AugmentConfig, History, TrainConfig
 from ..validity import training_ranges
 from .data import (
     FORCE_COMPONENTS,
+    frame_stiffness,
     load_split,
     scene_force_weights,
     shard_stress_ref,
@@ -140,6 +141,11 @@ def train_from_shards(
         extra["forces"],
         tr["contact_mm"] if net_cfg.contact else None,
         cfg.contact_min_force_N,
+        stiffness_N_per_mm=(
+            frame_stiffness(tr["scene_id"], tr["displacement_mm"], tr["fx_N"])
+            if net_cfg.contact
+            else None
+        ),
     )
     export_torchscript(
         model,
