@@ -97,7 +97,8 @@ def test_a_model_entry_splits_into_augmentation_and_its_start():
     }
     assert "start_from" not in model_augment_settings(entry)
     assert model_start(cfg, "occlusion") == {"from": "plain", "epochs": 4}
-    assert model_start(cfg, "camera") == {"from": None, "epochs": None}
+    assert model_start(cfg, "plain") == {"from": None, "epochs": None}
+    assert model_start(cfg, "camera") == {"from": None, "epochs": 14}  # its own count
 
 
 def test_smoke_config_is_valid_and_small():
@@ -423,7 +424,7 @@ def test_pitch_model_config_is_the_paper_config_with_the_pitch_model():
     # the same augmentation; the smoke config's occlusion model is fine-tuned from plain,
     # so that CI runs that path too
     assert {m: model_augment_settings(e) for m, e in smoke["train"]["models"].items()} == {
-        **paper["train"]["models"],
+        **{m: model_augment_settings(e) for m, e in paper["train"]["models"].items()},
         "pitch": {"pitch_p": 0.5, "pitch_max_deg": 30.0},
     }
     assert model_start(smoke, "occlusion") == {"from": "plain", "epochs": 1}
