@@ -443,8 +443,8 @@ default) and <name>_stress.png. The finger is found by its colour, learned from 
 first frames (or --finger-colour), or by the renders' grey-level threshold where that
 finds the same finger (segmentation.json says which). Each frame is checked against
 what the model was trained on (column valid of forces.csv: ok, or its flags, e.g.
-off_frame, low_confidence, shape, force_range, contact_range, near_base; a warning counts them at
-the end). A frame that cannot be predicted (corrupt, no finger) is reported on stderr
+off_frame, low_confidence, shape, force_range, contact_range, near_base; a warning
+counts them at the end). A frame that cannot be predicted (corrupt, no finger) is reported on stderr
 and skipped, the others are written (exit code 1); bad input, or a source where the
 finger is never found, stops with one line (exit code 2).
 The network runs in ONNX Runtime when model.onnx and model.force.onnx lie beside

@@ -203,22 +203,13 @@ def check_frame(
             flags.append("force_range")
             break
     c, span = forces.get("contact_mm"), trained.get("contact_mm")
-    if (
-        c is not None
-        and span
-        and math.isfinite(c)
-        and abs(forces.get("fx_N", 0.0)) > contact_min_force_N
-        and not span[0] - limits.contact_margin_mm <= c <= span[1] + limits.contact_margin_mm
-    ):
+    # the contact head's height counts where the frame is pushed (below that force it is a guess)
+    if c is None or not math.isfinite(c) or abs(forces.get("fx_N", 0.0)) <= contact_min_force_N:
+        return flags
+    if span and not span[0] - limits.contact_margin_mm <= c <= span[1] + limits.contact_margin_mm:
         flags.append("contact_range")
     below = trained.get("stiff_below_mm")
-    if (
-        c is not None
-        and below is not None
-        and math.isfinite(c)
-        and abs(forces.get("fx_N", 0.0)) > contact_min_force_N
-        and c < below
-    ):
+    if below is not None and c < below:
         flags.append("near_base")
     return flags
 

@@ -55,13 +55,12 @@ def frame_stiffness(scene_id, displacement_mm, fx_N) -> np.ndarray:
     """Each frame's local stiffness (N,): how fast ``|fx|`` (N) rises with the push's
     travel (mm) at that frame of its scene, in N/mm (``np.gradient`` along the scene's
     frames in travel order; NaN for a scene of one frame or no travel)."""
-    ids, inv = np.unique(np.asarray(scene_id), return_inverse=True)
+    _, inv = np.unique(np.asarray(scene_id), return_inverse=True)
     u = np.asarray(displacement_mm, dtype=float)
     f = np.abs(np.asarray(fx_N, dtype=float).reshape(len(u), -1)[:, 0])
     out = np.full(len(u), np.nan)
-    for k in range(len(ids)):  # one pass per scene (about a hundred), not per frame
-        i = np.flatnonzero(inv == k)
-        i = i[np.argsort(u[i], kind="stable")]
+    order = np.lexsort((u, inv))  # by scene, then by travel
+    for i in np.split(order, np.flatnonzero(np.diff(inv[order])) + 1):  # one slice per scene
         if len(i) > 1 and np.ptp(u[i]) > 0:
             with np.errstate(divide="ignore", invalid="ignore"):
                 out[i] = np.gradient(f[i], u[i])
