@@ -208,10 +208,23 @@ def check_frame(
         return flags
     if span and not span[0] - limits.contact_margin_mm <= c <= span[1] + limits.contact_margin_mm:
         flags.append("contact_range")
-    below = trained.get("stiff_below_mm")
-    if below is not None and c < below:
+    if near_base(c, forces.get("fx_N", 0.0), trained, contact_min_force_N)[0]:
         flags.append("near_base")
     return flags
+
+
+def near_base(
+    contact_mm, fx_N, trained: dict | None, contact_min_force_N: float = 0.0
+) -> np.ndarray:
+    """Which frames :func:`check_frame` flags ``near_base``, for arrays: the contact head's
+    height ``contact_mm`` (mm) below the training's ``stiff_below_mm`` where ``|fx_N|`` is
+    above ``contact_min_force_N`` (N). All False for a model without that height."""
+    c = np.atleast_1d(np.asarray(contact_mm, dtype=np.float64))
+    f = np.broadcast_to(np.abs(np.asarray(fx_N, dtype=np.float64)), c.shape)
+    below = (trained or {}).get("stiff_below_mm")
+    if below is None:
+        return np.zeros(c.shape, bool)
+    return np.isfinite(c) & (f > contact_min_force_N) & (c < below)
 
 
 def flag_counts(rows: list[dict]) -> dict[str, int]:

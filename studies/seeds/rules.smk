@@ -90,6 +90,7 @@ use rule sim2real as spread_sim2real with:
     input:
         lab=[f"{LAB}/ingest/{t}/shard.npz" for t in lab_takes()],
         model=lambda w: sim2real_model(train_dir(w)),
+        torchscript=lambda w: sim2real_torchscript(train_dir(w)),
         no_context=f"{SPREAD}/{{variant}}/sim2real/no_context.pt",
         rig_prior=rig_prior_input(),
     output:
@@ -109,6 +110,7 @@ use rule rig_sim2real as spread_rig_sim2real with:
     input:
         lab=lambda w: [f"{RIGS}/{w.rig}/ingest/{t}/shard.npz" for t in lab_takes(rig_lab(w.rig))],
         model=lambda w: sim2real_model(train_dir(w)),
+        torchscript=lambda w: sim2real_torchscript(train_dir(w)),
         no_context=f"{SPREAD}/{{variant}}/sim2real/no_context.pt",
         rig_prior=rig_prior_input(),
     output:

@@ -75,20 +75,30 @@ def test_summary_over_rigs():
             }
         }
 
-    table = rigs_table(
-        {"default": summ([12, 3, 2], [90, 80, 100]), "rig1": summ([14, 6, 7], [70, 90, 90], n=300)}
-    )
+    rig1 = summ([14, 6, 7], [70, 90, 90], n=300)
+    for k, (e, n) in enumerate([(10, 250), (4, 240), (3, 240)]):  # near_base frames left out
+        rig1["by_context"][str(k)]["unflagged"] = {"nrmse_pct": e, "n": n}
+    # a summary from before the flag: every frame counts as unflagged
+    table = rigs_table({"default": summ([12, 3, 2], [90, 80, 100]), "rig1": rig1})
     s = rigs_summary(table, 0.9)
     assert s["per_rig"]["default"] == {
         "error_falls": True,
         "nrmse_pct_most_context": 2,
         "within_target": True,
+        "unflagged_error_falls": True,
+        "unflagged_within_target": True,
+        "unflagged_nrmse_pct": [12, 3, 2],
+        "near_base_frames": [0, 0, 0],
         "nrmse_pct": [12, 3, 2],
         "coverage_pct": [90, 80, 100],
         "n_frames": [100, 100, 100],
     }
-    assert not s["per_rig"]["rig1"]["error_falls"] and not s["per_rig"]["rig1"]["within_target"]
+    r1 = s["per_rig"]["rig1"]
+    assert not r1["error_falls"] and not r1["within_target"]
+    assert r1["unflagged_error_falls"] and r1["unflagged_within_target"]
+    assert r1["near_base_frames"] == [50, 60, 60]
     assert not s["all_fall"] and not s["all_within_target"]
+    assert s["unflagged_all_fall"] and s["unflagged_all_within_target"]
     assert s["by_context"]["0"]["coverage_pct_pooled"] == pytest.approx((90 * 100 + 70 * 300) / 400)
     assert (s["by_context"]["1"]["nrmse_pct_min"], s["by_context"]["1"]["nrmse_pct_max"]) == (3, 6)
     assert isinstance(table, pd.DataFrame) and len(table) == 6
@@ -174,3 +184,35 @@ def test_sim2real_metrics_per_contact_height_and_over_rigs():
             }
         }
     }
+
+
+def test_sim2real_reports_the_frames_not_flagged_near_base_apart():
+    """A frame the sensor flags near_base counts in every row's n_near_base and is left
+    out of the ``unflagged`` row, whose metrics are those of the other frames alone."""
+    from finray.evaluate.metrics import force_metrics
+    from finray.sim2real.experiment import metrics_table
+
+    fr = pd.DataFrame(
+        {
+            "context_objects": 2,
+            "context": "a + b",
+            "group": "c",
+            "take": "t",
+            "height_mm": [12.0, 12.0, 40.0, 40.0],
+            "sensor_N": [30.0, 32.0, 3.0, 4.0],
+            "pred_N": [10.0, 12.0, 3.1, 3.8],
+            "net_mean_N": [10.0, 12.0, 3.1, 3.8],
+            "lo_N": 0.0,
+            "hi_N": 100.0,
+            "near_base": [True, True, False, False],
+        }
+    )
+    m = metrics_table(fr, 0.9).set_index(["context", "test"])
+    ok = m.loc[("unflagged", "all")]
+    want = force_metrics(np.array([3.0, 4.0]), np.array([3.1, 3.8]))
+    assert ok["n"] == 2 and ok["n_near_base"] == 0
+    assert ok["nrmse_pct"] == pytest.approx(want["nrmse_pct"])
+    assert (
+        m.loc[("all", "all"), "n_near_base"] == 2 and m.loc[("by_height", "12"), "n_near_base"] == 2
+    )
+    assert m.loc[("all", "all"), "nrmse_pct"] > 10 * ok["nrmse_pct"]

@@ -14,7 +14,7 @@ from finray.model import FinRayNet, NetConfig
 from finray.predict import Predictor
 from finray.recording.finder import FingerFinder, finder_from_spec, learn_finder
 from finray.train import export_torchscript
-from finray.validity import check_frame, training_ranges
+from finray.validity import check_frame, near_base, training_ranges
 from helpers import CAMERA_PREPROCESS as PREPROCESS
 from recording_synth import APEX, FINGER_RGB, background, render_frame, write_video
 
@@ -312,6 +312,16 @@ def test_a_contact_where_the_training_was_stiff_is_flagged_near_base():
     # no frame above the limit: nothing to flag
     soft = training_ranges(x, force, ["fx_N"], contact, 0.2, stiffness_N_per_mm=stiff / 10)
     assert "stiff_below_mm" not in soft
+    # the array form (sim-to-real's) flags the same frames as check_frame
+    cs, fs = np.array([8.0, 12.0, 8.0, np.nan, 3.0]), np.array([5.0, 5.0, 0.1, 9.0, -7.0])
+    one_by_one = [
+        "near_base" in check_frame(0.1, 0.0, 1.0, one, {"fx_N": f, "contact_mm": c}, trained, 0.2)
+        for c, f in zip(cs, fs)
+    ]
+    assert (
+        near_base(cs, fs, trained, 0.2).tolist() == one_by_one == [True, False, False, False, True]
+    )
+    assert not near_base(cs, fs, soft, 0.2).any() and not near_base(cs, fs, None).any()
 
 
 def test_the_stress_reference_saved_with_the_model_labels_the_colour_bar(model, tmp_path):

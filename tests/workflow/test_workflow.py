@@ -308,6 +308,16 @@ def test_smoke_evaluation_summary_and_paper(smoke_run):
     one = m[(m["context_objects"] == 1) & (m["context"] == "all") & (m["test"] == "all")].iloc[0]
     assert one["n"] == r["by_context"]["1"]["n_frames"] and 0 <= one["coverage_pct"] <= 100
     assert (smoke_run / "results" / "evaluate" / "sim2real" / "corner.pdf").stat().st_size > 1000
+    # each frame flagged near_base as finray predict would, the others scored apart
+    fr = pd.read_csv(smoke_run / "results" / "evaluate" / "sim2real" / "frames.csv")
+    zero = fr[fr["context_objects"] == 0]
+    assert {"near_base", "contact_mm"} <= set(fr.columns)
+    assert r["by_context"]["0"]["n_near_base"] == int(zero["near_base"].sum())
+    ok = r["by_context"]["0"]["unflagged"]
+    assert ok["n"] == len(zero) - int(zero["near_base"].sum())
+    sub = zero[~zero["near_base"]]
+    rmse = np.sqrt(((sub["sensor_N"] - sub["pred_N"]) ** 2).mean())  # frames.csv: 6 digits
+    assert ok["rmse_N"] == pytest.approx(rmse, rel=1e-4)
     # sim-to-real on the smoke config's one drawn emulated rig, beside the configured one
     rigs = json.loads(
         (smoke_run / "results" / "evaluate" / "sim2real" / "rigs" / "summary.json").read_text()

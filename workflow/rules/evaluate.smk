@@ -102,6 +102,7 @@ rule sim2real:
     input:
         lab=[f"{LAB}/ingest/{t}/shard.npz" for t in lab_takes()],
         model=sim2real_model(),
+        torchscript=sim2real_torchscript(),
         no_context=f"{EVALUATE}/sim2real/no_context.pt",
         rig_prior=rig_prior_input(),
     output:

@@ -118,6 +118,7 @@ use rule sim2real as rig_sim2real with:
     input:
         lab=lambda w: [f"{RIGS}/{w.rig}/ingest/{t}/shard.npz" for t in lab_takes(rig_lab(w.rig))],
         model=sim2real_model(),
+        torchscript=sim2real_torchscript(),
         no_context=f"{EVALUATE}/sim2real/no_context.pt",  # the simulation's: every rig's
         rig_prior=rig_prior_input(),
     output:

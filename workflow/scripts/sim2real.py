@@ -2,6 +2,7 @@ import torch
 
 from finray.sim2real.experiment import Sim2RealConfig, run_sim2real, write_outputs
 from finray.logs import log_to
+from finray.train.export import model_settings
 
 inp, out = snakemake.input, snakemake.output
 with log_to(snakemake.log[0]):
@@ -10,6 +11,9 @@ with log_to(snakemake.log[0]):
     prior = [inp.rig_prior] if isinstance(inp.rig_prior, str) else list(inp.rig_prior)
     if prior:  # the rig prior's gain from the FEA (finray.sim2real.rig_prior)
         cfg = cfg.with_rig_prior(prior[0])
-    result = run_sim2real(inp.model, list(inp.lab), inp.no_context, snakemake.params.size, cfg)
+    meta = model_settings(inp.torchscript)  # the training's ranges: near_base as predict flags it
+    result = run_sim2real(
+        inp.model, list(inp.lab), inp.no_context, snakemake.params.size, cfg, meta=meta
+    )
     write_outputs(result, out)
     print(result["metrics"].to_string())

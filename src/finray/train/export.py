@@ -144,6 +144,12 @@ def model_file(ts_path: str | Path, role: str) -> Path:
     return Path(ts_path).with_suffix(MODEL_FILES[role])
 
 
+def model_settings(ts_path: str | Path) -> dict:
+    """The settings exported beside ``model.ts`` (``model.ts.json``: preprocessing, force
+    names, the training's ranges ``trained``...)."""
+    return json.loads(Path(str(ts_path) + ".json").read_text())
+
+
 def seal(ts_path: str | Path, roles=("torchscript",)) -> None:
     """Record the SHA-256 of the model's files of ``roles`` (:data:`MODEL_FILES`; those
     that exist) in ``ts_path + '.json'`` (``sha256``), beside the ones it has."""

@@ -100,6 +100,11 @@ def sim2real_model(train_dir=TRAIN):
     return f"{train_dir}/{sim2real_model_name(config)}/model.pt"
 
 
+def sim2real_torchscript(train_dir=TRAIN):
+    """Its export, whose model.ts.json holds the training's ranges (the near_base flag)."""
+    return f"{train_dir}/{sim2real_model_name(config)}/model.ts"
+
+
 # The diversity comparison (evaluate.smk's evaluate_diversity, DIVERSITY_DIR there)
 def diversity_files():
     """The comparison's summary where the config plans it (generated training objects and
