@@ -192,13 +192,15 @@ class FinRayNet(nn.Module):
         encoder and the contact head only. Meaningful where the finger is pushed
         (training's frames above ``train.contact_min_force_N``)."""
         h, _ = self.encode(x)
-        return self._contact_mm(h)
+        return self.contact_of_latent(h)
 
     def force_contact(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Force (B, n_forces) in N and contact height (B,) in mm, without the stress
         decoder (one encoder pass)."""
         h, _ = self.encode(x)
-        return self.force_head(h) * self.force_scale_N + self.force_mean_N, self._contact_mm(h)
+        return self.force_head(h) * self.force_scale_N + self.force_mean_N, self.contact_of_latent(
+            h
+        )
 
     def forward_contact(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Stress map (log scale), force (B, n_forces) in N and contact height (B,) in mm."""
@@ -216,7 +218,9 @@ class FinRayNet(nn.Module):
         c = self.contact_head(h)[:, 0] if self.cfg.contact else None
         return self.decode(h, skips), self.force_head(h), c
 
-    def _contact_mm(self, h: torch.Tensor) -> torch.Tensor:
+    def contact_of_latent(self, h: torch.Tensor) -> torch.Tensor:
+        """Contact height (B,) in mm of encoder latents ``h`` (B, C, h, w), or flattened
+        (B, F) as sim-to-real keeps them."""
         if not self.cfg.contact:
             raise RuntimeError("this model has no contact head (NetConfig.contact is False)")
         return self.contact_head(h)[:, 0] * self.contact_scale_mm + self.contact_mean_mm

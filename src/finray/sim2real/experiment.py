@@ -272,7 +272,7 @@ def lab_near_base(model, features, own_N, meta: dict | None) -> tuple[np.ndarray
     if not model.cfg.contact:
         return np.full(n, np.nan), np.zeros(n, bool)
     with torch.inference_mode():
-        c = model._contact_mm(features).numpy().astype(np.float64) if n else np.zeros(0)
+        c = model.contact_of_latent(features).numpy().astype(np.float64) if n else np.zeros(0)
     meta = meta or {}
     return c, near_base(c, own_N, meta.get("trained"), meta.get("contact_min_force_N", 0.0))
 

@@ -83,6 +83,7 @@ def rigs_summary(table: pd.DataFrame, level: float, max_nrmse_pct: float = 5.0) 
             "unflagged_error_falls": bool(np.all(np.diff(u) < 0)),
             "unflagged_within_target": bool(u[-1] <= max_nrmse_pct),
             "unflagged_nrmse_pct": [float(v) for v in u],
+            # the tested frames flagged near_base (a frame once per context that leaves it out)
             "near_base_frames": [int(v) for v in g["n_frames"] - g["unflagged_n_frames"]],
             # per context count (0, 1, ...), and the frames behind each coverage
             "nrmse_pct": [float(v) for v in e],
