@@ -127,25 +127,33 @@ def test_height_span_draws_one_height_per_part_of_the_face():
         span_heights(np.random.default_rng(0), objects, [4.0, 12.0], 3)
 
 
+def _sim2real_frames(k, context, group, height_mm, sensor_N, pred_N) -> pd.DataFrame:
+    """A sim-to-real frames table of one take: the prediction is the heads' mean, every
+    interval wide (0-100 N)."""
+    return pd.DataFrame(
+        {
+            "context_objects": k,
+            "context": context,
+            "group": group,
+            "take": "t",
+            "height_mm": height_mm,
+            "sensor_N": sensor_N,
+            "pred_N": pred_N,
+            "net_mean_N": pred_N,
+            "lo_N": 0.0,
+            "hi_N": 100.0,
+        }
+    )
+
+
 def test_sim2real_metrics_per_contact_height_and_over_rigs():
     """Sim-to-real's metrics: each contact height over its contexts (NRMSE in % of that
     height's largest force), carried into the summary and the summary over rigs."""
     from finray.evaluate.rigs import rigs_heights
     from finray.evaluate.sim2real import metrics_table
 
-    fr = pd.DataFrame(
-        {
-            "context_objects": 1,
-            "context": "a",
-            "group": "b",
-            "take": "t",
-            "height_mm": [10.0, 10.0, 60.0, 60.0],
-            "sensor_N": [10.0, 20.0, 1.0, 2.0],
-            "pred_N": [10.0, 21.0, 1.0, 2.1],
-            "net_mean_N": [10.0, 21.0, 1.0, 2.1],
-            "lo_N": 0.0,
-            "hi_N": 100.0,
-        }
+    fr = _sim2real_frames(
+        1, "a", "b", [10.0, 10.0, 60.0, 60.0], [10.0, 20.0, 1.0, 2.0], [10.0, 21.0, 1.0, 2.1]
     )
     m = metrics_table(fr, 0.9)
     h = m[m["context"] == "by_height"].set_index("test")
@@ -192,21 +200,9 @@ def test_sim2real_reports_the_frames_not_flagged_near_base_apart():
     from finray.evaluate.metrics import force_metrics
     from finray.sim2real.experiment import metrics_table
 
-    fr = pd.DataFrame(
-        {
-            "context_objects": 2,
-            "context": "a + b",
-            "group": "c",
-            "take": "t",
-            "height_mm": [12.0, 12.0, 40.0, 40.0],
-            "sensor_N": [30.0, 32.0, 3.0, 4.0],
-            "pred_N": [10.0, 12.0, 3.1, 3.8],
-            "net_mean_N": [10.0, 12.0, 3.1, 3.8],
-            "lo_N": 0.0,
-            "hi_N": 100.0,
-            "near_base": [True, True, False, False],
-        }
-    )
+    fr = _sim2real_frames(
+        2, "a + b", "c", [12.0, 12.0, 40.0, 40.0], [30.0, 32.0, 3.0, 4.0], [10.0, 12.0, 3.1, 3.8]
+    ).assign(near_base=[True, True, False, False])
     m = metrics_table(fr, 0.9).set_index(["context", "test"])
     ok = m.loc[("unflagged", "all")]
     want = force_metrics(np.array([3.0, 4.0]), np.array([3.1, 3.8]))
