@@ -404,3 +404,30 @@ def test_uniform_force_weights_train_as_the_plain_loss():
     np.testing.assert_allclose(ones.train_loss, plain.train_loss, rtol=1e-5)
     with pytest.raises(ValueError, match="force weights"):
         train(x, s, f, None, net, TrainConfig(**CFG), log=lambda m: None, force_weight=np.ones(3))
+
+
+def test_weight_averaging_keeps_the_moving_average_of_the_trained_weights():
+    """A decay near 0 averages over the last step only: the model kept is the trained one;
+    a decay near 1 keeps the first step's weights (the average starts there); training
+    itself is unchanged."""
+    x, s, f = toy()
+    val = (x[:16], s[:16], f[:16])
+    net = NetConfig(height=32, width=16, base_channels=4)
+    cfg = dict(CFG, bf16=False, keep="last")
+    runs = {
+        d: train(x, s, f, val, net, TrainConfig(**cfg, ema_decay=d), log=lambda m: None)
+        for d in (0.0, 1e-12, 0.999999)
+    }
+    plain, last, slow = (runs[d][0].state_dict() for d in (0.0, 1e-12, 0.999999))
+    for k in plain:
+        torch.testing.assert_close(last[k], plain[k])
+    assert runs[0.999999][1].train_loss == runs[0.0][1].train_loss
+    moved = [k for k in plain if k.endswith("weight") and not torch.equal(plain[k], slow[k])]
+    assert moved  # the slow average is not the trained weights
+    first = train(
+        x, s, f, val, net, TrainConfig(**{**cfg, "epochs": 1, "lr": 0.0}), log=lambda m: None
+    )[0].state_dict()
+    for k in moved:  # ... it is the first step's: within one Adam step (at most lr) of the
+        # initial weights (lr 0 keeps them), where training moved them further
+        assert (slow[k] - first[k]).abs().max() <= 1.001 * cfg["lr"]
+        assert (plain[k] - first[k]).abs().max() > 2 * cfg["lr"]

@@ -31,6 +31,7 @@ with log_to(snakemake.log[0]):
         warmup_frac=t["warmup_frac"],
         bn_frames=t["bn_frames"],
         keep=t["keep"],
+        ema_decay=t["ema_decay"],
         compare_running_bn=p.get("diagnostics", False),
     )
     d = p.dataset

@@ -54,6 +54,9 @@ class TrainConfig:
     bn_frames: int = schema_default("train.bn_frames")
     # the kept epoch: lowest "val_force_rmse" (fx), "val_loss", or "last"
     keep: str = schema_default("train.keep")
+    # > 0: validate and keep an exponential moving average of the weights (this decay per
+    # step) instead of the trained weights
+    ema_decay: float = schema_default("train.ema_decay")
     # also validate with training's running batch-norm averages before each re-estimate
     # (History.val_force_rmse_running_bn_N; a diagnostic: one more validation pass)
     compare_running_bn: bool = False

@@ -26,6 +26,10 @@ from epoch to epoch, and the kept weights were one draw of that wander.
   perspective views and occlusions, are a noisy draw.
 - The kept epoch is the one with the lowest validation force RMSE of ``fx`` (``keep``;
   ``"val_loss"``: the loss, ``"last"``: the last epoch).
+- With ``ema_decay`` > 0 the weights validated and kept at each epoch's end are an
+  exponential moving average of the trained ones (``torch.optim.swa_utils.AveragedModel``,
+  updated after every step; its batch-norm statistics re-estimated as above): the
+  average of the last steps rather than where the last mini-batches left the weights.
 
 Speed on the CPU: ``channels_last`` memory, one intra-op thread per job when other jobs
 share the machine, and ``bfloat16`` autocast only where the CPU runs it natively
@@ -54,6 +58,8 @@ from typing import Callable
 import numpy as np
 import torch
 from torch import nn
+
+from torch.optim.swa_utils import AveragedModel, get_ema_multi_avg_fn
 
 from ..model import FinRayNet, NetConfig
 from ..precision import device_name, resolve_bf16, resolve_device
@@ -415,9 +421,11 @@ def _train_epoch(
     n_batches: int,
     hist: History,
     log,
+    ema: AveragedModel | None = None,
 ) -> dict:
     """One pass over the shuffled training frames; the summed loss and terms. The first
-    epoch's step times go into ``hist`` (a log line after 25 steps)."""
+    epoch's step times go into ``hist`` (a log line after 25 steps). ``ema``: the
+    weights' moving average, updated after every step."""
     try:
         from tqdm import tqdm
     except ImportError:  # pragma: no cover
@@ -446,6 +454,8 @@ def _train_epoch(
         loss.backward()
         opt.step()
         sched.step()
+        if ema is not None:
+            ema.update_parameters(model)
         tot["loss"] += float(loss.detach())
         tot["s"] += float(ls.detach())
         tot["f"] += float(lf.detach())
@@ -590,14 +600,35 @@ def train(
             if cfg.bn_frames > 0
             else ""
         )
+        + (f"; weights averaged (EMA, decay {cfg.ema_decay:g})" if cfg.ema_decay > 0 else "")
         + f"; kept: {cfg.keep.replace('_', ' ')}"
     )
     keeper = _Keeper()
+    # the weights validated and kept: the trained ones, or their moving average
+    ema = (
+        AveragedModel(model, multi_avg_fn=get_ema_multi_avg_fn(cfg.ema_decay))
+        if cfg.ema_decay > 0
+        else None
+    )
+    scored = model if ema is None else ema.module
     t0 = time.perf_counter()
     for epoch in range(1, cfg.epochs + 1):
         te = time.perf_counter()
         tot = _train_epoch(
-            model, data, opt, sched, gen, augment, cfg, device, bf16, epoch, n_batches, hist, log
+            model,
+            data,
+            opt,
+            sched,
+            gen,
+            augment,
+            cfg,
+            device,
+            bf16,
+            epoch,
+            n_batches,
+            hist,
+            log,
+            ema,
         )
         hist.epoch.append(epoch)
         hist.train_loss.append(tot["loss"] / n_batches)
@@ -606,19 +637,22 @@ def train(
         if data.contact:
             hist.train_contact_mse.append(tot["c"] / n_batches)
         hist.lr.append(float(opt.param_groups[0]["lr"]))
+        if ema is not None:  # the average's batch-norm statistics start from training's
+            for mine, trained in zip(scored.buffers(), model.buffers()):
+                mine.copy_(trained)
         if cfg.compare_running_bn and vset is not None:
             hist.val_force_rmse_running_bn_N.append(
-                evaluate(model, vset.x, vset.s, vset.f, cfg)["force_rmse_N"]
+                evaluate(scored, vset.x, vset.s, vset.f, cfg)["force_rmse_N"]
             )
         if cfg.bn_frames > 0:
             recalibrate_batchnorm(
-                model, data.bn_batches(epoch, cfg, augment), device, cfg.channels_last, bf16
+                scored, data.bn_batches(epoch, cfg, augment), device, cfg.channels_last, bf16
             )
         hist.wall_time_s.append(time.perf_counter() - t0)
-        msg, score = _validate(model, vset, cfg, hist, epoch)
+        msg, score = _validate(scored, vset, cfg, hist, epoch)
         hist.epoch_time_s.append(time.perf_counter() - te)
         msg += f", {hist.epoch_time_s[-1]:.0f} s"
-        if keeper.offer(score, model):
+        if keeper.offer(score, scored):
             hist.best_epoch = epoch
             msg += " (best)"
         log(msg)
