@@ -235,7 +235,7 @@ def _check_diversity(cfg: dict) -> None:
 
 #: keys of a train.models entry that set how it trains, not how its frames are augmented
 #: (the others are finray.train.AugmentConfig's)
-MODEL_TRAINING_KEYS = ("start_from", "epochs")
+MODEL_TRAINING_KEYS = ("start_from", "epochs", "ema_decay")
 
 
 def model_augment_settings(entry: dict) -> dict:

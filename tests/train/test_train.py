@@ -431,3 +431,29 @@ def test_weight_averaging_keeps_the_moving_average_of_the_trained_weights():
         # initial weights (lr 0 keeps them), where training moved them further
         assert (slow[k] - first[k]).abs().max() <= 1.001 * cfg["lr"]
         assert (plain[k] - first[k]).abs().max() > 2 * cfg["lr"]
+
+
+def test_the_weight_average_is_torchs_moving_average():
+    """WeightAverage against torch.optim.swa_utils.AveragedModel with its EMA function,
+    over a few random moves of the weights: the same average."""
+    from torch.optim.swa_utils import AveragedModel, get_ema_multi_avg_fn
+
+    from finray.model import FinRayNet
+    from finray.train.loop import WeightAverage
+
+    torch.manual_seed(0)
+    model = FinRayNet(NetConfig(height=32, width=16, base_channels=4))
+    ours = WeightAverage(model, 0.9)
+    torchs = AveragedModel(model, multi_avg_fn=get_ema_multi_avg_fn(0.9))
+    for _ in range(5):
+        with torch.no_grad():
+            for p in model.parameters():
+                p.add_(torch.randn_like(p))
+        ours.update()
+        torchs.update_parameters(model)
+    for mine, theirs, trained in zip(
+        ours.module.parameters(), torchs.module.parameters(), model.parameters()
+    ):
+        torch.testing.assert_close(mine, theirs, rtol=0, atol=0)
+        assert not torch.equal(mine, trained)
+    assert ours.updates == 5

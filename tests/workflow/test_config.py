@@ -86,16 +86,20 @@ def test_extra_train_heights_add_training_scenes_only():
 
 
 def test_a_model_entry_splits_into_augmentation_and_its_start():
-    """train.models.<model>: start_from and epochs say how it trains; the rest are the
-    augmentation's settings."""
+    """train.models.<model>: start_from, epochs and ema_decay say how it trains; the rest
+    are the augmentation's settings."""
     cfg = validate_config(
-        bad(lambda c: c["train"]["models"]["occlusion"].update(start_from="plain", epochs=4))
+        bad(
+            lambda c: c["train"]["models"]["occlusion"].update(
+                start_from="plain", epochs=4, ema_decay=0.99
+            )
+        )
     )
     entry = cfg["train"]["models"]["occlusion"]
     assert model_augment_settings(entry) == {
-        k: v for k, v in entry.items() if k not in ("start_from", "epochs")
+        k: v for k, v in entry.items() if k not in ("start_from", "epochs", "ema_decay")
     }
-    assert "start_from" not in model_augment_settings(entry)
+    assert not {"start_from", "ema_decay"} & set(model_augment_settings(entry))
     assert model_start(cfg, "occlusion") == {"from": "plain", "epochs": 4}
     assert model_start(cfg, "plain") == {"from": None, "epochs": None}
     assert model_start(cfg, "camera") == {"from": None, "epochs": 14}  # its own count

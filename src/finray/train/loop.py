@@ -27,9 +27,9 @@ from epoch to epoch, and the kept weights were one draw of that wander.
 - The kept epoch is the one with the lowest validation force RMSE of ``fx`` (``keep``;
   ``"val_loss"``: the loss, ``"last"``: the last epoch).
 - With ``ema_decay`` > 0 the weights validated and kept at each epoch's end are an
-  exponential moving average of the trained ones (``torch.optim.swa_utils.AveragedModel``,
-  updated after every step; its batch-norm statistics re-estimated as above): the
-  average of the last steps rather than where the last mini-batches left the weights.
+  exponential moving average of the trained ones (:class:`WeightAverage`, updated after
+  every step; its batch-norm statistics re-estimated as above): the average of the last
+  steps rather than where the last mini-batches left the weights.
 
 Speed on the CPU: ``channels_last`` memory, one intra-op thread per job when other jobs
 share the machine, and ``bfloat16`` autocast only where the CPU runs it natively
@@ -58,8 +58,6 @@ from typing import Callable
 import numpy as np
 import torch
 from torch import nn
-
-from torch.optim.swa_utils import AveragedModel, get_ema_multi_avg_fn
 
 from ..model import FinRayNet, NetConfig
 from ..precision import device_name, resolve_bf16, resolve_device
@@ -125,6 +123,30 @@ def recalibrate_batchnorm(
             m.momentum = momenta[m]
         model.train(was_training)
     return n
+
+
+class WeightAverage:
+    """An exponential moving average of a model's weights, ``module`` (a copy of the
+    model): the first update copies the weights, each later one moves the average by
+    ``1 - decay`` towards them. The arithmetic of ``torch.optim.swa_utils.AveragedModel``
+    with ``get_ema_multi_avg_fn`` (one ``torch._foreach_lerp_``), without its per-call
+    regrouping of the tensors, which cost a camera model's step three times what the
+    average itself costs (studies/training_speed/README.md, "Weight averaging"). Buffers
+    (batch-norm statistics) are not averaged."""
+
+    def __init__(self, model: nn.Module, decay: float):
+        self.module, self.decay, self.updates = copy.deepcopy(model), float(decay), 0
+        self._mine = [p.detach() for p in self.module.parameters()]
+        self._trained = [p.detach() for p in model.parameters()]
+        self.module.requires_grad_(False)
+
+    @torch.no_grad()
+    def update(self) -> None:
+        if self.updates == 0:
+            torch._foreach_copy_(self._mine, self._trained)
+        else:
+            torch._foreach_lerp_(self._mine, self._trained, 1.0 - self.decay)
+        self.updates += 1
 
 
 def contact_mask(contact_mm: torch.Tensor, fx_N: torch.Tensor, min_force_N: float) -> torch.Tensor:
@@ -421,7 +443,7 @@ def _train_epoch(
     n_batches: int,
     hist: History,
     log,
-    ema: AveragedModel | None = None,
+    ema: WeightAverage | None = None,
 ) -> dict:
     """One pass over the shuffled training frames; the summed loss and terms. The first
     epoch's step times go into ``hist`` (a log line after 25 steps). ``ema``: the
@@ -455,7 +477,7 @@ def _train_epoch(
         opt.step()
         sched.step()
         if ema is not None:
-            ema.update_parameters(model)
+            ema.update()
         tot["loss"] += float(loss.detach())
         tot["s"] += float(ls.detach())
         tot["f"] += float(lf.detach())
@@ -605,11 +627,7 @@ def train(
     )
     keeper = _Keeper()
     # the weights validated and kept: the trained ones, or their moving average
-    ema = (
-        AveragedModel(model, multi_avg_fn=get_ema_multi_avg_fn(cfg.ema_decay))
-        if cfg.ema_decay > 0
-        else None
-    )
+    ema = WeightAverage(model, cfg.ema_decay) if cfg.ema_decay > 0 else None
     scored = model if ema is None else ema.module
     t0 = time.perf_counter()
     for epoch in range(1, cfg.epochs + 1):

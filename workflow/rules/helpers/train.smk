@@ -39,9 +39,9 @@ def model_augment(wildcards):
 
 
 def model_overrides(name):
-    """What a model sets of its own training (finray.config.model_start): its ``epochs``
-    and the model it starts from (``start_from``), only where it sets them, so that a
-    model trained from new weights has the train section's params as before."""
+    """What a model sets of its own training (finray.config.model_start): its ``epochs``,
+    ``ema_decay`` and the model it starts from (``start_from``), only where it sets them,
+    so that a model trained from new weights has the train section's params as before."""
     entry = config["train"]["models"][trained_model(name)]
     return {k: entry[k] for k in MODEL_TRAINING_KEYS if k in entry}
 
