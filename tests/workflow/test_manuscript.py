@@ -153,6 +153,19 @@ def test_the_occlusion_section_says_how_the_occlusion_model_trained():
     ) in text
 
 
+def test_the_camera_model_says_when_it_keeps_averaged_weights():
+    """A camera model trained with train.models.camera.ema_decay says so, with its epochs
+    and the average's span; one trained without (a summary from before it) does not."""
+    assert "moving average" not in render(FULL)
+    s = copy.deepcopy(FULL)
+    s["training"]["camera"].update(ema_decay=0.999, epochs=14, best_epoch=9)
+    text = " ".join(render(s).split())
+    assert (
+        "It trains 14 epochs (the others 10), and the weights it keeps are the moving "
+        "average of the trained ones (decay 0.999 per step, about 1000 steps; epoch 9 kept;"
+    ) in text
+
+
 def test_summary_training_data_and_forces(tmp_path):
     """The frames behind training against the solver frames; the force spread per height."""
     rows = []
@@ -220,6 +233,8 @@ def test_summary_training_data_and_forces(tmp_path):
     # kept: the lowest validation loss (epoch 2), not the lowest force RMSE (epoch 3)
     assert (t["best_epoch"], t["best_val_force_rmse_N"]) == (2, 0.2)
     assert t["force_mean_N"] == [3.0] and t["force_std_N"] == [pytest.approx(1.5811, abs=1e-4)]
+    assert t["ema_decay"] == 0.0  # a history from before the average: none
+    assert training_summary({**h, "train_config": {"ema_decay": 0.999}})["ema_decay"] == 0.999
     assert (
         training_summary({**h, "best_epoch": 3, "force_mean_N": [1.0], "force_std_N": [2.0]})[
             "best_epoch"

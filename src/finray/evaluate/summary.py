@@ -235,6 +235,7 @@ def training_summary(h: dict, manifest_csv=None) -> dict:
         "schedule": tc.get("schedule", "constant"),
         "warmup_frac": tc.get("warmup_frac", 0.0),
         "bn_frames": tc.get("bn_frames", 0),
+        "ema_decay": tc.get("ema_decay", 0.0),  # > 0: the kept weights are their moving average
         "frame_every": h.get("frame_every", 1),  # every k-th rendered frame of a scene
         "best_val_force_rmse_N": val_rmse,
         "force_mean_N": mean,
