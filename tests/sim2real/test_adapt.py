@@ -122,41 +122,6 @@ def test_fit_heads_rejects_bad_labels(net):
         fit_heads(net, f, [1.0, 2.0], HeadFit(members=1, steps=1))
 
 
-def test_weighted_heads_fit_the_weighted_mean(net):
-    """Each image twice, once read 1 N and once 3 N: unweighted the heads fit 2 N, with the
-    first reading weighted three times the second, the weighted mean, 1.5 N; weights of 1
-    fit as none."""
-    f = encoder_features(net, torch.rand(32, 1, 64, 32))
-    f2, y = torch.cat([f, f]), np.r_[np.full(32, 1.0), np.full(32, 3.0)]
-    fit = HeadFit(members=2, steps=400, lr=3e-3, bootstrap=False)  # every frame in each fit
-    w = np.r_[np.full(32, 1.5), np.full(32, 0.5)]
-    plain = head_forces(net, fit_heads(net, f2, y, fit), f).mean(0)
-    weighted = head_forces(net, fit_heads(net, f2, y, fit, weights=w), f).mean(0)
-    assert abs(plain.mean() - 2.0) < 0.1 and abs(weighted.mean() - 1.5) < 0.1
-    np.testing.assert_array_equal(
-        head_forces(net, fit_heads(net, f2, y, fit, weights=np.ones(64)), f).mean(0), plain
-    )
-    with pytest.raises(ValueError, match="a weight per force"):
-        fit_heads(net, f2, y, fit, weights=np.ones(3))
-
-
-def test_take_weights_follow_the_heads_force_loss():
-    """relative: each take's frames weigh 1 / its largest |F|^2 (floored), of mean 1;
-    absolute: none; another word: one line naming the key."""
-    import pandas as pd
-
-    from finray.sim2real.experiment import take_weights
-
-    table = pd.DataFrame({"take": ["low"] * 2 + ["tip"] * 2})
-    force = np.array([10.0, -20.0, 0.5, 2.0])
-    w = take_weights(table, force, HeadFit(force_loss="relative", force_floor_N=1.0))
-    np.testing.assert_allclose(w / w[0], [1, 1, 100, 100], rtol=1e-6)  # 20 N against 2 N
-    assert w.mean() == pytest.approx(1.0)
-    assert take_weights(table, force, HeadFit()) is None
-    with pytest.raises(ValueError, match="heads.force_loss"):
-        take_weights(table, force, HeadFit(force_loss="log"))
-
-
 @pytest.fixture(scope="module")
 def ensemble(net, tmp_path_factory):
     x = torch.rand(64, 1, 64, 32)

@@ -72,10 +72,6 @@ class HeadFit:
     layers: int = schema_default("evaluate.sim2real.heads.layers")
     # > 0: steps = ceil(epochs * frames / batch), in place of steps
     epochs: float = schema_default("evaluate.sim2real.heads.epochs", float)
-    # "relative": each frame's squared error over its take's largest |F| (floored at
-    # force_floor_N, N) squared, as the training's force loss; "absolute": every frame alike
-    force_loss: str = schema_default("evaluate.sim2real.heads.force_loss")
-    force_floor_N: float = schema_default("evaluate.sim2real.heads.force_floor_N", float)
 
     def n_steps(self, frames: int) -> int:
         """The Adam steps of one head fitted on ``frames`` frames."""
@@ -166,27 +162,21 @@ def fit_heads(
     fit: HeadFit,
     component: int = 0,
     anchor: SimAnchor | None = None,
-    weights=None,
 ) -> list[nn.Module]:
     """``fit.members`` copies of the model's force head, reduced to output
     ``component`` (0: along the push), each fitted to ``force_N`` (N,) on
     ``features`` (N, F): its last ``fit.layers`` linear layers (all where 0), the
     layers before them and the batch-norm statistics stay the simulation's. With an
     ``anchor``, its simulated frames are fitted beside them (:class:`SimAnchor`), in as
-    many steps as the frames given alone would take. ``weights`` (N,): each frame's weight
-    in the squared error (None: 1 each; the anchor's frames weigh 1)."""
+    many steps as the frames given alone would take."""
     y = torch.tensor(np.asarray(force_N, dtype=np.float32))
     if len(y) != len(features) or not len(y):
         raise ValueError(f"need as many forces as feature rows, got {len(y)} and {len(features)}")
     if not torch.isfinite(y).all():
         raise ValueError("the forces to fit contain NaN")
-    w = torch.ones(len(y)) if weights is None else torch.tensor(np.asarray(weights, np.float32))
-    if w.shape != y.shape:
-        raise ValueError(f"need a weight per force, got {len(w)} for {len(y)}")
     steps = fit.n_steps(len(y))
     if anchor is not None and anchor.frames > 0:
         features, force = anchor.with_context(model, features, y.numpy(), fit.seed)
-        w = torch.cat([w, torch.ones(len(force) - len(w))])
         y = torch.tensor(force.astype(np.float32))
     mean, scale = model.force_mean_N[component], model.force_scale_N[component]
     target = (y - mean) / scale
@@ -207,8 +197,7 @@ def fit_heads(
     rows = torch.arange(fit.members)[:, None]
     for _ in range(steps):  # every member's step at once: (members, batch) frames
         idx = pools[rows, torch.stack([torch.randint(0, n, (b,), generator=g) for g in gens])]
-        err = (_run_stacked(ops, z[idx])[..., 0] - target[idx]) ** 2
-        loss = (err * w[idx]).mean(dim=1).sum()
+        loss = ((_run_stacked(ops, z[idx])[..., 0] - target[idx]) ** 2).mean(dim=1).sum()
         opt.zero_grad(set_to_none=True)
         loss.backward()
         opt.step()

@@ -452,7 +452,7 @@ def fold_units(table, folds: str) -> list[np.ndarray]:
     return sets
 
 
-def cross_fitted(model, features, force_N, units, fit, anchor=None, weights=None):
+def cross_fitted(model, features, force_N, units, fit, anchor=None):
     """Each frame's ensemble mean and spread (N) from heads fitted without its unit
     (``units``: a label per frame, e.g. its take): what the network does on frames it
     has not seen, the residuals a calibration needs.
@@ -463,7 +463,7 @@ def cross_fitted(model, features, force_N, units, fit, anchor=None, weights=None
     degrees of freedom), and a calibration fitted on it reads that noise as heavy
     tails, which widens the intervals of the ensemble it is then applied to. ``anchor``
     (:class:`finray.sim2real.adapt.SimAnchor`): fitted beside each fold's frames, its gain and
-    offset from them alone. ``weights``: each frame's weight in the heads' fits."""
+    offset from them alone."""
     from dataclasses import replace
 
     from .adapt import fit_heads, head_forces
@@ -482,7 +482,6 @@ def cross_fitted(model, features, force_N, units, fit, anchor=None, weights=None
             y[~out],
             replace(fit, seed=fit.seed + 101 * (j + 1)),
             anchor=anchor,
-            weights=None if weights is None else np.asarray(weights)[~out],
         )
         P = head_forces(model, heads, features[out])
         mu[out], sd[out] = P.mean(0), spread(P)
@@ -499,18 +498,17 @@ def fit_rig(
     sampler: Sampler | None = None,
     log=print,
     anchor=None,
-    weights=None,
 ):
     """A rig's head ensemble (:func:`finray.sim2real.adapt.fit_heads` on every frame, beside
     ``anchor``'s simulated frames where given) and its sensor calibration, sampled on the
     cross-fitted predictions (:func:`cross_fitted`) of every labelling in ``unit_sets``
-    (each a label per frame; the frames enter once per labelling; ``weights``: each frame's
-    weight in the heads' fits). Returns (heads, calibration dict)."""
+    (each a label per frame; the frames enter once per labelling). Returns (heads,
+    calibration dict)."""
     from .adapt import fit_heads
 
-    heads = fit_heads(model, features, force_N, fit, anchor=anchor, weights=weights)
+    heads = fit_heads(model, features, force_N, fit, anchor=anchor)
     y = np.asarray(force_N, dtype=np.float64)
-    parts = [cross_fitted(model, features, force_N, u, fit, anchor, weights) for u in unit_sets]
+    parts = [cross_fitted(model, features, force_N, u, fit, anchor) for u in unit_sets]
     mu, sd = (np.concatenate(a) for a in zip(*parts))
     # each frame once per labelling: a likelihood weighted 1/len, so that the posterior
     # is not narrowed as if there were more frames

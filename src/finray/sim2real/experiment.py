@@ -42,7 +42,6 @@ from .calibration import (
 )
 from ..paper_reference import paper_value
 from ..schema import schema_default
-from ..train.config import FORCE_LOSS
 from ..evaluate.metrics import force_metrics
 
 
@@ -260,22 +259,6 @@ def load_no_context(model, path) -> tuple[list, dict, dict]:
     )
 
 
-def take_weights(table: pd.DataFrame, force_N, fit: HeadFit) -> np.ndarray | None:
-    """The context frames' weights in the heads' fits (``fit.force_loss``): None
-    (absolute: every frame alike), or each frame's take's largest |F| (floored at
-    ``fit.force_floor_N``, N) to the power -2, of mean 1
-    (:func:`finray.train.data.scene_force_weights`, the training's relative loss)."""
-    from ..train.data import scene_force_weights
-
-    if fit.force_loss not in FORCE_LOSS:
-        raise ValueError(
-            f"evaluate.sim2real.heads.force_loss: {fit.force_loss!r} is not one of {list(FORCE_LOSS)}"
-        )
-    if fit.force_loss == "absolute":
-        return None
-    return scene_force_weights(table["take"].to_numpy(), force_N, fit.force_floor_N)
-
-
 def lab_near_base(model, features, own_N, meta: dict | None) -> tuple[np.ndarray, np.ndarray]:
     """The contact head's height (mm; NaN without that head) of frames with encoder
     ``features`` and which of them ``finray predict`` flags ``near_base``
@@ -373,7 +356,6 @@ def run_sim2real(
                 cfg.sampler,
                 log=log,
                 anchor=anchor,
-                weights=take_weights(table[ctx], y[ctx], cfg.heads),
             )
             cal.update(
                 context_objects=k,
