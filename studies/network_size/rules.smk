@@ -50,6 +50,7 @@ rule train_pareto:
                 "warmup_frac",
                 "bn_frames",
                 "keep",
+                "ema_decay",
             ),
         ),
     script:

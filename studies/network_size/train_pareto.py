@@ -22,6 +22,6 @@ with log_to(snakemake.log[0]):
         seed=t["seed"],
         bf16=t["bf16"],
         channels_last=t["channels_last"],
-        schedule={k: t[k] for k in ("schedule", "warmup_frac", "bn_frames", "keep")},
+        schedule={k: t[k] for k in ("schedule", "warmup_frac", "bn_frames", "keep", "ema_decay")},
     )
     print(table.to_string())

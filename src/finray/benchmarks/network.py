@@ -133,7 +133,7 @@ def run_time_vs_error(
     Pareto figure (PNG) and a summary (Markdown); returns the table (DataFrame).
 
     ``configured``: ``(height, width, base)`` of the configured default model;
-    ``schedule``: the training's ``schedule``, ``warmup_frac``, ``bn_frames`` and ``keep``
+    ``schedule``: the training's ``schedule``, ``warmup_frac``, ``bn_frames``, ``keep`` and ``ema_decay``
     (:class:`finray.train.TrainConfig`; default: its defaults).
     """
     import pandas as pd
