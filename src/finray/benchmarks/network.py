@@ -133,8 +133,8 @@ def run_time_vs_error(
     Pareto figure (PNG) and a summary (Markdown); returns the table (DataFrame).
 
     ``configured``: ``(height, width, base)`` of the configured default model;
-    ``schedule``: the training's ``schedule``, ``warmup_frac``, ``bn_frames``, ``keep`` and ``ema_decay``
-    (:class:`finray.train.TrainConfig`; default: its defaults).
+    ``schedule``: the training's ``schedule``, ``warmup_frac``, ``bn_frames``, ``keep`` and
+    ``ema_decay`` (:class:`finray.train.TrainConfig`; default: its defaults).
     """
     import pandas as pd
     import torch

@@ -132,13 +132,21 @@ class WeightAverage:
     with ``get_ema_multi_avg_fn`` (one ``torch._foreach_lerp_``), without its per-call
     regrouping of the tensors, which cost a camera model's step three times what the
     average itself costs (studies/training_speed/README.md, "Weight averaging"). Buffers
-    (batch-norm statistics) are not averaged."""
+    (batch-norm statistics) are not averaged: :meth:`take_buffers` copies the trained
+    model's."""
 
     def __init__(self, model: nn.Module, decay: float):
         self.module, self.decay, self.updates = copy.deepcopy(model), float(decay), 0
+        self._model = model
         self._mine = [p.detach() for p in self.module.parameters()]
         self._trained = [p.detach() for p in model.parameters()]
         self.module.requires_grad_(False)
+
+    @torch.no_grad()
+    def take_buffers(self) -> None:
+        """The trained model's buffers (batch-norm statistics) into the average."""
+        for mine, trained in zip(self.module.buffers(), self._model.buffers()):
+            mine.copy_(trained)
 
     @torch.no_grad()
     def update(self) -> None:
@@ -656,8 +664,7 @@ def train(
             hist.train_contact_mse.append(tot["c"] / n_batches)
         hist.lr.append(float(opt.param_groups[0]["lr"]))
         if ema is not None:  # the average's batch-norm statistics start from training's
-            for mine, trained in zip(scored.buffers(), model.buffers()):
-                mine.copy_(trained)
+            ema.take_buffers()
         if cfg.compare_running_bn and vset is not None:
             hist.val_force_rmse_running_bn_N.append(
                 evaluate(scored, vset.x, vset.s, vset.f, cfg)["force_rmse_N"]
