@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from finray.config import load_config
+from finray.config import load_config, model_augment_settings
 from finray.model import NetConfig
 from finray.precision import cpu_name, cpu_precision
 from finray.train import loop as L
@@ -84,7 +84,7 @@ def _setup(cfg: dict, n: int, batch: int, bf16: bool, cl: bool, adam: str, seed:
         model.parameters(), lr=tcfg.lr, **({"fused": True} if adam == "fused" else {})
     )
     camera = cfg["train"]["models"]["camera"]
-    aug = TrainAugment(AugmentConfig(**camera), None)
+    aug = TrainAugment(AugmentConfig(**model_augment_settings(camera)), None)
     return dict(
         model=model, data=data, opt=opt, aug=aug, cfg=tcfg, gen=torch.Generator().manual_seed(0)
     )
