@@ -14,8 +14,6 @@ shares, not the absolute times, are the point (step_cost.py gives the step's tim
 
 from __future__ import annotations
 
-import argparse
-import json
 import math
 import os
 import sys
@@ -149,25 +147,16 @@ def table(r: dict) -> str:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--out", type=Path, required=True, help="writes <out>.json and <out>.md")
-    ap.add_argument("--steps", type=int, default=30)
-    ap.add_argument("--warmup", type=int, default=10)
-    a = ap.parse_args()
-    hw = cpu_precision()
-    peak, _ = S.peak_gflops()
+    a = S.study_args(__doc__, warmup=10)
     r = {
         "cpu": cpu_name(),
-        "kernels": hw.describe(),
+        "kernels": cpu_precision().describe(),
         "isa": os.environ.get("ONEDNN_MAX_CPU_ISA"),
-        "peak_gflops_fp32": peak,
+        "peak_gflops_fp32": S.peak_gflops()[0],
         "steps": a.steps,
         "variants": [profile_step(bf16, a.steps, a.warmup) for bf16 in (False, True)],
     }
-    a.out.parent.mkdir(parents=True, exist_ok=True)
-    a.out.with_suffix(".json").write_text(json.dumps(r, indent=1))
-    a.out.with_suffix(".md").write_text(table(r) + "\n")
-    print(table(r))
+    S.write_report(a.out, r, table)
 
 
 if __name__ == "__main__":

@@ -241,17 +241,26 @@ def table(r: dict) -> str:
     return "\n".join(lines)
 
 
-def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def study_args(doc: str, warmup: int) -> argparse.Namespace:
+    """The study scripts' command line: --out, --steps, --warmup."""
+    p = argparse.ArgumentParser(description=doc.split("\n\n")[0])
     p.add_argument("--out", type=Path, required=True, help="writes <out>.json and <out>.md")
     p.add_argument("--steps", type=int, default=30)
-    p.add_argument("--warmup", type=int, default=5)
-    a = p.parse_args()
-    r = measure(a.steps, a.warmup)
-    a.out.parent.mkdir(parents=True, exist_ok=True)
-    a.out.with_suffix(".json").write_text(json.dumps(r, indent=1))
-    a.out.with_suffix(".md").write_text(table(r) + "\n")
+    p.add_argument("--warmup", type=int, default=warmup)
+    return p.parse_args()
+
+
+def write_report(out: Path, r: dict, table) -> None:
+    """``r`` as <out>.json and ``table(r)`` as <out>.md, and printed."""
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.with_suffix(".json").write_text(json.dumps(r, indent=1))
+    out.with_suffix(".md").write_text(table(r) + "\n")
     print(table(r))
+
+
+def main() -> None:
+    a = study_args(__doc__, warmup=5)
+    write_report(a.out, measure(a.steps, a.warmup), table)
 
 
 if __name__ == "__main__":
