@@ -8,8 +8,8 @@ that backward, once where the layer's input needs no gradient).
     PYTHONPATH=src python studies/training_speed/profile_step.py --out results/benchmarks/training_profile
     ONEDNN_MAX_CPU_ISA=AVX512_CORE_BF16 PYTHONPATH=src python ... # the kernels of AVX-512 without AMX
 
-Writes <out>.json and <out>.md. Profiling adds a few percent to each operation; the
-shares, not the absolute times, are the point (step_cost.py gives the step's time).
+Writes <out>.json and <out>.md. Profiling adds about 10 % to the step; the shares, not
+the absolute times, are the point (step_cost.py gives the step's time).
 """
 
 from __future__ import annotations
@@ -70,18 +70,23 @@ def profile_step(bf16: bool, steps: int, warmup: int, frames: int = 2048) -> dic
         if e.key not in PHASES:
             ops[e.key] += e.self_cpu_time_total * per
     # backward events carry (grad_out, input, weight): the output map, and each layer's
-    # FLOPs; the forward's mkldnn_convolution matches them by (input, weight)
+    # FLOPs; the forward's mkldnn_convolution matches them by (input, weight). Layers of
+    # the same shapes fall into one event group: ``count`` per step says how many.
+    net = v["model"].cfg
+    first_in = [net.in_channels, net.height, net.width]  # the network's input, per frame
     layers: dict[tuple, dict] = {}
     for e in events:
         if e.key == "aten::convolution_backward":
             g, x, w = _shapes(e)[:3]
-            fwd_flop = 2 * math.prod(g) * math.prod(w[1:])
+            n = e.count // steps
+            fwd_flop = n * 2 * math.prod(g) * math.prod(w[1:])
             layers[(tuple(x), tuple(w))] = {
                 "out": g[2:],
+                "layers": n,
                 "channels": f"{w[1]}->{w[0]} ({w[2]}x{w[3]})",
                 "backward_ms": e.cpu_time_total * per,
-                # the first layer's input needs no gradient: weight gradient only
-                "backward_flop": fwd_flop * (1 if x[1] == 3 else 2),
+                # the network's input needs no gradient: its layer computes the weights' only
+                "backward_flop": fwd_flop * (1 if x[1:] == first_in else 2),
                 "forward_flop": fwd_flop,
                 "forward_ms": 0.0,
             }
@@ -93,9 +98,8 @@ def profile_step(bf16: bool, steps: int, warmup: int, frames: int = 2048) -> dic
     by_res: dict[str, dict] = defaultdict(lambda: defaultdict(float))
     for lay in layers.values():
         r = by_res["x".join(map(str, lay["out"]))]
-        for k in ("forward_ms", "backward_ms", "forward_flop", "backward_flop"):
+        for k in ("forward_ms", "backward_ms", "forward_flop", "backward_flop", "layers"):
             r[k] += lay[k]
-        r["layers"] += 1
     total = sum(phase.get(p, 0.0) for p in PHASES)
     return {
         "bf16": bf16,
