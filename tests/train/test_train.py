@@ -18,7 +18,10 @@ from finray.train import (
 from helpers import CFG, toy
 
 
-def test_two_trainings_give_identical_losses():
+@pytest.mark.parametrize("bf16", [False, True])
+def test_two_trainings_give_identical_losses(bf16):
+    # the type pinned: `auto` times both on the network, and on this toy network they
+    # tie, so that a loaded machine's timing noise could pick a different type per run
     x, s, f = toy()
     runs = [
         train(
@@ -27,11 +30,12 @@ def test_two_trainings_give_identical_losses():
             f,
             (x[:16], s[:16], f[:16]),
             NetConfig(height=32, width=16, base_channels=4),
-            TrainConfig(**CFG),
+            TrainConfig(**{**CFG, "bf16": bf16}),
             log=lambda m: None,
         )[1]
         for _ in range(2)
     ]
+    assert runs[0].precision == ("bfloat16" if bf16 else "float32")
     assert runs[0].train_loss == runs[1].train_loss
     assert runs[0].val_loss == runs[1].val_loss
 
@@ -283,7 +287,8 @@ def test_the_contact_loss_sees_the_masked_frames_only():
     other = c.copy()
     other[::3] = 1e4
     keep = (np.abs(f[:, 0]) > 0.2) & np.isfinite(c)
-    cfg = TrainConfig(**{**CFG, "contact_weight": 2.0})
+    # one type for both (`auto` may time the toy network's two types as a tie either way)
+    cfg = TrainConfig(**{**CFG, "contact_weight": 2.0, "bf16": False})
     a, ha = train(x, s, f, None, CONTACT_NET, cfg, log=lambda m: None, contact_mm=c)
     b, hb = train(x, s, f, None, CONTACT_NET, cfg, log=lambda m: None, contact_mm=other)
     assert ha.train_loss == hb.train_loss and np.isfinite(ha.train_loss).all()
