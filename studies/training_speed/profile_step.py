@@ -107,10 +107,7 @@ def profile_step(bf16: bool, steps: int, warmup: int, frames: int = 2048) -> dic
         "phases_ms": phase,
         "top_ops_ms": dict(sorted(ops.items(), key=lambda kv: -kv[1])[:15]),
         "conv_by_output": {k: dict(r) for k, r in by_res.items()},
-        "conv_layers": [
-            {k: (list(val) if isinstance(val, tuple) else val) for k, val in lay.items()}
-            for lay in layers.values()
-        ],
+        "conv_layers": list(layers.values()),
     }
 
 
