@@ -326,7 +326,7 @@ def _predict_files(run: _Run, model_path, old: list, threads, backend, device) -
         p, run.frames, run.segmentation, run.finger_colour, run.calibration, rest=run.video
     )
     if run.on_note is not None:
-        for line in [f"finger found by {p.finder.describe()}", *p.notes]:
+        for line in [f"finger found by {p.finder.describe()}", *p.notes, time_note(run)]:
             run.on_note(line)
     for f in old:
         f.unlink()
@@ -351,6 +351,27 @@ def _predict_files(run: _Run, model_path, old: list, threads, backend, device) -
     part.replace(out_dir / "forces.csv")
     out["finder"] = p.finder.describe()
     return out
+
+
+def time_note(run) -> str:
+    """What the forces say of a print's time dependence (:mod:`finray.viscoelastic`)."""
+    from .sim2real.calibration import is_time_dependent
+
+    if run.calibration is None:
+        return (
+            "note: forces are the simulated finger's elastic force at the frame's shape; a "
+            "printed finger relaxes while a push is held and reads lower on unloading and in "
+            "later cycles, so a held push's force is not known to better than the print's "
+            "relaxation (finray calibrate on context takes learns it)"
+        )
+    if not is_time_dependent(run.calibration):
+        return "note: a static calibration: the print's relaxation is not modelled"
+    if not run.video:  # a video's or a live source's frames have times
+        return (
+            "note: images have no times: the calibration's relaxation is not applied "
+            "(each frame reads as if loaded at once)"
+        )
+    return "note: the calibration's relaxation runs over the frames' times, causally"
 
 
 def _remove(*paths: Path) -> None:
@@ -408,6 +429,10 @@ def _predict_loop(p, run: _Run, writer) -> dict:
     from .render.imageio import write_exr, write_png
 
     rows, skipped, interrupted, no_finger = [], [], False, 0
+    if calibration is not None:
+        from .sim2real.calibration import CalibratedStream
+
+        stream = CalibratedStream(calibration)
     pending = []  # skips before the first predicted frame: reported once one is (a take
     # where the finger is never found ends in one line, not one per frame)
     with open(run.part, "w") as table:
@@ -471,20 +496,18 @@ def _predict_loop(p, run: _Run, writer) -> dict:
                     flags = p.check(mask, confidence, x, row, box)
                     row["valid"] = "+".join(flags) or "ok"
                     if calibration is not None:
-                        from .sim2real.calibration import predictive, spread
+                        from .sim2real.calibration import spread
 
                         members = p.run_members(x)[0]
-                        band = predictive(
-                            calibration,
-                            [members.mean()],
-                            spread(members[:, None]),
-                            calibration.get("level", 0.9),
-                            seed=len(rows),
+                        # causal: the print's law (a time-dependent calibration) runs
+                        # over this source's frames so far, at their times
+                        band = stream.step(
+                            t_s, float(members.mean()), float(spread(members[:, None])[0])
                         )
                         row.update(
-                            force_N=float(band["median"][0]),
-                            lo_N=float(band["lo"][0]),
-                            hi_N=float(band["hi"][0]),
+                            force_N=band["median"],
+                            lo_N=band["lo"],
+                            hi_N=band["hi"],
                             level=band["level"],
                         )
                     if run.annotate:

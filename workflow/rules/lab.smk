@@ -110,6 +110,8 @@ rule lab_take:
         runtime=1,
     params:
         lab=section("lab", keys=("motion", "camera", "look", "sensor")),
+        # the print's time dependence (as_built's other keys act through the FEA)
+        print_law=canonical(as_built_print_law(config["lab"]["as_built"])),
         seed=lab_take_seed,
         extrusion_mm=config["finger"]["extrusion_mm"],
     script:

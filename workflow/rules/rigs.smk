@@ -89,6 +89,7 @@ use rule lab_take as rig_take with:
         lab=lambda w: canonical(
             {k: rig_lab(w.rig)[k] for k in ("motion", "camera", "look", "sensor")}
         ),
+        print_law=lambda w: canonical(as_built_print_law(rig_lab(w.rig)["as_built"])),
         seed=rig_take_seed,
         extrusion_mm=config["finger"]["extrusion_mm"],
 

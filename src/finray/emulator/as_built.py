@@ -2,7 +2,9 @@
 
 ``lab.as_built``: walls and ribs ``thickness_delta_mm`` thicker, the finger's material
 ``youngs_modulus_scale`` times as stiff, the rig's friction; the object starts
-``lab.motion.gap_mm`` off the finger and travels ``lab.motion.push_mm``.
+``lab.motion.gap_mm`` off the finger and travels ``lab.motion.push_mm``; where
+``viscoelastic``, the print's force relaxes and softens over the take
+(``relax_fractions``, ``relax_times_s``, ``softening``: :mod:`finray.viscoelastic`).
 """
 
 from __future__ import annotations
@@ -34,3 +36,15 @@ def as_built_fea(fea: dict, as_built: dict, motion: dict) -> dict:
     out["friction"] = float(as_built["friction"])
     out["push_mm"] = float(motion["push_mm"])
     return out
+
+
+def as_built_print_law(as_built: dict) -> dict:
+    """The print's time dependence as :meth:`finray.viscoelastic.PrintLaw.from_config`
+    reads it: ``{}`` (elastic) where ``viscoelastic`` is off."""
+    if not as_built.get("viscoelastic", False):
+        return {}
+    return {
+        "fractions": [float(v) for v in as_built["relax_fractions"]],
+        "times_s": [float(v) for v in as_built["relax_times_s"]],
+        "softening": float(as_built["softening"]),
+    }

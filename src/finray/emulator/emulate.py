@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import replace
+from dataclasses import asdict, replace
 from pathlib import Path
 
 import numpy as np
@@ -71,6 +71,32 @@ class _Interpolator:
         return np.interp(d, self.d, self.res.fx_N), np.interp(d, self.d, self.res.fy_N)
 
 
+#: the grid (s) on which a viscoelastic print's force history is computed, then read
+#: anywhere by linear interpolation (a 1 kHz sensor samples every second point)
+PRINT_GRID_S = 5e-4
+
+
+class _PrintForces:
+    """The force of a viscoelastic print (:mod:`finray.viscoelastic`) at any camera time
+    of the take: the FEA's elastic forces over the push history, softened by the push
+    force's Mullins factor and relaxed, on a grid of :data:`PRINT_GRID_S` from ``t0_s``
+    to ``t1_s``."""
+
+    def __init__(self, fea: _Interpolator, motion: GripperMotion, law, t0_s: float, t1_s: float):
+        from ..viscoelastic import relax, softening_factor
+
+        n = int(np.ceil((t1_s - t0_s) / PRINT_GRID_S)) + 1
+        self.t = t0_s + PRINT_GRID_S * np.arange(n)
+        push, along = fea.forces(motion.push(self.t))
+        eta = softening_factor(push, law.softening)
+        g, tau, _ = law.as_rows()
+        self.push = relax(self.t, push * eta, g, tau, 0.0)[0]
+        self.along = relax(self.t, along * eta, g, tau, 0.0)[0]
+
+    def __call__(self, t_cam) -> tuple[np.ndarray, np.ndarray]:
+        return np.interp(t_cam, self.t, self.push), np.interp(t_cam, self.t, self.along)
+
+
 def emulate_take(
     result_npz,
     take_dir,
@@ -80,10 +106,12 @@ def emulate_take(
     height_mm: float,
     extrusion_mm: float,
     seed: int = 0,
+    print_law=None,
     log=print,
 ) -> dict:
     """Write one take (see the module's text); returns ``truth.json``'s content.
-    ``lab``: the config's ``lab`` section."""
+    ``lab``: the config's ``lab`` section; ``print_law``: the print's time dependence
+    (:class:`finray.viscoelastic.PrintLaw`; None or elastic: the FEA's force as it is)."""
     t_wall = time.perf_counter()
     take_dir = Path(take_dir)
     (take_dir / "truth").mkdir(parents=True, exist_ok=True)
@@ -187,8 +215,15 @@ def emulate_take(
     sensor = ForceSensor.from_config(lab["sensor"])
     offset = sensor.draw_offset(rng)
 
+    if print_law is None or print_law.elastic:
+        def print_forces(t_cam):
+            return fea.forces(motion.push(t_cam))
+    else:  # over the whole log, margins included, so that every sample has its history
+        m = sensor.margin_s + 1.0
+        print_forces = _PrintForces(fea, motion, print_law, -m, motion.duration_s + m)
+
     def force_at(t_cam):
-        push, along = fea.forces(motion.push(t_cam))
+        push, along = print_forces(t_cam)
         return push, -along  # on the object: minus the finger's
 
     flog = sensor.log(force_at, motion.duration_s, offset, rng)
@@ -214,14 +249,12 @@ def emulate_take(
     f_frame = force_at((t[:, None] + fine[None, :]).ravel())[0].reshape(n, -1).mean(axis=1)
     import pandas as pd
 
+    viscous = not (print_law is None or print_law.elastic)
+    columns = {"frame": np.arange(n), "t_s": t, "push_mm": push_mid, "force_N": f_frame}
+    if viscous:  # the FEA's force at the frame's push, before the print's history acts
+        columns["elastic_force_N"] = fea.forces(push_mid)[0]
     pd.DataFrame(
-        {
-            "frame": np.arange(n),
-            "t_s": t,
-            "push_mm": push_mid,
-            "force_N": f_frame,
-            "mask_px": mask_px,
-        }
+        {**columns, "mask_px": mask_px}
     ).to_csv(take_dir / "truth" / "frames.csv", index=False, float_format="%.6g")
     truth = {
         "offset_s": offset_mid,
@@ -248,6 +281,8 @@ def emulate_take(
         "seed": seed,
         "wall_s": time.perf_counter() - t_wall,
     }
+    if viscous:
+        truth["print_law"] = asdict(print_law)
     (take_dir / "truth" / "truth.json").write_text(json.dumps(truth, indent=1))
     log(
         f"{take_dir.name}: {n} frames {camera.width}x{camera.height} at {fps:g} FPS, "

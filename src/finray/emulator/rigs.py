@@ -6,7 +6,9 @@ which seed, and the ranges: :func:`draw_rig` returns rig ``i``'s whole ``lab`` s
 configured one with these drawn (from a generator seeded by ``seed`` and ``i``):
 
 - ``uniform``: ``{"<section>.<key>": [low, high]}``, a value uniform in the range (each
-  element of a list value drawn apart, e.g. the sensor's three biases);
+  element of a list value drawn apart, e.g. the sensor's three biases), or a [low, high]
+  per element of a list value (the print's relaxation times); the print's time
+  dependence (:data:`LATE_DRAWS`) is drawn last;
 - ``choice``: ``{"<section>.<key>": [option, ...]}``, one option (e.g. the frame size);
 - ``colours``: the finger's hue (deg), the object's hue offset from it (deg, kept far
   from the finger's, as a lab would paint it), saturation, value and the background's
@@ -31,6 +33,10 @@ import numpy as np
 
 #: mm between the clamped base and an object's lowest point at a drawn height
 BASE_CLEARANCE_MM = 1.0
+
+#: ``uniform`` keys drawn after every other draw (the print's time dependence, added
+#: after the rest): the rigs' other values are those they were drawn before it
+LATE_DRAWS = ("as_built.relax_fractions", "as_built.relax_times_s", "as_built.softening")
 
 
 def span_heights(rng: np.random.Generator, objects: dict, span_mm, n: int) -> list[float]:
@@ -118,14 +124,10 @@ def draw_rig(lab: dict, index: int) -> dict:
     rng = np.random.default_rng([int(spec.get("seed", 0)), index])
     out = copy.deepcopy({k: v for k, v in lab.items() if k != "rigs"})
     out["seed"] = int(lab.get("seed", 0)) + 1000 * index  # the takes' noise: the rig's own
-    for path, (lo, hi) in sorted(spec.get("uniform", {}).items()):
-        old = _get(out, path)
-        value = (
-            rng.uniform(lo, hi, len(old)).round(4).tolist()
-            if isinstance(old, list)
-            else round(float(rng.uniform(lo, hi)), 4)
-        )
-        _set(out, path, value)
+    uniform = spec.get("uniform", {})
+    late = sorted(k for k in uniform if k in LATE_DRAWS)
+    for path in sorted(k for k in uniform if k not in LATE_DRAWS):
+        _draw_uniform(rng, out, path, uniform[path])
     for path, options in sorted(spec.get("choice", {}).items()):
         _set(out, path, copy.deepcopy(options[int(rng.integers(len(options)))]))
     col = spec.get("colours")
@@ -152,5 +154,25 @@ def draw_rig(lab: dict, index: int) -> dict:
         if len(set(heights)) < len(heights):
             raise ValueError(f"rig {index}: height_jitter_mm {jitter} made two heights equal")
         out["heights_mm"] = heights
+    for path in late:  # after every other draw: adding them left those as they were
+        _draw_uniform(rng, out, path, uniform[path])
     out["camera"]["model"] = f"emulated rig {index} of lab.rigs (seed {spec.get('seed', 0)})"
     return out
+
+
+def _draw_uniform(rng: np.random.Generator, out: dict, path: str, bounds) -> None:
+    """``path``'s value drawn uniform in ``bounds``: [low, high] (each element of a list
+    value apart), or a [low, high] per element of a list value."""
+    old = _get(out, path)
+    if bounds and isinstance(bounds[0], (list, tuple)):
+        if not isinstance(old, list) or len(old) != len(bounds):
+            raise ValueError(
+                f"lab.rigs.uniform.{path}: {len(bounds)} ranges for a value of "
+                f"{len(old) if isinstance(old, list) else 1} element(s)"
+            )
+        value = [round(float(rng.uniform(lo, hi)), 4) for lo, hi in bounds]
+    elif isinstance(old, list):
+        value = rng.uniform(bounds[0], bounds[1], len(old)).round(4).tolist()
+    else:
+        value = round(float(rng.uniform(bounds[0], bounds[1])), 4)
+    _set(out, path, value)

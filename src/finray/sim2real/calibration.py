@@ -18,12 +18,27 @@ sigma``, ``log rho`` and ``log kappa`` uniform (scale-free) within bounds; ``nu 
 times long for every parameter (emcee's integrated time); the diagnostics are kept
 with the posterior (:func:`fit_calibration`). :func:`predictive` gives each frame's
 median and interval from the posterior and the network's spread.
+
+A printed finger's force depends on its history (:mod:`finray.viscoelastic`): it relaxes
+while a push is held, reads lower on the way up than down at the same shape, and its
+second cycle is softer. The image follows the shape only, so where frames come with
+their times and takes (``history``) the sensor model reads the network's force through
+that law, fitted on the context takes:
+
+    F_sensor = g (c + L[mu - c]) + b + e,   L: one Prony term (``relax`` of the force
+    relaxing with ``tau_s``) and the Mullins-type ``softening``, over each take's frames
+
+``c`` the network's force at rest (N, :func:`time_point_fit`), ``v`` as above with
+``g mu`` read as the modelled force. Priors: ``relax`` and ``softening`` uniform within
+bounds, ``log tau_s`` uniform (scale-free); bounds of [0, 0] fix them at 0 (the static
+model). The heads then learn the elastic force: they are fitted on the sensor's log with
+the fitted law undone (:func:`finray.viscoelastic.unrelax`), see :func:`fit_rig`.
 """
 
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -31,8 +46,33 @@ import numpy as np
 from ..errors import CalibrationError
 from ..schema import schema_default
 
-PARAMS = ("gain", "offset_N", "log_sigma_N", "log_rho", "log_kappa", "log_nu")
-LABELS = ("g", "b (N)", r"log $\sigma$ (N)", r"log $\rho$", r"log $\kappa$", r"log $\nu$")
+PARAMS = (
+    "gain",
+    "offset_N",
+    "log_sigma_N",
+    "log_rho",
+    "log_kappa",
+    "log_nu",
+    "relax",
+    "log_tau_s",
+    "softening",
+)
+LABELS = (
+    "g",
+    "b (N)",
+    r"log $\sigma$ (N)",
+    r"log $\rho$",
+    r"log $\kappa$",
+    r"log $\nu$",
+    "relax",
+    r"log $\tau$ (s)",
+    "softening",
+)
+#: the static model's parameters (before the print's time dependence): a calibration of
+#: these only is read with the law's three at an elastic print's values
+STATIC_PARAMS = PARAMS[:6]
+#: the elastic print's relax, log tau_s and softening
+ELASTIC = (0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -47,6 +87,14 @@ class Priors:
     #: Student-t degrees of freedom: Gamma(shape, rate) within bounds
     nu_gamma: tuple[float, float] = schema_default("evaluate.sim2real.priors.nu_gamma")
     nu: tuple[float, float] = schema_default("evaluate.sim2real.priors.nu")
+    #: the print's time dependence (one Prony term and the softening); [0, 0]: fixed at 0
+    relax: tuple[float, float] = schema_default("evaluate.sim2real.priors.relax")
+    tau_s: tuple[float, float] = schema_default("evaluate.sim2real.priors.tau_s")
+    softening: tuple[float, float] = schema_default("evaluate.sim2real.priors.softening")
+
+    @property
+    def time_dependent(self) -> bool:
+        return self.relax[1] > 0 or self.softening[1] > 0
 
 
 @dataclass(frozen=True)
@@ -84,36 +132,104 @@ def spread(members) -> np.ndarray:
     return members.std(0, ddof=1) if len(members) > 1 else np.zeros(members.shape[1:])
 
 
-def log_posterior(theta: np.ndarray, mu, s, y, priors: Priors, weight: float = 1.0) -> np.ndarray:
-    """Log posterior (W,) of parameter rows ``theta`` (W, 6): gain, offset (N),
-    log sigma (N), log rho, log kappa, log nu; ``mu``, ``s``, ``y`` (N,) in N.
-    ``weight``: each frame's share of the likelihood (1 / the times a frame appears in
-    ``y``)."""
+@dataclass(frozen=True)
+class History:
+    """What the print's law runs over: each frame's camera time ``t_s`` (s) and take
+    (``segments``, a label per frame; each take's frames together, in time order), and
+    the network's force at rest ``base_N`` (N, c of the module's text)."""
+
+    t_s: np.ndarray
+    segments: np.ndarray
+    base_N: float = 0.0
+    #: the law's starting point for the sampler: relax, tau_s, softening
+    start: tuple[float, float, float] = (0.1, 1.0, 0.1)
+
+    def __post_init__(self):
+        t = np.asarray(self.t_s, dtype=np.float64)
+        ids = _segment_ids(self.segments)
+        if len(t) != len(ids):
+            raise CalibrationError(f"{len(t)} frame times for {len(ids)} frames")
+        back = (np.diff(t) <= 0) & (np.diff(ids) == 0)
+        if back.any() or not np.isfinite(t).all():
+            raise CalibrationError(
+                "a take's frame times are not increasing (or not finite): the print's "
+                "law needs each take's frames in time order"
+            )
+
+    def subset(self, keep: np.ndarray) -> "History":
+        keep = np.asarray(keep)
+        return replace(self, t_s=np.asarray(self.t_s)[keep], segments=np.asarray(self.segments)[keep])
+
+    def tiled(self, n: int) -> "History":
+        """The frames ``n`` times over (one history per copy): :func:`fit_rig`'s labellings."""
+        ids = _segment_ids(self.segments)
+        copies = (np.arange(n)[:, None] * (ids.max() + 1 if len(ids) else 1) + ids).ravel()
+        return replace(self, t_s=np.tile(np.asarray(self.t_s), n), segments=copies)
+
+    def law(self, mu, relax, log_tau_s, softening) -> np.ndarray:
+        """``c + L[mu - c]`` (P, N) for P rows of the law's parameters (P,)."""
+        from ..viscoelastic import relax as run_law
+
+        c = float(self.base_N)
+        mu = np.asarray(mu, dtype=np.float64)
+        out = run_law(
+            self.t_s,
+            mu - c,
+            np.asarray(relax, dtype=np.float64).reshape(-1, 1),
+            np.exp(np.asarray(log_tau_s, dtype=np.float64)).reshape(-1, 1),
+            np.asarray(softening, dtype=np.float64).reshape(-1),
+            self.segments,
+        )
+        return out + c
+
+
+def _segment_ids(labels) -> np.ndarray:
+    from ..viscoelastic import _segment_ids as ids
+
+    return ids(labels)
+
+
+def log_posterior(
+    theta: np.ndarray, mu, s, y, priors: Priors, weight: float = 1.0, history: History | None = None
+) -> np.ndarray:
+    """Log posterior (W,) of parameter rows ``theta`` (W, 9, :data:`PARAMS`): gain,
+    offset (N), log sigma (N), log rho, log kappa, log nu, relax, log tau (s),
+    softening; ``mu``, ``s``, ``y`` (N,) in N. ``weight``: each frame's share of the
+    likelihood (1 / the times a frame appears in ``y``). ``history``: the frames' times
+    and takes, through which the print's law reads ``mu`` (None: the static model, the
+    law's parameters unused)."""
     from scipy.special import gammaln
 
     theta = np.atleast_2d(theta)
-    g, b, ls, lr, lk, ln = (theta[:, i : i + 1] for i in range(len(PARAMS)))
+    g, b, ls, lr, lk, ln, rx, lt, sf = (theta[:, i : i + 1] for i in range(len(PARAMS)))
     ok = g[:, 0] > 0
-    for v, (lo, hi) in (
-        (ls, priors.sigma_N),
-        (lr, priors.rho),
-        (lk, priors.kappa),
-        (ln, priors.nu),
-    ):
+    bounds = [(ls, priors.sigma_N), (lr, priors.rho), (lk, priors.kappa), (ln, priors.nu)]
+    for v, (lo, hi) in bounds:
         ok &= (v[:, 0] >= np.log(lo)) & (v[:, 0] <= np.log(hi))
+    timed = history is not None and priors.time_dependent
+    if timed:
+        for v, (lo, hi) in ((rx, priors.relax), (sf, priors.softening)):
+            ok &= (v[:, 0] >= lo) & (v[:, 0] <= hi)
+        ok &= (lt[:, 0] >= np.log(priors.tau_s[0])) & (lt[:, 0] <= np.log(priors.tau_s[1]))
     out = np.full(len(theta), -np.inf)
     if not ok.any():
         return out
     g, b, ls, lr, lk, ln = g[ok], b[ok], ls[ok], lr[ok], lk[ok], ln[ok]
     nu = np.exp(ln)
-    var = np.exp(2 * ls) + (np.exp(lr) * g * mu) ** 2 + (np.exp(lk) * g * s) ** 2
-    z2 = (y - g * mu - b) ** 2 / var
+    if timed:  # the force the print's law gives from the network's elastic one
+        f = g * history.law(mu, rx[ok, 0], lt[ok, 0], sf[ok, 0])
+        var = np.exp(2 * ls) + (np.exp(lr) * f) ** 2 + (np.exp(lk) * g * s) ** 2
+        z2 = (y - f - b) ** 2 / var
+    else:
+        var = np.exp(2 * ls) + (np.exp(lr) * g * mu) ** 2 + (np.exp(lk) * g * s) ** 2
+        z2 = (y - g * mu - b) ** 2 / var
     ll = len(y) * (
         gammaln((nu[:, 0] + 1) / 2) - gammaln(nu[:, 0] / 2) - 0.5 * np.log(np.pi * nu[:, 0])
     ) - 0.5 * np.sum(np.log(var) + (nu + 1) * np.log1p(z2 / nu), axis=1)
     shape, rate = priors.nu_gamma
     # the Gamma prior on nu, sampled as log nu (Jacobian nu); a gain or offset of prior
-    # sd 0 is fixed (:func:`fixed_params`) and has no prior term
+    # sd 0 is fixed (:func:`fixed_params`) and has no prior term; the law's parameters
+    # are uniform (log tau: scale-free) within their bounds
     lp = shape * ln[:, 0] - rate * nu[:, 0]
     if priors.gain_log_sd > 0:
         lg = np.log(g[:, 0])
@@ -124,17 +240,24 @@ def log_posterior(theta: np.ndarray, mu, s, y, priors: Priors, weight: float = 1
     return out
 
 
-def fixed_params(priors: Priors) -> dict[int, float]:
+def fixed_params(priors: Priors, timed: bool = False) -> dict[int, float]:
     """The parameters held fixed, by their index in :data:`PARAMS`: the gain at 1 where
     ``gain_log_sd`` is 0, the offset at 0 N where ``offset_sd_N`` is 0 (a model already
-    fitted to the sensor's frames, whose residuals are left to the noise terms)."""
-    return {
+    fitted to the sensor's frames, whose residuals are left to the noise terms); the
+    print's law at an elastic print's (0, log 1 s, 0) where the frames have no history
+    (``timed`` False), each of relax (with tau) and softening where its bounds are [0, 0]."""
+    out = {
         i: v for i, v, sd in ((0, 1.0, priors.gain_log_sd), (1, 0.0, priors.offset_sd_N)) if sd == 0
     }
+    if not timed or priors.relax[1] <= 0:
+        out.update({6: ELASTIC[0], 7: ELASTIC[1]})
+    if not timed or priors.softening[1] <= 0:
+        out[8] = ELASTIC[2]
+    return out
 
 
 def _full(free: np.ndarray, fixed: dict[int, float]) -> np.ndarray:
-    """Parameter rows (W, 6) from rows of the free parameters, the fixed ones inserted."""
+    """Parameter rows (W, 9) from rows of the free parameters, the fixed ones inserted."""
     free = np.atleast_2d(free)
     out = np.empty((len(free), len(PARAMS)))
     out[:, [i for i in range(len(PARAMS)) if i not in fixed]] = free
@@ -143,23 +266,25 @@ def _full(free: np.ndarray, fixed: dict[int, float]) -> np.ndarray:
     return out
 
 
-def _start(mu, s, y, priors: Priors, weight: float = 1.0) -> np.ndarray:
+def _start(mu, s, y, priors: Priors, weight: float = 1.0, history: History | None = None) -> np.ndarray:
     """The posterior's mode (Nelder-Mead from a least-squares line), to start the walkers:
     a full parameter row, the fixed ones at their values."""
     from scipy.optimize import minimize
 
-    fixed = fixed_params(priors)
-    if fixed:
+    timed = history is not None and priors.time_dependent
+    fixed = fixed_params(priors, timed)
+    f = history.law(mu, *_law_start(history, priors))[0] if timed else mu
+    if 0 in fixed or 1 in fixed:
         g, b = fixed.get(0, 1.0), fixed.get(1, 0.0)
         if 0 not in fixed:
-            g = max(float(np.sum((y - b) * mu) / max(np.sum(mu * mu), 1e-12)), 1e-3)
+            g = max(float(np.sum((y - b) * f) / max(np.sum(f * f), 1e-12)), 1e-3)
         elif 1 not in fixed:
-            b = float(np.mean(y - g * mu))
+            b = float(np.mean(y - g * f))
     else:
-        A = np.column_stack([mu, np.ones_like(mu)])
+        A = np.column_stack([f, np.ones_like(f)])
         (g, b), *_ = np.linalg.lstsq(A, y, rcond=None)
         g = g if g > 0 else 1.0
-    r = y - g * mu - b
+    r = y - g * f - b
     x0 = np.array(
         [
             g,
@@ -168,11 +293,12 @@ def _start(mu, s, y, priors: Priors, weight: float = 1.0) -> np.ndarray:
             np.log(0.05),
             0.0,
             np.log(np.clip(20.0, *priors.nu)),
+            *(_law_start(history, priors) if timed else ELASTIC),
         ]
     )
     free = [i for i in range(len(PARAMS)) if i not in fixed]
     best = minimize(
-        lambda t: -log_posterior(_full(t, fixed), mu, s, y, priors, weight)[0],
+        lambda t: -log_posterior(_full(t, fixed), mu, s, y, priors, weight, history)[0],
         x0[free],
         method="Nelder-Mead",
         options={"maxiter": 4000, "xatol": 1e-6, "fatol": 1e-6},
@@ -181,7 +307,71 @@ def _start(mu, s, y, priors: Priors, weight: float = 1.0) -> np.ndarray:
     # inside the bounds, so that every walker of the ball around it starts finite
     for i, (lo, hi) in zip((2, 3, 4, 5), (priors.sigma_N, priors.rho, priors.kappa, priors.nu)):
         x[i] = np.clip(x[i], np.log(lo) + 0.05, np.log(hi) - 0.05)
+    if timed:
+        for i, (lo, hi) in ((6, priors.relax), (8, priors.softening)):
+            if i not in fixed:
+                pad = 0.02 * (hi - lo)
+                x[i] = np.clip(x[i], lo + pad, hi - pad)
+        if 7 not in fixed:
+            x[7] = np.clip(x[7], np.log(priors.tau_s[0]) + 0.05, np.log(priors.tau_s[1]) - 0.05)
     return x
+
+
+def _law_start(history: History, priors: Priors) -> tuple[float, float, float]:
+    """(relax, log tau_s, softening) of ``history.start``, the fixed ones at 0."""
+    rx, tau, sf = history.start
+    return (
+        float(rx) if priors.relax[1] > 0 else 0.0,
+        float(np.log(tau)) if priors.relax[1] > 0 else 0.0,
+        float(sf) if priors.softening[1] > 0 else 0.0,
+    )
+
+
+def time_point_fit(mu, y, history: History, priors: Priors) -> dict:
+    """A least-squares fit of ``y = g (c + L[mu - c]) + b`` (N): the print's law seen
+    through the network's force ``mu`` on the frames of ``history`` (its ``base_N``
+    replaced by c, the median of ``mu`` on the frames below 5 % of its largest);
+    returns ``gain``, ``offset_N``, ``base_N``, ``relax``, ``tau_s``, ``softening`` and
+    ``rest_N`` = g c + b, the sensor's reading at rest."""
+    from scipy.optimize import least_squares
+
+    mu, y = np.asarray(mu, dtype=np.float64), np.asarray(y, dtype=np.float64)
+    top = np.max(np.abs(mu)) if len(mu) else 0.0
+    rest = np.abs(mu) <= 0.05 * top
+    c = float(np.median(mu[rest])) if rest.any() else 0.0
+    h = replace(history, base_N=c)
+    fit_relax, fit_soft = priors.relax[1] > 0, priors.softening[1] > 0
+
+    def unpack(x):
+        rx = x[2] if fit_relax else 0.0
+        lt = x[3] if fit_relax else 0.0
+        sf = x[4] if fit_soft else 0.0
+        return x[0], x[1], rx, lt, sf
+
+    def residual(x):
+        g, b, rx, lt, sf = unpack(x)
+        return g * h.law(mu, rx, lt, sf)[0] + b - y
+
+    lo = [1e-3, -np.inf, priors.relax[0], np.log(priors.tau_s[0]), priors.softening[0]]
+    hi = [np.inf, np.inf, max(priors.relax[1], 1e-9), np.log(priors.tau_s[1]), max(priors.softening[1], 1e-9)]
+    x0 = [1.0, 0.0, np.clip(0.1, lo[2], hi[2]), np.log(np.clip(1.0, *priors.tau_s)), np.clip(0.1, lo[4], hi[4])]
+    best = None
+    for tau0 in (0.3, 3.0):  # two starts: a fast and a slow relaxation
+        x0[3] = np.log(np.clip(tau0, *priors.tau_s))
+        res = least_squares(residual, x0, bounds=(lo, hi), x_scale="jac")
+        if best is None or res.cost < best.cost:
+            best = res
+    g, b, rx, lt, sf = unpack(best.x)
+    return {
+        "gain": float(g),
+        "offset_N": float(b),
+        "base_N": c,
+        "relax": float(rx),
+        "tau_s": float(np.exp(lt)),
+        "softening": float(sf),
+        "rest_N": float(g * c + b),
+        "rmse_N": float(np.sqrt(np.mean(best.fun**2))),
+    }
 
 
 def fit_calibration(
@@ -192,24 +382,29 @@ def fit_calibration(
     sampler: Sampler | None = None,
     log=print,
     weight: float = 1.0,
+    history: History | None = None,
 ) -> dict:
     """Sample the sensor model's posterior on frames (network mean ``mu``, spread ``s``,
     sensor ``y``; N). Returns ``{"posterior": {"names", "samples"}, "summary",
     "diagnostics", "priors", "sampler"}``; ``diagnostics["ok"]``: the chain is long
-    enough and the acceptance fraction within 0.2-0.5. ``weight``: see
-    :func:`log_posterior`."""
+    enough and the acceptance fraction within 0.2-0.5. ``weight`` and ``history`` (the
+    print's law over the frames' times; None: static): see :func:`log_posterior`."""
     import emcee
 
     priors, sampler = priors or Priors(), sampler or Sampler()
     mu, s, y = (np.asarray(a, dtype=np.float64).ravel() for a in (mu, s, y))
     keep = np.isfinite(mu) & np.isfinite(s) & np.isfinite(y)
     mu, s, y = mu[keep], s[keep], y[keep]
+    if history is not None and not priors.time_dependent:
+        history = None
+    if history is not None:
+        history = history.subset(keep)
     if len(y) < 10:
         raise CalibrationError(f"too few frames to calibrate ({len(y)}; at least 10)")
     rng = np.random.default_rng(sampler.seed)
-    fixed = fixed_params(priors)
+    fixed = fixed_params(priors, history is not None)
     free = [i for i in range(len(PARAMS)) if i not in fixed]
-    x0 = _start(mu, s, y, priors, weight)[free]
+    x0 = _start(mu, s, y, priors, weight, history)[free]
     p0 = x0 + 1e-3 * rng.standard_normal((sampler.walkers, len(free))) * np.maximum(np.abs(x0), 0.1)
     # differential-evolution moves shorten the autocorrelation; mixed with the stretch
     # move (acceptance ~0.6 here) for an acceptance fraction within 0.2-0.5
@@ -221,7 +416,7 @@ def fit_calibration(
     ens = emcee.EnsembleSampler(
         sampler.walkers,
         len(free),
-        lambda t: log_posterior(_full(t, fixed), mu, s, y, priors, weight),
+        lambda t: log_posterior(_full(t, fixed), mu, s, y, priors, weight, history),
         vectorize=True,
         moves=moves,
     )
@@ -267,6 +462,8 @@ def fit_calibration(
         "n_frames": int(len(y)),
         "likelihood_weight": weight,
         "fixed": {PARAMS[i]: v for i, v in fixed.items()},
+        # the print's law: the network's force at rest that it acts from (N); None: static
+        "history_base_N": None if history is None else float(history.base_N),
         "priors": asdict(priors),
         "sampler": asdict(sampler),
     }
@@ -277,8 +474,9 @@ def summarise(samples: np.ndarray) -> dict:
     also unlogged."""
     samples = np.asarray(samples)
     cols = dict(zip(PARAMS, samples.T))
-    for k in ("log_sigma_N", "log_rho", "log_kappa", "log_nu"):
-        cols[k[4:]] = np.exp(cols[k])
+    for k in ("log_sigma_N", "log_rho", "log_kappa", "log_nu", "log_tau_s"):
+        if k in cols:
+            cols[k[4:]] = np.exp(cols[k])
     return {
         k: {
             "median": float(np.median(v)),
@@ -286,6 +484,20 @@ def summarise(samples: np.ndarray) -> dict:
         }
         for k, v in cols.items()
     }
+
+
+def posterior_samples(calibration: dict) -> np.ndarray:
+    """The posterior's samples (S, 9) of :data:`PARAMS`; a calibration of the static
+    model's six (:data:`STATIC_PARAMS`, before the print's law) with the law elastic."""
+    theta = np.asarray(calibration["posterior"]["samples"], dtype=np.float64)
+    if theta.shape[1] == len(STATIC_PARAMS):
+        theta = np.column_stack([theta, np.tile(ELASTIC, (len(theta), 1))])
+    return theta
+
+
+def is_time_dependent(calibration: dict) -> bool:
+    """Whether the calibration reads the network's force through the print's law."""
+    return calibration.get("history_base_N") is not None
 
 
 def predictive(
@@ -296,11 +508,14 @@ def predictive(
     seed: int = 0,
     chunk: int = 1000,
     rig: RigPrior | None = None,
+    history: History | None = None,
 ) -> dict:
     """Each frame's sensor force under the posterior (N): ``median``, ``lo``, ``hi``
     (the central ``level`` interval), from one draw per posterior sample; ``rig``: a
-    new rig's unknown gain and offset drawn on top of each sample (:class:`RigPrior`)."""
-    theta = np.asarray(calibration["posterior"]["samples"], dtype=np.float64)
+    new rig's unknown gain and offset drawn on top of each sample (:class:`RigPrior`);
+    ``history``: the frames' times and takes, through which a time-dependent
+    calibration reads ``mu`` (its ``base_N`` is the calibration's; None: read static)."""
+    theta = posterior_samples(calibration)
     g, b = theta[:, :1], theta[:, 1:2]
     if rig is not None and (rig.gain_log_sd > 0 or rig.offset_sd_N > 0 or rig.gain_log_mean != 0):
         draw = np.random.default_rng([seed, 1]).standard_normal((len(theta), 2))
@@ -308,15 +523,52 @@ def predictive(
         b = b + rig.offset_sd_N * draw[:, 1:2]
     sig, rho, kap, nu = (np.exp(theta[:, i : i + 1]) for i in (2, 3, 4, 5))
     mu, s = np.asarray(mu, dtype=np.float64).ravel(), np.asarray(s, dtype=np.float64).ravel()
+    f = None
+    if history is not None and is_time_dependent(calibration):
+        h = replace(history, base_N=float(calibration["history_base_N"]))
+        f = h.law(mu, theta[:, 6], theta[:, 7], theta[:, 8])  # (S, N)
     rng = np.random.default_rng(seed)
     q = (50.0, 50 * (1 - level), 50 * (1 + level))
     out = np.empty((3, len(mu)))
     for i in range(0, len(mu), chunk):
-        m, sp = mu[None, i : i + chunk], s[None, i : i + chunk]
+        m = mu[None, i : i + chunk] if f is None else f[:, i : i + chunk]
+        sp = s[None, i : i + chunk]
         sd = np.sqrt(sig**2 + (rho * g * m) ** 2 + (kap * g * sp) ** 2)
         draws = g * m + b + sd * rng.standard_t(np.broadcast_to(nu, sd.shape))
         out[:, i : i + chunk] = np.percentile(draws, q, axis=0)
     return {"median": out[0], "lo": out[1], "hi": out[2], "level": level}
+
+
+class CalibratedStream:
+    """A calibration applied frame by frame, causally (``finray predict --calibration``
+    on files, videos and live sources): :meth:`step` takes a frame's time (s; None where
+    the source has none), the network's force and spread (N) and returns the frame's
+    median and interval, the print's law run over the frames so far. A time not after
+    the last starts a new history (a new video)."""
+
+    def __init__(self, calibration: dict, level: float | None = None):
+        from ..viscoelastic import Response
+
+        self.calibration = calibration
+        self.level = float(calibration.get("level", 0.9) if level is None else level)
+        theta = posterior_samples(calibration)
+        self.g, self.b = theta[:, 0], theta[:, 1]
+        self.sig, self.rho, self.kap, self.nu = (np.exp(theta[:, i]) for i in (2, 3, 4, 5))
+        self.timed = is_time_dependent(calibration)
+        self.base = float(calibration.get("history_base_N") or 0.0)
+        self.law = Response(theta[:, 6:7], np.exp(theta[:, 7:8]), theta[:, 8]) if self.timed else None
+        self.frames = 0
+
+    def step(self, t_s: float | None, mu: float, s: float) -> dict:
+        """One frame's ``median``, ``lo``, ``hi`` (N) and ``level``."""
+        rng = np.random.default_rng(self.frames)
+        self.frames += 1
+        m = self.base + self.law.step(t_s, float(mu) - self.base) if self.timed else float(mu)
+        sd = np.sqrt(self.sig**2 + (self.rho * self.g * m) ** 2 + (self.kap * self.g * s) ** 2)
+        draws = self.g * m + self.b + sd * rng.standard_t(self.nu)
+        q = (50.0, 50 * (1 - self.level), 50 * (1 + self.level))
+        med, lo, hi = np.percentile(draws, q)
+        return {"median": float(med), "lo": float(lo), "hi": float(hi), "level": self.level}
 
 
 def coverage(y, band: dict) -> float:
@@ -336,8 +588,20 @@ def read_calibration(path: str | Path) -> dict:
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise CalibrationError(f"{path} is not JSON ({type(exc).__name__})") from None
     samples = cal.get("posterior", {}).get("samples") if isinstance(cal, dict) else None
-    if not samples or np.asarray(samples).ndim != 2 or np.asarray(samples).shape[1] != len(PARAMS):
+    if (
+        not samples
+        or np.asarray(samples).ndim != 2
+        or np.asarray(samples).shape[1] not in (len(PARAMS), len(STATIC_PARAMS))
+    ):
         raise CalibrationError(f"{path} has no posterior samples ({', '.join(PARAMS)})")
+    base = cal.get("history_base_N")
+    if base is not None and (
+        isinstance(base, bool) or not isinstance(base, (int, float)) or not np.isfinite(base)
+    ):
+        raise CalibrationError(f"{path}: history_base_N must be a finite number or null, got {base!r}")
+    law = posterior_samples(cal)[:, 6:]
+    if np.any(law[:, [0, 2]] < 0) or np.any(law[:, [0, 2]] >= 1):
+        raise CalibrationError(f"{path}: relax and softening samples must lie in [0, 1)")
     if not np.isfinite(np.asarray(samples, dtype=np.float64)).all():
         raise CalibrationError(f"{path}: posterior samples that are not finite numbers")
     level = cal.get("level", 0.9)
@@ -393,8 +657,9 @@ def corner_figure(calibration: dict, title: str = ""):
     matplotlib.use("Agg")
     import corner
 
-    samples = np.asarray(calibration["posterior"]["samples"])
-    keep = [i for i, p in enumerate(PARAMS) if p not in calibration.get("fixed", {})]
+    samples = posterior_samples(calibration)
+    fixed = calibration.get("fixed", {})
+    keep = [i for i, p in enumerate(PARAMS) if p not in fixed and np.ptp(samples[:, i]) > 0]
     fig = corner.corner(
         samples[:, keep],
         labels=[LABELS[i] for i in keep],
@@ -498,22 +763,54 @@ def fit_rig(
     sampler: Sampler | None = None,
     log=print,
     anchor=None,
+    history: History | None = None,
 ):
     """A rig's head ensemble (:func:`finray.sim2real.adapt.fit_heads` on every frame, beside
     ``anchor``'s simulated frames where given) and its sensor calibration, sampled on the
     cross-fitted predictions (:func:`cross_fitted`) of every labelling in ``unit_sets``
     (each a label per frame; the frames enter once per labelling). Returns (heads,
-    calibration dict)."""
-    from .adapt import fit_heads
+    calibration dict).
 
-    heads = fit_heads(model, features, force_N, fit, anchor=anchor)
+    With the frames' ``history`` (their times and takes) and a time-dependent prior,
+    the print's law is fitted too: heads fitted on the sensor's log give a first reading
+    of the elastic force, a least-squares fit of the law on it (:func:`time_point_fit`)
+    says how the log relaxes and softens, and the heads are fitted again on the log with
+    that law undone (:func:`finray.viscoelastic.unrelax`): an image is the shape, and the
+    shape's force is what the heads should learn. The sampler then fits the law anew on
+    the cross-fitted predictions of those heads."""
+    from .adapt import fit_heads, head_forces
+    from ..viscoelastic import PrintLaw, unrelax
+
+    priors = priors or Priors()
     y = np.asarray(force_N, dtype=np.float64)
-    parts = [cross_fitted(model, features, force_N, u, fit, anchor) for u in unit_sets]
+    target, point = y, None
+    if history is not None and priors.time_dependent:
+        first = fit_heads(model, features, y, fit, anchor=anchor)
+        point = time_point_fit(head_forces(model, first, features).mean(0), y, history, priors)
+        law = PrintLaw((point["relax"],), (point["tau_s"],), point["softening"])
+        rest = point["rest_N"]  # the sensor's reading at rest: the law acts from there
+        target = rest + unrelax(history.t_s, y - rest, law, history.segments)
+        history = replace(history, base_N=rest, start=(point["relax"], point["tau_s"], point["softening"]))
+        log(
+            f"  print's law (least squares): relax {point['relax']:.3f} at "
+            f"{point['tau_s']:.2f} s, softening {point['softening']:.3f}"
+        )
+    else:
+        history = None
+    heads = fit_heads(model, features, target, fit, anchor=anchor)
+    parts = [cross_fitted(model, features, target, u, fit, anchor) for u in unit_sets]
     mu, sd = (np.concatenate(a) for a in zip(*parts))
     # each frame once per labelling: a likelihood weighted 1/len, so that the posterior
     # is not narrowed as if there were more frames
     cal = fit_calibration(
-        mu, sd, np.tile(y, len(parts)), priors, sampler, log=log, weight=1.0 / len(parts)
+        mu,
+        sd,
+        np.tile(y, len(parts)),
+        priors,
+        sampler,
+        log=log,
+        weight=1.0 / len(parts),
+        history=None if history is None else history.tiled(len(parts)),
     )
     cal["cross_fit"] = {
         "unit_sets": [sorted(set(np.asarray(u).tolist())) for u in unit_sets],
@@ -524,6 +821,7 @@ def fit_rig(
     }
     cal["heads"] = dict(vars(fit))
     cal["sim_replay_frames"] = anchor.frames if anchor is not None else 0
+    cal["law_point_fit"] = point
     return heads, cal
 
 
@@ -606,7 +904,16 @@ def calibrate_takes(
         SimAnchor.from_file(model, no_context, replay_frames) if no_context is not None else None
     )
     heads, cal = fit_rig(
-        model, feats, y, fold_units(table, folds), fit, priors, sampler, log=log, anchor=anchor
+        model,
+        feats,
+        y,
+        fold_units(table, folds),
+        fit,
+        priors,
+        sampler,
+        log=log,
+        anchor=anchor,
+        history=History(table["t_s"].to_numpy(), table["take"].to_numpy()),
     )
     ts_path = Path(f"{stem}.model.ts")
     export_ensemble(

@@ -30,6 +30,7 @@ import pandas as pd
 
 from .adapt import HeadFit, SimAnchor, encoder_features, head_forces, head_from_state
 from .calibration import (
+    History,
     Priors,
     RigPrior,
     Sampler,
@@ -306,8 +307,10 @@ def run_sim2real(
         # no context: the model's own force (finray predict's), the refitted heads' spread
         mu, sd = (mu_all.mean(0) if k else own[test]), spread(mu_all)
         # no context: the rig's gain and offset are unknown (cfg.rig_prior)
-        band = predictive(cal, mu, sd, cfg.level, rig=None if k else cfg.rig_prior)
         tab = table[test]
+        # the print's law over each test take's frames (a time-dependent calibration)
+        hist = History(tab["t_s"].to_numpy(), tab["take"].to_numpy())
+        band = predictive(cal, mu, sd, cfg.level, rig=None if k else cfg.rig_prior, history=hist)
         frames.append(
             pd.DataFrame(
                 {
@@ -356,6 +359,7 @@ def run_sim2real(
                 cfg.sampler,
                 log=log,
                 anchor=anchor,
+                history=History(table["t_s"].to_numpy()[ctx], table["take"].to_numpy()[ctx]),
             )
             cal.update(
                 context_objects=k,

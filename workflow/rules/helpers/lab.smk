@@ -2,7 +2,12 @@
 import functools
 import zlib
 
-from finray.emulator.as_built import as_built_fea, as_built_finger, as_built_material
+from finray.emulator.as_built import (
+    as_built_fea,
+    as_built_finger,
+    as_built_material,
+    as_built_print_law,
+)
 from finray.emulator.rigs import (
     draw_rig,
     rig_index,
