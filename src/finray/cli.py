@@ -794,7 +794,11 @@ Calibrate a simulation-trained model to a rig from its takes (each a folder as
 finray ingest reads). The takes are ingested, the rig gets its own ensemble of
 force heads on the model's frozen encoder (fitted on every take's frames), and
 the sensor model F_sensor = g F_pred + b + e is sampled with emcee on
-cross-fitted predictions (see finray.sim2real.calibration). Writes calibration.json
+cross-fitted predictions (see finray.sim2real.calibration). A printed finger's
+force relaxes in a hold and softens in later cycles while its image stays: F_pred
+is read through that law (one relaxation term and a softening), fitted on the
+takes' force logs at the frames' times, so give takes that hold and cycle.
+Writes calibration.json
 (posterior samples, summary, convergence diagnostics), the adapted model
 <out>.model.ts that finray predict --calibration runs (on frames segmented by the
 takes' finger colour), <out>.corner.png and the ingested takes under
@@ -881,11 +885,20 @@ def _run_calibrate(args) -> int:
             replay_frames=c.sim_replay_frames,
         )
     sm, dg = cal["summary"], cal["diagnostics"]
-    for k in ("gain", "offset_N", "sigma_N", "rho", "kappa", "nu"):
-        if k in cal.get("fixed", {}):  # held (prior sd 0): the heads are fitted to the sensor
-            print(f"{k}: {cal['fixed'][k]:.4g} (fixed)")
+    for k in ("gain", "offset_N", "sigma_N", "rho", "kappa", "nu", "relax", "tau_s", "softening"):
+        fixed = cal.get("fixed", {})
+        if k in fixed:  # held (prior sd 0): the heads are fitted to the sensor
+            print(f"{k}: {fixed[k]:.4g} (fixed)")
+        elif k == "tau_s" and "log_tau_s" in fixed:  # no relaxation fitted: no time either
+            continue
         else:
             print(f"{k}: {sm[k]['median']:.4g} (95 % {sm[k]['q2.5']:.4g} to {sm[k]['q97.5']:.4g})")
+    if cal.get("history_base_N") is not None:
+        print(
+            "the print's time dependence: relax of the force relaxing in tau_s, softening "
+            "below a take's largest force so far (finray predict --calibration applies it "
+            "over the frames' times)"
+        )
     print(
         f"chain: {dg['steps']} steps x {dg['walkers']} walkers, {dg['steps_over_tau_min']:.0f} "
         f"autocorrelation times, acceptance {dg['acceptance_fraction']['mean']:.2f}"

@@ -127,8 +127,15 @@ def relax(t_s, f_elastic, fractions, times_s, softening, segments=None) -> np.nd
     seg = np.zeros(len(t), np.int64) if segments is None else _segment_ids(segments)
     out = np.empty((P, len(t)))
     if len(t):
-        _relax(t, np.ascontiguousarray(f), seg, np.ascontiguousarray(g),
-               np.ascontiguousarray(tau), np.ascontiguousarray(r), out)
+        _relax(
+            t,
+            np.ascontiguousarray(f),
+            seg,
+            np.ascontiguousarray(g),
+            np.ascontiguousarray(tau),
+            np.ascontiguousarray(r),
+            out,
+        )
     return out
 
 

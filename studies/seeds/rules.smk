@@ -89,6 +89,7 @@ use rule sim2real_no_context as spread_sim2real_no_context with:
 use rule sim2real as spread_sim2real with:
     input:
         lab=[f"{LAB}/ingest/{t}/shard.npz" for t in lab_takes()],
+        motion=[f"{LAB}/{t}/truth/frames.csv" for t in lab_takes()],
         model=lambda w: sim2real_model(train_dir(w)),
         torchscript=lambda w: sim2real_torchscript(train_dir(w)),
         no_context=f"{SPREAD}/{{variant}}/sim2real/no_context.pt",
@@ -109,6 +110,7 @@ use rule rig_sim2real as spread_rig_sim2real with:
     # the variant's heads and calibration on each drawn rig's takes (lab.rigs)
     input:
         lab=lambda w: [f"{RIGS}/{w.rig}/ingest/{t}/shard.npz" for t in lab_takes(rig_lab(w.rig))],
+        motion=lambda w: [f"{RIGS}/{w.rig}/{t}/truth/frames.csv" for t in lab_takes(rig_lab(w.rig))],
         model=lambda w: sim2real_model(train_dir(w)),
         torchscript=lambda w: sim2real_torchscript(train_dir(w)),
         no_context=f"{SPREAD}/{{variant}}/sim2real/no_context.pt",
@@ -135,6 +137,7 @@ use rule sim2real_rigs as spread_sim2real_rigs with:
         table=f"{SPREAD}/{{variant}}/sim2real/rigs/rigs.md",
         csv=f"{SPREAD}/{{variant}}/sim2real/rigs/rigs.csv",
         figure=f"{SPREAD}/{{variant}}/sim2real/rigs/rigs.png",
+        phases=f"{SPREAD}/{{variant}}/sim2real/rigs/rigs_phases.png",
     log:
         f"{RESULTS}/logs/spread/{{variant}}/sim2real_rigs.log",
 

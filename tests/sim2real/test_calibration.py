@@ -69,7 +69,7 @@ def test_heavy_tailed_noise_gives_few_degrees_of_freedom():
 
 def test_diagnostics_are_written_and_hold(fitted):
     d = fitted["diagnostics"]
-    assert set(d["tau_steps"]) == set(PARAMS)
+    assert set(d["tau_steps"]) == set(PARAMS[:6])  # the static model: the law fixed
     assert d["steps"] >= 50 * max(d["tau_steps"].values())
     assert 0.2 <= d["acceptance_fraction"]["mean"] <= 0.5
     assert d["ok"] is True
@@ -111,14 +111,14 @@ def test_rig_prior_covers_rigs_of_unknown_gain(fitted):
 def test_log_posterior_is_minus_infinity_outside_the_priors():
     mu, s, y = synthetic(20, 3)
     p = FREE
-    inside = [1.0, 0.0, np.log(0.1), np.log(0.05), 0.0, np.log(10.0)]
+    inside = [1.0, 0.0, np.log(0.1), np.log(0.05), 0.0, np.log(10.0), 0.0, 0.0, 0.0]
     rows = np.array(
         [
             inside,
             [-1.0, *inside[1:]],  # negative gain
             [*inside[:2], np.log(p.sigma_N[1]) + 1, *inside[3:]],  # sigma above its bound
-            [*inside[:4], np.log(p.kappa[0]) - 1, inside[5]],  # kappa below its bound
-            [*inside[:5], np.log(p.nu[0]) - 0.1],
+            [*inside[:4], np.log(p.kappa[0]) - 1, *inside[5:]],  # kappa below its bound
+            [*inside[:5], np.log(p.nu[0]) - 0.1, *inside[6:]],
         ]
     )  # nu below its bound
     lp = log_posterior(rows, mu, s, y, p)
@@ -177,12 +177,21 @@ def test_gain_and_offset_of_prior_sd_zero_are_fixed():
     s = np.full(1600, 1e-3)
     y = mu + 0.1 * rng.standard_normal(1600)
     priors = Priors(rho=(1e-4, 1.0))  # by default gain and offset are fixed
-    assert fixed_params(priors) == {0: 1.0, 1: 0.0} and fixed_params(FREE) == {}
+    # the print's law (relax, log tau, softening) is fixed where frames have no history
+    law = {6: 0.0, 7: 0.0, 8: 0.0}
+    assert fixed_params(priors) == {0: 1.0, 1: 0.0, **law} and fixed_params(FREE) == law
+    assert fixed_params(FREE, timed=True) == {}
     cal = fit_calibration(mu[:600], s[:600], y[:600], priors, log=lambda m: None)
     samples = np.asarray(cal["posterior"]["samples"])
     assert np.all(samples[:, 0] == 1.0) and np.all(samples[:, 1] == 0.0)
-    assert cal["fixed"] == {"gain": 1.0, "offset_N": 0.0}
-    assert set(cal["diagnostics"]["tau_steps"]) == set(PARAMS[2:]) and cal["diagnostics"]["ok"]
+    assert cal["fixed"] == {
+        "gain": 1.0,
+        "offset_N": 0.0,
+        "relax": 0.0,
+        "log_tau_s": 0.0,
+        "softening": 0.0,
+    }
+    assert set(cal["diagnostics"]["tau_steps"]) == set(PARAMS[2:6]) and cal["diagnostics"]["ok"]
     assert cal["summary"]["sigma_N"]["q2.5"] < 0.1 < cal["summary"]["sigma_N"]["q97.5"]
     assert 0.87 <= coverage(y[600:], predictive(cal, mu[600:], s[600:], 0.9)) <= 0.93
     fig = corner_figure(cal)

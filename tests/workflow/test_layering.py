@@ -5,15 +5,16 @@ The ranks are defined here once. A module may import finray modules of its own r
 or lower. The top-level modules that are not stages get the rank of what they import:
 
 - ``errors``, ``logs``, ``precision``, ``paper_reference``, ``media``, ``annotate``,
-  ``lazy``, ``schema``, ``numba_cache``, ``outputs``, ``_start``, ``scheduler_timers``:
-  import nothing of finray but
+  ``lazy``, ``schema``, ``numba_cache``, ``outputs``, ``_start``, ``scheduler_timers``,
+  ``viscoelastic``: import nothing of finray but
   ``errors``; shared
   helpers (rank 0; ``errors`` holds the package's exceptions, ``media`` reads camera
   frames for predict and recording, ``annotate`` draws predict's output over them,
   ``lazy`` loads a package's names on first use, ``schema`` reads the config schema's
   defaults for every stage's settings, ``numba_cache`` points Numba's cache away from
   the source tree; ``outputs``, where every command's outputs go; ``scheduler_timers``
-  ends Snakemake's rate-limit timers with the run).
+  ends Snakemake's rate-limit timers with the run; ``viscoelastic``, a print's time
+  dependence, which the emulated print obeys and a calibration fits).
 - ``config``: validates every section, so it imports geometry (shapes), render and
   dataset (their parameters): above dataset, below train. No stage below it may
   import it (the FEA studies do, from ``benchmarks``).
@@ -53,6 +54,7 @@ RANK = {
     "numba_cache": 0,
     "outputs": 0,
     "scheduler_timers": 0,
+    "viscoelastic": 0,
     "geometry": 10,
     "fea": 20,
     "render": 30,

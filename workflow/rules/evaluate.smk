@@ -98,9 +98,12 @@ rule sim2real_no_context:
 
 
 rule sim2real:
-    # Reads the ingested takes (the recording format's shards), never lab: settings.
+    # Reads the ingested takes (the recording format's shards), never lab: settings; the
+    # push per frame (the emulator's truth, as a real rig's axis log) only labels the
+    # takes' phases in the report (finray.sim2real.phases).
     input:
         lab=[f"{LAB}/ingest/{t}/shard.npz" for t in lab_takes()],
+        motion=[f"{LAB}/{t}/truth/frames.csv" for t in lab_takes()],
         model=sim2real_model(),
         torchscript=sim2real_torchscript(),
         no_context=f"{EVALUATE}/sim2real/no_context.pt",

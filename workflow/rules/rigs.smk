@@ -118,6 +118,7 @@ use rule lab_ingest as rig_ingest with:
 use rule sim2real as rig_sim2real with:
     input:
         lab=lambda w: [f"{RIGS}/{w.rig}/ingest/{t}/shard.npz" for t in lab_takes(rig_lab(w.rig))],
+        motion=lambda w: [f"{RIGS}/{w.rig}/{t}/truth/frames.csv" for t in lab_takes(rig_lab(w.rig))],
         model=sim2real_model(),
         torchscript=sim2real_torchscript(),
         no_context=f"{EVALUATE}/sim2real/no_context.pt",  # the simulation's: every rig's
@@ -146,6 +147,7 @@ rule sim2real_rigs:
         figure=report(
             f"{RIGS_EVAL}/rigs.png", caption="../report/sim2real_rigs.rst", category="Sim-to-real"
         ),
+        phases=f"{RIGS_EVAL}/rigs_phases.png",
     log:
         f"{RESULTS}/logs/evaluate/sim2real_rigs.log",
     conda:

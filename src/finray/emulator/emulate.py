@@ -16,6 +16,12 @@ Per frame k at camera time t_k = k / fps (mid-exposure): the push d(t) of
 interpolated linearly in the push between solver frames); the camera integrates
 ``exposure_ms`` (sub-frames averaged while the gripper moves: motion blur), then lens
 distortion, the optics' blur (Gaussian PSF), shot and read noise, 8 bits, H.264.
+
+The sensor's force: the FEA's elastic force at the push, or, for a viscoelastic print
+(``print_law``, :mod:`finray.viscoelastic`), that force over the push's history,
+softened and relaxed (:class:`_PrintForces`; ``truth/frames.csv`` then also holds the
+elastic force). The image follows the push alone: the shape's own creep under a held
+position (which a position-controlled axis keeps at the contact) is left out.
 """
 
 from __future__ import annotations
@@ -216,6 +222,7 @@ def emulate_take(
     offset = sensor.draw_offset(rng)
 
     if print_law is None or print_law.elastic:
+
         def print_forces(t_cam):
             return fea.forces(motion.push(t_cam))
     else:  # over the whole log, margins included, so that every sample has its history
@@ -253,9 +260,9 @@ def emulate_take(
     columns = {"frame": np.arange(n), "t_s": t, "push_mm": push_mid, "force_N": f_frame}
     if viscous:  # the FEA's force at the frame's push, before the print's history acts
         columns["elastic_force_N"] = fea.forces(push_mid)[0]
-    pd.DataFrame(
-        {**columns, "mask_px": mask_px}
-    ).to_csv(take_dir / "truth" / "frames.csv", index=False, float_format="%.6g")
+    pd.DataFrame({**columns, "mask_px": mask_px}).to_csv(
+        take_dir / "truth" / "frames.csv", index=False, float_format="%.6g"
+    )
     truth = {
         "offset_s": offset_mid,
         "offset_start_s": offset * (1 + drift),

@@ -5,7 +5,10 @@ The push ``d(t)`` (mm) is the gripper's travel towards the object from its start
 minimum-jerk move (10 s^3 - 15 s^4 + 6 s^5 of the ramp's fraction s), as a position-
 controlled linear axis makes it: zero speed and acceleration at both ends, mean speed
 ``speed_mm_s``. The finger is quasi-static in the FEA, so lowering and raising pass
-through the same states (TPU's viscoelastic hysteresis is not modelled).
+through the same shapes; the force does not: a printed TPU finger relaxes in the hold,
+reads lower on the way up and softer in a later cycle (``lab.as_built.viscoelastic``,
+:mod:`finray.viscoelastic`, applied to the sensor's force by
+:mod:`~finray.emulator.emulate`).
 """
 
 from __future__ import annotations

@@ -158,7 +158,9 @@ class History:
 
     def subset(self, keep: np.ndarray) -> "History":
         keep = np.asarray(keep)
-        return replace(self, t_s=np.asarray(self.t_s)[keep], segments=np.asarray(self.segments)[keep])
+        return replace(
+            self, t_s=np.asarray(self.t_s)[keep], segments=np.asarray(self.segments)[keep]
+        )
 
     def tiled(self, n: int) -> "History":
         """The frames ``n`` times over (one history per copy): :func:`fit_rig`'s labellings."""
@@ -266,7 +268,9 @@ def _full(free: np.ndarray, fixed: dict[int, float]) -> np.ndarray:
     return out
 
 
-def _start(mu, s, y, priors: Priors, weight: float = 1.0, history: History | None = None) -> np.ndarray:
+def _start(
+    mu, s, y, priors: Priors, weight: float = 1.0, history: History | None = None
+) -> np.ndarray:
     """The posterior's mode (Nelder-Mead from a least-squares line), to start the walkers:
     a full parameter row, the fixed ones at their values."""
     from scipy.optimize import minimize
@@ -353,8 +357,20 @@ def time_point_fit(mu, y, history: History, priors: Priors) -> dict:
         return g * h.law(mu, rx, lt, sf)[0] + b - y
 
     lo = [1e-3, -np.inf, priors.relax[0], np.log(priors.tau_s[0]), priors.softening[0]]
-    hi = [np.inf, np.inf, max(priors.relax[1], 1e-9), np.log(priors.tau_s[1]), max(priors.softening[1], 1e-9)]
-    x0 = [1.0, 0.0, np.clip(0.1, lo[2], hi[2]), np.log(np.clip(1.0, *priors.tau_s)), np.clip(0.1, lo[4], hi[4])]
+    hi = [
+        np.inf,
+        np.inf,
+        max(priors.relax[1], 1e-9),
+        np.log(priors.tau_s[1]),
+        max(priors.softening[1], 1e-9),
+    ]
+    x0 = [
+        1.0,
+        0.0,
+        np.clip(0.1, lo[2], hi[2]),
+        np.log(np.clip(1.0, *priors.tau_s)),
+        np.clip(0.1, lo[4], hi[4]),
+    ]
     best = None
     for tau0 in (0.3, 3.0):  # two starts: a fast and a slow relaxation
         x0[3] = np.log(np.clip(tau0, *priors.tau_s))
@@ -556,7 +572,9 @@ class CalibratedStream:
         self.sig, self.rho, self.kap, self.nu = (np.exp(theta[:, i]) for i in (2, 3, 4, 5))
         self.timed = is_time_dependent(calibration)
         self.base = float(calibration.get("history_base_N") or 0.0)
-        self.law = Response(theta[:, 6:7], np.exp(theta[:, 7:8]), theta[:, 8]) if self.timed else None
+        self.law = (
+            Response(theta[:, 6:7], np.exp(theta[:, 7:8]), theta[:, 8]) if self.timed else None
+        )
         self.frames = 0
 
     def step(self, t_s: float | None, mu: float, s: float) -> dict:
@@ -598,7 +616,9 @@ def read_calibration(path: str | Path) -> dict:
     if base is not None and (
         isinstance(base, bool) or not isinstance(base, (int, float)) or not np.isfinite(base)
     ):
-        raise CalibrationError(f"{path}: history_base_N must be a finite number or null, got {base!r}")
+        raise CalibrationError(
+            f"{path}: history_base_N must be a finite number or null, got {base!r}"
+        )
     law = posterior_samples(cal)[:, 6:]
     if np.any(law[:, [0, 2]] < 0) or np.any(law[:, [0, 2]] >= 1):
         raise CalibrationError(f"{path}: relax and softening samples must lie in [0, 1)")
@@ -790,7 +810,9 @@ def fit_rig(
         law = PrintLaw((point["relax"],), (point["tau_s"],), point["softening"])
         rest = point["rest_N"]  # the sensor's reading at rest: the law acts from there
         target = rest + unrelax(history.t_s, y - rest, law, history.segments)
-        history = replace(history, base_N=rest, start=(point["relax"], point["tau_s"], point["softening"]))
+        history = replace(
+            history, base_N=rest, start=(point["relax"], point["tau_s"], point["softening"])
+        )
         log(
             f"  print's law (least squares): relax {point['relax']:.3f} at "
             f"{point['tau_s']:.2f} s, softening {point['softening']:.3f}"

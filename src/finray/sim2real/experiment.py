@@ -64,6 +64,8 @@ class Sim2RealConfig:
     sim_views: str = schema_default("evaluate.sim2real.sim_views")
     # simulated frames fitted beside each fit's context frames (SimAnchor)
     sim_replay_frames: int = schema_default("evaluate.sim2real.sim_replay_frames")
+    # the phases' figures apart for the takes from this height (mm): the face a print covers
+    phase_min_height_mm: float = schema_default("evaluate.sim2real.phase_min_height_mm")
     priors: Priors = field(default_factory=Priors)
     sampler: Sampler = field(default_factory=Sampler)
     rig_prior: RigPrior = field(default_factory=RigPrior)  # with no context frames
@@ -80,6 +82,7 @@ class Sim2RealConfig:
             sim_folds=int(p.get("sim_folds", cls.sim_folds)),
             sim_views=str(p.get("sim_views", cls.sim_views)),
             sim_replay_frames=int(p.get("sim_replay_frames", cls.sim_replay_frames)),
+            phase_min_height_mm=float(p.get("phase_min_height_mm", cls.phase_min_height_mm)),
             priors=Priors(**{k: tuple(v) if isinstance(v, list) else v for k, v in pr.items()}),
             sampler=Sampler(**p.get("sampler", {})),
             rig_prior=RigPrior(**{k: v for k, v in p.get("rig_prior", {}).items() if k != "gain"}),
@@ -279,7 +282,7 @@ def lab_near_base(model, features, own_N, meta: dict | None) -> tuple[np.ndarray
 
 
 def run_sim2real(
-    model_pt, lab_shards, no_context, size, cfg: Sim2RealConfig, log=print, meta=None
+    model_pt, lab_shards, no_context, size, cfg: Sim2RealConfig, log=print, meta=None, phases=None
 ) -> dict:
     """Every context combination; ``no_context``: :func:`save_no_context`'s file of the
     same model; ``meta``: the exported model's ``model.ts.json`` (a dict), whose training
@@ -330,6 +333,7 @@ def run_sim2real(
                     "pred_N": band["median"],
                     "lo_N": band["lo"],
                     "hi_N": band["hi"],
+                    "phase": "all" if phases is None else phases[test],
                 }
             )
         )
@@ -372,7 +376,7 @@ def run_sim2real(
             log(f"context {' + '.join(context)}: {time.perf_counter() - t1:.1f} s")
 
     frames = pd.concat(frames, ignore_index=True)
-    metrics = metrics_table(frames, cfg.level)
+    metrics = metrics_table(frames, cfg.level, cfg.phase_min_height_mm)
     summary = summarise_runs(metrics, cals, sim, cfg)
     summary["wall_s"], summary["cpu_s"] = time.perf_counter() - t0, time.process_time() - c0
     return {"metrics": metrics, "frames": frames, "calibrations": cals, "summary": summary}
@@ -395,11 +399,14 @@ def _row(g: pd.DataFrame) -> dict:
     }
 
 
-def metrics_table(frames: pd.DataFrame, level: float) -> pd.DataFrame:
+def metrics_table(frames: pd.DataFrame, level: float, min_height_mm: float = 0.0) -> pd.DataFrame:
     """Per context size: every (context, test object) pair, each test object over its
     contexts, all frames (``test`` ``all``), the frames not flagged ``near_base``
-    (``context`` ``unflagged``, ``test`` ``all``) and each contact height over its
-    contexts (``context`` ``by_height``, ``test`` the height in mm); the paper's MSE beside."""
+    (``context`` ``unflagged``, ``test`` ``all``), each contact height over its
+    contexts (``context`` ``by_height``, ``test`` the height in mm) and each phase of
+    the takes (``context`` ``by_phase``, and ``by_phase_face`` of the takes at
+    ``min_height_mm`` or higher; ``test`` the phase; NRMSE in % of the largest force of
+    the phase's frames); the paper's MSE beside."""
     rows = []
     for k, gk in frames.groupby("context_objects"):
         for (ctx, grp), g in gk.groupby(["context", "group"]):
@@ -410,6 +417,11 @@ def metrics_table(frames: pd.DataFrame, level: float) -> pd.DataFrame:
         ok = gk[~gk["near_base"]] if "near_base" in gk else gk
         if len(ok):
             rows.append({"context_objects": k, "context": "unflagged", "test": "all", **_row(ok)})
+        if "phase" in gk and (gk["phase"] != "all").any():
+            face = gk[gk["height_mm"] >= min_height_mm]
+            for name, sub in (("by_phase", gk), ("by_phase_face", face)):
+                for ph, g in sub.groupby("phase"):
+                    rows.append({"context_objects": k, "context": name, "test": ph, **_row(g)})
         if "height_mm" in gk:  # each contact height over its contexts (context "by_height")
             for h, g in gk.groupby("height_mm"):
                 rows.append(
@@ -463,6 +475,19 @@ def summarise_runs(metrics: pd.DataFrame, cals: list[dict], sim: dict, cfg: Sim2
                 for _, r in g[g["test"] != "all"].iterrows()
             },
             "n_fits": sum(c["context_objects"] == int(k) for c in cals),
+            # per phase of the takes (every height, and the face from phase_min_height_mm)
+            **{
+                key: {
+                    r["test"]: {
+                        c: (int(r[c]) if c == "n" else float(r[c]))
+                        for c in ("n", "rmse_N", "nrmse_pct", "max_sensor_N", "coverage_pct")
+                    }
+                    for _, r in metrics[
+                        (metrics["context"] == name) & (metrics["context_objects"] == k)
+                    ].iterrows()
+                }
+                for key, name in (("per_phase", "by_phase"), ("per_phase_face", "by_phase_face"))
+            },
             # per contact height of the takes: NRMSE in % of that height's largest force
             "per_height": {
                 r["test"]: {

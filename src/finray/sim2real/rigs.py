@@ -55,6 +55,87 @@ def rigs_heights(summaries: dict[str, dict]) -> dict:
     }
 
 
+def rigs_phases(summaries: dict[str, dict], key: str = "per_phase_face") -> pd.DataFrame:
+    """One row per rig, context count and phase of the takes (:mod:`finray.sim2real.phases`):
+    NRMSE (% of the phase's largest force), coverage (%) and frames, of the takes at the
+    face's heights (``per_phase_face``) or of every take (``per_phase``); empty for
+    summaries written without phases."""
+    rows = [
+        {
+            "rig": rig,
+            "context_objects": int(k),
+            "phase": ph,
+            **{c: m[c] for c in ("nrmse_pct", "coverage_pct", "n")},
+        }
+        for rig, s in summaries.items()
+        for k, node in s["by_context"].items()
+        for ph, m in node.get(key, {}).items()
+        if ph != "rest"
+    ]
+    return pd.DataFrame(
+        rows, columns=["rig", "context_objects", "phase", "nrmse_pct", "coverage_pct", "n"]
+    )
+
+
+def phases_summary(phases: pd.DataFrame, max_nrmse_pct: float = 5.0) -> dict:
+    """Per context count and phase: NRMSE's largest over the rigs and the coverage pooled
+    over their frames; whether every rig is within ``max_nrmse_pct`` in every phase."""
+    out = {}
+    for (k, ph), g in phases.groupby(["context_objects", "phase"]):
+        out.setdefault(str(k), {})[ph] = {
+            "nrmse_pct_max": float(g["nrmse_pct"].max()),
+            "nrmse_pct_mean": float(g["nrmse_pct"].mean()),
+            "coverage_pct_pooled": float((g["coverage_pct"] * g["n"]).sum() / g["n"].sum()),
+            "worst_rig": str(g.loc[g["nrmse_pct"].idxmax(), "rig"]),
+        }
+    top = (
+        phases[phases["context_objects"] == phases["context_objects"].max()]
+        if len(phases)
+        else phases
+    )
+    return {
+        "by_context": out,
+        "max_nrmse_pct": max_nrmse_pct,
+        "all_within_target": bool(len(top) and (top["nrmse_pct"] <= max_nrmse_pct).all()),
+    }
+
+
+def phases_figure(phases: pd.DataFrame, level: float, path) -> None:
+    """NRMSE and coverage per phase of the takes (loading, hold, unloading, second cycle),
+    a bar per rig, one panel pair per context count (PNG)."""
+    from ..evaluate.figures import _plt
+
+    from .phases import PHASES
+
+    plt = _plt()
+    ks = sorted(phases["context_objects"].unique()) if len(phases) else [0]
+    fig, axes = plt.subplots(2, len(ks), figsize=(3.2 * len(ks), 4.6), squeeze=False, sharey="row")
+    order = [p for p in PHASES if p != "rest"]
+    rigs = list(dict.fromkeys(phases["rig"])) if len(phases) else []
+    width = 0.8 / max(len(rigs), 1)
+    for j, k in enumerate(ks):
+        g = phases[phases["context_objects"] == k]
+        for i, rig in enumerate(rigs):
+            r = g[g["rig"] == rig].set_index("phase").reindex(order)
+            x = np.arange(len(order)) + (i - (len(rigs) - 1) / 2) * width
+            for row, col in enumerate(("nrmse_pct", "coverage_pct")):
+                axes[row, j].bar(x, r[col], width, label=rig)
+        axes[0, j].set_title(f"{k} context object(s)", fontsize=8)
+        axes[1, j].axhline(100 * level, color="grey", ls="--", lw=1)
+        for row in range(2):
+            axes[row, j].set_xticks(range(len(order)))
+            axes[row, j].set_xticklabels(order, rotation=30, fontsize=7)
+    axes[0, 0].set_ylabel("force NRMSE (%)")
+    axes[1, 0].set_ylabel(f"inside the {level:.0%} interval (%)")
+    axes[1, 0].set_ylim(0, 100)
+    if rigs:
+        axes[0, -1].legend(fontsize=6, title="emulated rig", title_fontsize=6)
+    fig.suptitle("Sim-to-real by phase of the takes (emulated rigs)", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=150)
+    plt.close(fig)
+
+
 def rigs_summary(table: pd.DataFrame, level: float, max_nrmse_pct: float = 5.0) -> dict:
     """Per context count: NRMSE mean and range over the rigs, the coverage pooled over
     every rig's frames; per rig, whether the error falls with each context object and the
@@ -171,6 +252,31 @@ def write_rigs(summaries: dict[str, dict], rigs: dict, out) -> dict:
         "`finray predict` does not flag `near_base`; frames near_base: how many it flags "
         "(each frame once).\n\n" + wide.round(2).to_markdown() + "\n"
     )
+    phases = rigs_phases(summaries)
+    summary["phases"] = phases_summary(phases)
+    summary["phases"]["per_rig"] = {
+        rig: {
+            str(k): {
+                r["phase"]: {c: r[c] for c in ("nrmse_pct", "coverage_pct", "n")}
+                for _, r in gk.iterrows()
+            }
+            for k, gk in g.groupby("context_objects")
+        }
+        for rig, g in phases.groupby("rig", sort=False)
+    }
+    if len(phases):
+        wide = phases.pivot_table(
+            index=["rig", "context_objects"], columns="phase", values="nrmse_pct"
+        )
+        text = Path(out["table"]).read_text()
+        Path(out["table"]).write_text(
+            text + "\n## By phase of the takes\n\nNRMSE % of each phase's largest force, the takes "
+            "at the face's heights (evaluate.sim2real.phase_min_height_mm and up).\n\n"
+            + wide.round(2).to_markdown()
+            + "\n"
+        )
     Path(out["json"]).write_text(json.dumps(summary, indent=1, default=float))
     rigs_figure(table, level, out["figure"])
+    if out.get("phases"):
+        phases_figure(phases, level, out["phases"])
     return summary
