@@ -285,7 +285,7 @@ def test_calibrate_refuses_takes_without_a_folder_of_their_own(how, tmp_path, ca
 
 def _calibration(folder, **over):
     folder.mkdir(parents=True, exist_ok=True)
-    cal = {"posterior": {"samples": [[1.0] * len(PARAMS)] * 4}, "level": 0.9,
+    cal = {"posterior": {"samples": [[1.0] * 6 + [0.0] * (len(PARAMS) - 6)] * 4}, "level": 0.9,
            "model": "cal.model.ts", **over}  # fmt: skip
     path = folder / "cal.json"
     path.write_text(json.dumps(cal))

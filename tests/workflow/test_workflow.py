@@ -283,15 +283,19 @@ def test_smoke_evaluation_summary_and_paper(smoke_run):
     r = s["sim2real"]
     assert set(r["by_context"]) == {"0", "1"} and r["emulated"] is True
     assert [f["context_objects"] for f in r["fits"]] == [0, 1, 1]
+    noise = {"log_sigma_N", "log_rho", "log_kappa", "log_nu"}
+    law = {"relax", "log_tau_s", "softening"}
     for f in r["fits"]:
         d = f["diagnostics"]
-        # gain and offset held at 1 and 0 (their prior sd 0): the noise terms are sampled
-        assert d["steps"] >= d["walkers"] and set(d["tau_steps"]) == {
-            "log_sigma_N",
-            "log_rho",
-            "log_kappa",
-            "log_nu",
-        }
+        # gain and offset held at 1 and 0 (their prior sd 0): the noise terms are sampled,
+        # and with context takes (their times) the print's law; without, the simulation's
+        # frames have no history
+        assert d["steps"] >= d["walkers"]
+        assert set(d["tau_steps"]) == (noise | law if f["context_objects"] else noise)
+    # the takes' phases apart (the one take's first cycle and its second)
+    phases = r["by_context"]["1"]["per_phase"]
+    assert {"loading", "hold", "unloading", "second cycle"} <= set(phases)
+    assert all(m["n"] > 0 and np.isfinite(m["nrmse_pct"]) for m in phases.values())
     # the no-context intervals' rig gain: the rig prior's FEA (one scene in the smoke config)
     prior = json.loads(
         (

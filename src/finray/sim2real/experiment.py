@@ -406,7 +406,7 @@ def metrics_table(frames: pd.DataFrame, level: float, min_height_mm: float = 0.0
     contexts (``context`` ``by_height``, ``test`` the height in mm) and each phase of
     the takes (``context`` ``by_phase``, and ``by_phase_face`` of the takes at
     ``min_height_mm`` or higher; ``test`` the phase; NRMSE in % of the largest force of
-    the phase's frames); the paper's MSE beside."""
+    all those frames, every phase's); the paper's MSE beside."""
     rows = []
     for k, gk in frames.groupby("context_objects"):
         for (ctx, grp), g in gk.groupby(["context", "group"]):
@@ -420,8 +420,14 @@ def metrics_table(frames: pd.DataFrame, level: float, min_height_mm: float = 0.0
         if "phase" in gk and (gk["phase"] != "all").any():
             face = gk[gk["height_mm"] >= min_height_mm]
             for name, sub in (("by_phase", gk), ("by_phase_face", face)):
+                # in % of the largest force of every phase's frames: a phase's error
+                # on the scale of the takes' force (the rest's own largest is ~0)
+                top = float(np.max(np.abs(sub["sensor_N"]))) if len(sub) else np.nan
                 for ph, g in sub.groupby("phase"):
-                    rows.append({"context_objects": k, "context": name, "test": ph, **_row(g)})
+                    row = _row(g)
+                    row["nrmse_pct"] = 100 * row["rmse_N"] / top
+                    row["raw_nrmse_pct"] = 100 * np.sqrt(row["raw_mse_N2"]) / top
+                    rows.append({"context_objects": k, "context": name, "test": ph, **row})
         if "height_mm" in gk:  # each contact height over its contexts (context "by_height")
             for h, g in gk.groupby("height_mm"):
                 rows.append(

@@ -57,7 +57,7 @@ def rigs_heights(summaries: dict[str, dict]) -> dict:
 
 def rigs_phases(summaries: dict[str, dict], key: str = "per_phase_face") -> pd.DataFrame:
     """One row per rig, context count and phase of the takes (:mod:`finray.sim2real.phases`):
-    NRMSE (% of the phase's largest force), coverage (%) and frames, of the takes at the
+    NRMSE (% of the largest force of every phase's frames), coverage (%) and frames, of the takes at the
     face's heights (``per_phase_face``) or of every take (``per_phase``); empty for
     summaries written without phases."""
     rows = [
@@ -270,7 +270,8 @@ def write_rigs(summaries: dict[str, dict], rigs: dict, out) -> dict:
         )
         text = Path(out["table"]).read_text()
         Path(out["table"]).write_text(
-            text + "\n## By phase of the takes\n\nNRMSE % of each phase's largest force, the takes "
+            text
+            + "\n## By phase of the takes\n\nNRMSE % of the takes' largest force (every phase's frames), the takes "
             "at the face's heights (evaluate.sim2real.phase_min_height_mm and up).\n\n"
             + wide.round(2).to_markdown()
             + "\n"
