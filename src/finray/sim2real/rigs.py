@@ -281,3 +281,82 @@ def write_rigs(summaries: dict[str, dict], rigs: dict, out) -> dict:
     if out.get("phases"):
         phases_figure(phases, level, out["phases"])
     return summary
+
+
+def write_print_time(pairs: dict, out, max_nrmse_pct: float = 5.0) -> dict:
+    """The print-time study's table (``studies/print_time``): ``pairs`` maps (variant,
+    rig) to the summary.json paths of its time-dependent and static sim-to-real; per
+    variant, rig, calibration, context count and phase of the takes at the face's
+    heights (``per_phase_face``), NRMSE and coverage. Writes ``out``'s csv, table (Markdown),
+    json (per calibration, context count and phase: the largest NRMSE over variants and
+    rigs, the coverage pooled over their frames; whether each is within
+    ``max_nrmse_pct`` on every rig and variant) and figure."""
+    rows = []
+    for (variant, rig), paths in pairs.items():
+        for cal, path in zip(("time-dependent", "static"), paths):
+            ph = rigs_phases({rig: json.loads(Path(path).read_text())})
+            rows += [{"variant": variant, "calibration": cal, **r} for r in ph.to_dict("records")]
+    table = pd.DataFrame(rows)
+    table.to_csv(out["csv"], index=False, float_format="%.4g")
+    summary = {"emulated": True, "max_nrmse_pct": max_nrmse_pct, "by_calibration": {}}
+    for cal, g in table.groupby("calibration"):
+        node = summary["by_calibration"].setdefault(cal, {})
+        for (k, ph), h in g.groupby(["context_objects", "phase"]):
+            node.setdefault(str(k), {})[ph] = {
+                "nrmse_pct_max": float(h["nrmse_pct"].max()),
+                "nrmse_pct_mean": float(h["nrmse_pct"].mean()),
+                "coverage_pct_pooled": float((h["coverage_pct"] * h["n"]).sum() / h["n"].sum()),
+                "worst": f"{h.loc[h['nrmse_pct'].idxmax(), 'variant']} "
+                f"{h.loc[h['nrmse_pct'].idxmax(), 'rig']}",
+            }
+        top = g[g["context_objects"] == g["context_objects"].max()]
+        node["all_within_target"] = bool((top["nrmse_pct"] <= max_nrmse_pct).all())
+    wide = table.pivot_table(
+        index=["calibration", "context_objects", "variant", "rig"],
+        columns="phase",
+        values="nrmse_pct",
+    )
+    cov = table.pivot_table(
+        index=["calibration", "context_objects"], columns="phase", values="coverage_pct"
+    )
+    Path(out["table"]).write_text(
+        "# Sim-to-real by phase: the time-dependent calibration and the static one\n\n"
+        "Every rig is emulated. NRMSE % of the takes' largest force (every phase's frames), "
+        "the takes at the face's heights (evaluate.sim2real.phase_min_height_mm and up).\n\n"
+        + wide.round(2).to_markdown()
+        + "\n\n## Interval coverage (%), mean over variants and rigs\n\n"
+        + cov.round(1).to_markdown()
+        + "\n"
+    )
+    Path(out["json"]).write_text(json.dumps(summary, indent=1))
+    _print_time_figure(table, out["figure"])
+    return summary
+
+
+def _print_time_figure(table: pd.DataFrame, path) -> None:
+    """Per phase, each (variant, rig)'s NRMSE with the most context objects: static
+    against time-dependent (PNG)."""
+    from ..evaluate.figures import _plt
+
+    from .phases import PHASES
+
+    plt = _plt()
+    order = [p for p in PHASES if p != "rest"]
+    k = table["context_objects"].max()
+    fig, ax = plt.subplots(figsize=(6.4, 3.2))
+    for i, (cal, marker) in enumerate((("static", "o"), ("time-dependent", "s"))):
+        g = table[(table["calibration"] == cal) & (table["context_objects"] == k)]
+        x = np.array([order.index(p) for p in g["phase"]]) + (i - 0.5) * 0.3
+        ax.plot(x, g["nrmse_pct"], marker, ms=4, alpha=0.7, ls="none", label=f"{cal} calibration")
+    ax.axhline(5.0, color="grey", ls="--", lw=1)
+    ax.set_xticks(range(len(order)))
+    ax.set_xticklabels(order)
+    ax.set_ylabel("force NRMSE (%)")
+    ax.set_ylim(bottom=0)
+    ax.set_title(
+        f"Emulated viscoelastic print, {k} context object(s): each rig and training", fontsize=9
+    )
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=150)
+    plt.close(fig)

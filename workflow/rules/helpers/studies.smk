@@ -66,6 +66,11 @@ def study_registry():
             + ([f"{SPREAD}/rigs/summary.json", f"{SPREAD}/rigs/rigs.png"] if rig_names() else []),
             "figure": f"{SPREAD}/spread.png",
         },
+        "print_time": {
+            "title": "A viscoelastic print: the time-dependent calibration against the static one",
+            "files": [f"{EVALUATE}/print_time/{f}" for f in ("summary.json", "phases.md", "phases.png")],
+            "figure": f"{EVALUATE}/print_time/phases.png",
+        },
         "training_budget": {
             "title": "Training budget: CPU time against error",
             "files": [f"{bench}/training_budget.{e}" for e in ("json", "md", "csv", "png")],
