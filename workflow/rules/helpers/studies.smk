@@ -68,7 +68,9 @@ def study_registry():
         },
         "print_time": {
             "title": "A viscoelastic print: the time-dependent calibration against the static one",
-            "files": [f"{EVALUATE}/print_time/{f}" for f in ("summary.json", "phases.md", "phases.png")],
+            "files": [
+                f"{EVALUATE}/print_time/{f}" for f in ("summary.json", "phases.md", "phases.png")
+            ],
             "figure": f"{EVALUATE}/print_time/phases.png",
         },
         "training_budget": {
