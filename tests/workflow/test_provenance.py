@@ -471,6 +471,10 @@ READERS: list[tuple[str, set[str]]] = [
     ),
     # (the summary quotes how the takes were emulated: as built, motion, camera, sensor)
     ("lab.as_built.thickness_delta_mm", _LAB_GEOMETRY | {"summary"}),
+    # the print's time dependence: the sensor's log of the takes (the image follows the push)
+    ("lab.as_built.viscoelastic", {"lab_take", "summary"}),
+    ("lab.as_built.relax_*", {"lab_take", "summary"}),
+    ("lab.as_built.softening", {"lab_take", "summary"}),
     ("lab.as_built.*", {"lab_fea", "summary"}),
     ("lab.motion.gap_mm", {"lab_object", "lab_take", "summary"}),
     ("lab.motion.push_mm", {"lab_fea", "lab_take", "summary"}),
