@@ -194,8 +194,9 @@ def _unsoften(fs: float, fmax: float, r: float) -> float:
     or a pull, where the softening does not act, is ``fs`` itself)."""
     if fs <= 0 or fs >= fmax or fmax <= 0:
         return fs
-    a, b = r / fmax, 1.0 - r  # a fe^2 + b fe - fs = 0, the root >= 0
-    return (-b + np.sqrt(b * b + 4 * a * fs)) / (2 * a)
+    a, b = r / fmax, 1.0 - r  # a fe^2 + b fe - fs = 0, the root >= 0, in the form that
+    # stays exact as r -> 0 ((-b + sqrt(.)) / 2a cancels catastrophically there)
+    return 2 * fs / (b + np.sqrt(b * b + 4 * a * fs))
 
 
 class Response:
