@@ -123,7 +123,7 @@ def world(tmp_path_factory):
     (d / "rig").mkdir()
     shutil.copy(w["model_ts"], d / "rig" / "cal.model.ts")
     shutil.copy(d / "model" / "model.ts.json", d / "rig" / "cal.model.ts.json")
-    samples = [[1.0, 0.0, -2.0, -1.0, -1.0, 1.5]] * 8
+    samples = [[1.0, 0.0, -2.0, -1.0, -1.0, 1.5, 0.0, 0.0, 0.0]] * 8  # the print's law: elastic
     assert len(samples[0]) == len(PARAMS)
     cal = {"posterior": {"samples": samples}, "level": 0.9, "model": "cal.model.ts"}
     w["calibration"] = d / "rig" / "cal.json"
