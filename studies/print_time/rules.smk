@@ -7,30 +7,6 @@
 PRINT_TIME = f"{EVALUATE}/print_time"
 
 
-def print_time_variants():
-    """The run's own models ("run") and the seeds study's other variants."""
-    own = spread_variant(config["train"]["seed"], config["train"]["bf16"])
-    return ["run"] + [v for v in spread_variants() if v != own]
-
-
-def print_time_dir(variant):
-    """Where a variant's time-dependent sim-to-real lies (the product's, or the seeds study's)."""
-    return f"{EVALUATE}/sim2real" if variant == "run" else f"{SPREAD}/{variant}/sim2real"
-
-
-def print_time_train(w):
-    return TRAIN if w.variant == "run" else f"{SPREAD}/{w.variant}/train"
-
-
-def static_sim2real_params():
-    """evaluate.sim2real as the context fits read it, the print's law fixed at none."""
-    s = copy.deepcopy(config["evaluate"]["sim2real"])
-    (s.get("rig_prior") or {}).pop("gain", None)
-    s = {k: v for k, v in s.items() if k not in NO_CONTEXT_ONLY}
-    s["priors"] = {**s.get("priors", {}), "relax": [0.0, 0.0], "softening": [0.0, 0.0]}
-    return canonical(s)
-
-
 wildcard_constraints:
     variant=r"run|s\d+_[a-z0-9]+",
 
