@@ -485,6 +485,14 @@ NAMED = [
     ("sim2real_rigs", "per_height"),
     ("sim2real_rigs", "per_height", "*"),
     ("sim2real_rigs", "per_height", "*", "*"),
+    # the phases of the takes (a config's takes may lack one) and the rigs' own
+    ("sim2real", "by_context", "*", "per_phase"),
+    ("sim2real", "by_context", "*", "per_phase_face"),
+    ("sim2real_rigs", "phases", "by_context"),
+    ("sim2real_rigs", "phases", "by_context", "*"),
+    ("sim2real_rigs", "phases", "per_rig"),
+    ("sim2real_rigs", "phases", "per_rig", "*"),
+    ("sim2real_rigs", "phases", "per_rig", "*", "*"),
 ]
 
 
