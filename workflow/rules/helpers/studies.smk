@@ -142,8 +142,6 @@ def print_time_train(w):
 
 def static_sim2real_params():
     """evaluate.sim2real as the context fits read it, the print's law fixed at none."""
-    s = copy.deepcopy(config["evaluate"]["sim2real"])
-    (s.get("rig_prior") or {}).pop("gain", None)
-    s = {k: v for k, v in s.items() if k not in NO_CONTEXT_ONLY}
+    s = copy.deepcopy(sim2real_params())
     s["priors"] = {**s.get("priors", {}), "relax": [0.0, 0.0], "softening": [0.0, 0.0]}
     return canonical(s)
