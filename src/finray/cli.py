@@ -796,7 +796,7 @@ force heads on the model's frozen encoder (fitted on every take's frames), and
 the sensor model F_sensor = g F_pred + b + e is sampled with emcee on
 cross-fitted predictions (see finray.sim2real.calibration). A printed finger's
 force relaxes in a hold and softens in later cycles while its image stays: F_pred
-is read through that law (one relaxation term and a softening), fitted on the
+is read through that law (two relaxation terms and a softening), fitted on the
 takes' force logs at the frames' times, so give takes that hold and cycle.
 Writes calibration.json
 (posterior samples, summary, convergence diagnostics), the adapted model
@@ -885,19 +885,19 @@ def _run_calibrate(args) -> int:
             replay_frames=c.sim_replay_frames,
         )
     sm, dg = cal["summary"], cal["diagnostics"]
-    for k in ("gain", "offset_N", "sigma_N", "rho", "kappa", "nu", "relax", "tau_s", "softening"):
+    times = cal["priors"]["relax_times_s"]
+    named = ("gain", "offset_N", "sigma_N", "rho", "kappa", "nu", "relax_fast", "relax_slow")
+    for k in (*named, "softening"):
         fixed = cal.get("fixed", {})
         if k in fixed:  # held (prior sd 0): the heads are fitted to the sensor
             print(f"{k}: {fixed[k]:.4g} (fixed)")
-        elif k == "tau_s" and "log_tau_s" in fixed:  # no relaxation fitted: no time either
-            continue
         else:
             print(f"{k}: {sm[k]['median']:.4g} (95 % {sm[k]['q2.5']:.4g} to {sm[k]['q97.5']:.4g})")
     if cal.get("history_base_N") is not None:
         print(
-            "the print's time dependence: relax of the force relaxing in tau_s, softening "
-            "below a take's largest force so far (finray predict --calibration applies it "
-            "over the frames' times)"
+            f"the print's time dependence: relax_fast and relax_slow of the force relaxing "
+            f"in {times[0]:g} and {times[1]:g} s, softening below a take's largest force so "
+            "far (finray predict --calibration applies it over the frames' times)"
         )
     print(
         f"chain: {dg['steps']} steps x {dg['walkers']} walkers, {dg['steps_over_tau_min']:.0f} "

@@ -177,7 +177,7 @@ def test_gain_and_offset_of_prior_sd_zero_are_fixed():
     s = np.full(1600, 1e-3)
     y = mu + 0.1 * rng.standard_normal(1600)
     priors = Priors(rho=(1e-4, 1.0))  # by default gain and offset are fixed
-    # the print's law (relax, log tau, softening) is fixed where frames have no history
+    # the print's law (two fractions, softening) is fixed where frames have no history
     law = {6: 0.0, 7: 0.0, 8: 0.0}
     assert fixed_params(priors) == {0: 1.0, 1: 0.0, **law} and fixed_params(FREE) == law
     assert fixed_params(FREE, timed=True) == {}
@@ -187,8 +187,8 @@ def test_gain_and_offset_of_prior_sd_zero_are_fixed():
     assert cal["fixed"] == {
         "gain": 1.0,
         "offset_N": 0.0,
-        "relax": 0.0,
-        "log_tau_s": 0.0,
+        "relax_fast": 0.0,
+        "relax_slow": 0.0,
         "softening": 0.0,
     }
     assert set(cal["diagnostics"]["tau_steps"]) == set(PARAMS[2:6]) and cal["diagnostics"]["ok"]

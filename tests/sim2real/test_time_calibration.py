@@ -24,7 +24,10 @@ from finray.sim2real.calibration import (
 from finray.sim2real.phases import take_phases
 from finray.viscoelastic import relax
 
-TRUE = {"relax": 0.2, "tau_s": 0.8, "softening": 0.15}
+#: a print of two Prony terms at the calibration's fixed times (0.5 and 5 s)
+TRUE = {"fractions": (0.12, 0.08), "times_s": (0.5, 5.0), "softening": 0.15}
+#: one term between them, at a time the calibration does not have
+OFF_GRID = {"fractions": (0.2,), "times_s": (0.8,), "softening": 0.15}
 FPS = 30.0
 
 
@@ -42,7 +45,7 @@ def takes(law: dict | None, seed: int):
     f = (
         fe
         if law is None
-        else relax(tt, fe, [[law["relax"]]], [[law["tau_s"]]], [law["softening"]], seg)[0]
+        else relax(tt, fe, [law["fractions"]], [law["times_s"]], [law["softening"]], seg)[0]
     )
     return mu, s, f + 0.03 * rng.standard_normal(len(fe)), History(tt, seg)
 
@@ -50,9 +53,8 @@ def takes(law: dict | None, seed: int):
 def calibrate(mu, s, y, history):
     priors = Priors()
     point = time_point_fit(mu, y, history, priors)
-    h = replace(
-        history, base_N=point["rest_N"], start=(point["relax"], point["tau_s"], point["softening"])
-    )
+    start = (point["relax_fast"], point["relax_slow"], point["softening"])
+    h = replace(history, base_N=point["rest_N"], start=start)
     return fit_calibration(mu, s, y, priors, log=lambda m: None, history=h), h
 
 
@@ -64,12 +66,13 @@ def fitted():
 
 
 def test_recovers_a_known_relaxation_and_softening(fitted):
-    """The kernel and the softening within stated tolerances (relax and softening +-0.03,
-    tau +-15 %), the chain converged, and the intervals cover ~90 % of new takes' frames."""
+    """The kernel's fractions at its times and the softening within +-0.03, the chain
+    converged, and the intervals cover ~90 % of new takes' frames."""
     cal, h, _ = fitted
     q = cal["summary"]
-    assert q["relax"]["median"] == pytest.approx(TRUE["relax"], abs=0.03)
-    assert q["tau_s"]["median"] == pytest.approx(TRUE["tau_s"], rel=0.15)
+    assert tuple(cal["priors"]["relax_times_s"]) == TRUE["times_s"]
+    assert q["relax_fast"]["median"] == pytest.approx(TRUE["fractions"][0], abs=0.03)
+    assert q["relax_slow"]["median"] == pytest.approx(TRUE["fractions"][1], abs=0.03)
     assert q["softening"]["median"] == pytest.approx(TRUE["softening"], abs=0.03)
     assert cal["diagnostics"]["ok"] and set(cal["diagnostics"]["tau_steps"]) == set(PARAMS[2:])
     mu, s, y, history = takes(TRUE, 1)
@@ -77,6 +80,41 @@ def test_recovers_a_known_relaxation_and_softening(fitted):
     assert 0.85 <= coverage(y, band) <= 0.95
     # read static, the same frames' intervals miss the relaxed ones
     assert coverage(y, predictive(cal, mu, s, 0.9)) < 0.8
+
+
+def relaxation_function(fractions, times_s, t):
+    """G(t) = 1 - sum_i g_i (1 - exp(-t / tau_i)) of a Prony series."""
+    g, tau = np.asarray(fractions)[:, None], np.asarray(times_s)[:, None]
+    return 1 - np.sum(g * (1 - np.exp(-t / tau)), axis=0)
+
+
+def test_a_kernel_off_the_fixed_times_is_met_over_the_hold():
+    """One term at 0.8 s (between the calibration's 0.5 and 5 s): the fitted relaxation
+    function is the true one within 0.04 over the first 2 s (the 1 s hold and as long
+    again), and the intervals cover 85-95 % of new takes' frames. The softening is not
+    asserted: off the fixed times the slow term takes part of it (0.03-0.04 fitted of
+    0.15, the slow fraction 0.06 of none; studies/print_time/README.md)."""
+    mu, s, y, history = takes(OFF_GRID, 4)
+    cal, _ = calibrate(mu, s, y, history)
+    q, t = cal["summary"], np.linspace(0, 2.0, 21)
+    fitted = relaxation_function(
+        [q["relax_fast"]["median"], q["relax_slow"]["median"]], cal["priors"]["relax_times_s"], t
+    )
+    true = relaxation_function(OFF_GRID["fractions"], OFF_GRID["times_s"], t)
+    assert np.abs(fitted - true).max() < 0.04
+    mu, s, y, history = takes(OFF_GRID, 7)
+    assert 0.85 <= coverage(y, predictive(cal, mu, s, 0.9, history=history)) <= 0.95
+
+
+def test_the_bilinear_law_is_the_print_law():
+    """History.law (the fit's basis histories) is finray.viscoelastic.relax itself."""
+    mu, _, _, history = takes(None, 5)
+    h = replace(history, base_N=0.3)
+    rows = np.array([[0.1, 0.05], [0.0, 0.3], [0.25, 0.0]])
+    soft = np.array([0.2, 0.0, 0.4])
+    got = h.law(mu, rows, soft, (0.5, 5.0))
+    want = 0.3 + relax(h.t_s, mu - 0.3, rows, np.tile([0.5, 5.0], (3, 1)), soft, h.segments)
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
 
 
 def test_an_elastic_print_gives_no_relaxation():
@@ -113,9 +151,21 @@ def test_a_static_calibration_reads_as_before(tmp_path):
     stream = CalibratedStream(read_calibration(path))
     assert not stream.timed
     assert stream.step(0.0, 2.0, 0.01)["median"] == pytest.approx(2.0, abs=0.05)
-    bad = np.column_stack([np.asarray(cal["posterior"]["samples"]), np.full((50, 3), [1.2, 0, 0])])
+    bad = np.column_stack(
+        [np.asarray(cal["posterior"]["samples"]), np.full((50, 3), [0.6, 0.5, 0])]
+    )
     path.write_text(json.dumps({"posterior": {"samples": bad.tolist()}}))
-    with pytest.raises(CalibrationError, match="relax and softening"):
+    with pytest.raises(CalibrationError, match="relaxed fractions"):
+        read_calibration(path)
+    # a calibration of another layout (one free relaxation time) is refused, not misread
+    named = {
+        "posterior": {
+            "names": [*PARAMS[:6], "relax", "log_tau_s", "softening"],
+            "samples": np.abs(bad * 0.1).tolist(),
+        }
+    }
+    path.write_text(json.dumps(named))
+    with pytest.raises(CalibrationError, match="run finray calibrate again"):
         read_calibration(path)
 
 

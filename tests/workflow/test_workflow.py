@@ -284,7 +284,7 @@ def test_smoke_evaluation_summary_and_paper(smoke_run):
     assert set(r["by_context"]) == {"0", "1"} and r["emulated"] is True
     assert [f["context_objects"] for f in r["fits"]] == [0, 1, 1]
     noise = {"log_sigma_N", "log_rho", "log_kappa", "log_nu"}
-    law = {"relax", "log_tau_s", "softening"}
+    law = {"relax_fast", "relax_slow", "softening"}
     for f in r["fits"]:
         d = f["diagnostics"]
         # gain and offset held at 1 and 0 (their prior sd 0): the noise terms are sampled,

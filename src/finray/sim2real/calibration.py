@@ -25,13 +25,19 @@ second cycle is softer. The image follows the shape only, so where frames come w
 their times and takes (``history``) the sensor model reads the network's force through
 that law, fitted on the context takes:
 
-    F_sensor = g (c + L[mu - c]) + b + e,   L: one Prony term (``relax`` of the force
-    relaxing with ``tau_s``) and the Mullins-type ``softening``, over each take's frames
+    F_sensor = g (c + L[mu - c]) + b + e,   L: two Prony terms (``relax_fast`` and
+    ``relax_slow`` of the force relaxing with the fixed times ``relax_times_s``) and the
+    Mullins-type ``softening``, over each take's frames
 
 ``c`` the network's force at rest (N, :func:`time_point_fit`), ``v`` as above with
-``g mu`` read as the modelled force. Priors: ``relax`` and ``softening`` uniform within
-bounds, ``log tau_s`` uniform (scale-free); bounds of [0, 0] fix them at 0 (the static
-model). The heads then learn the elastic force: they are fitted on the sensor's log with
+``g mu`` read as the modelled force. The relaxation times are fixed, a decade apart, and
+only their fractions fitted (the collocation form of a Prony fit): the law is then
+bilinear in the fractions and the softening, computed once per fit from four basis
+histories (:meth:`History.basis`), and the posterior has no ridge of fraction against
+time (one free time, tried first, made the chains' autocorrelation 4-6x longer, see
+studies/print_time/README.md). Priors: the fractions uniform, each at least
+``relax[0]`` and their sum at most ``relax[1]``; ``softening`` uniform within bounds;
+bounds of [0, 0] fix them at 0 (the static model). The heads then learn the elastic force: they are fitted on the sensor's log with
 the fitted law undone (:func:`finray.viscoelastic.unrelax`), see :func:`fit_rig`.
 """
 
@@ -53,8 +59,8 @@ PARAMS = (
     "log_rho",
     "log_kappa",
     "log_nu",
-    "relax",
-    "log_tau_s",
+    "relax_fast",
+    "relax_slow",
     "softening",
 )
 LABELS = (
@@ -64,14 +70,14 @@ LABELS = (
     r"log $\rho$",
     r"log $\kappa$",
     r"log $\nu$",
-    "relax",
-    r"log $\tau$ (s)",
+    r"relax$_\mathrm{fast}$",
+    r"relax$_\mathrm{slow}$",
     "softening",
 )
 #: the static model's parameters (before the print's time dependence): a calibration of
 #: these only is read with the law's three at an elastic print's values
 STATIC_PARAMS = PARAMS[:6]
-#: the elastic print's relax, log tau_s and softening
+#: the elastic print's two fractions and softening
 ELASTIC = (0.0, 0.0, 0.0)
 
 
@@ -87,10 +93,24 @@ class Priors:
     #: Student-t degrees of freedom: Gamma(shape, rate) within bounds
     nu_gamma: tuple[float, float] = schema_default("evaluate.sim2real.priors.nu_gamma")
     nu: tuple[float, float] = schema_default("evaluate.sim2real.priors.nu")
-    #: the print's time dependence (one Prony term and the softening); [0, 0]: fixed at 0
+    #: the print's time dependence: two Prony fractions (each >= relax[0], their sum <=
+    #: relax[1]) at the fixed ``relax_times_s`` (s), and the softening; [0, 0]: fixed at 0
     relax: tuple[float, float] = schema_default("evaluate.sim2real.priors.relax")
-    tau_s: tuple[float, float] = schema_default("evaluate.sim2real.priors.tau_s")
+    relax_times_s: tuple[float, float] = schema_default("evaluate.sim2real.priors.relax_times_s")
     softening: tuple[float, float] = schema_default("evaluate.sim2real.priors.softening")
+
+    def __post_init__(self):
+        (lo, hi), (fast, slow) = self.relax, self.relax_times_s
+        if hi > 0 and 2 * lo > hi:
+            raise CalibrationError(
+                f"priors.relax {list(self.relax)}: two fractions of at least "
+                f"{lo} cannot sum to at most {hi}"
+            )
+        if not 0 < fast < slow:
+            raise CalibrationError(
+                f"priors.relax_times_s {list(self.relax_times_s)}: give the fast time, then "
+                "a slower one (s)"
+            )
 
     @property
     def time_dependent(self) -> bool:
@@ -141,8 +161,8 @@ class History:
     t_s: np.ndarray
     segments: np.ndarray
     base_N: float = 0.0
-    #: the law's starting point for the sampler: relax, tau_s, softening
-    start: tuple[float, float, float] = (0.1, 1.0, 0.1)
+    #: the law's starting point for the sampler: relax_fast, relax_slow, softening
+    start: tuple[float, float, float] = (0.05, 0.05, 0.1)
 
     def __post_init__(self):
         t = np.asarray(self.t_s, dtype=np.float64)
@@ -168,21 +188,43 @@ class History:
         copies = (np.arange(n)[:, None] * (ids.max() + 1 if len(ids) else 1) + ids).ravel()
         return replace(self, t_s=np.tile(np.asarray(self.t_s), n), segments=copies)
 
-    def law(self, mu, relax, log_tau_s, softening) -> np.ndarray:
-        """``c + L[mu - c]`` (P, N) for P rows of the law's parameters (P,)."""
-        from ..viscoelastic import relax as run_law
+    def bind(self, mu, times_s) -> "BoundLaw":
+        """The law on the network's force history ``mu`` (N,), relaxing at ``times_s`` (s)."""
+        return BoundLaw(self, mu, times_s)
 
-        c = float(self.base_N)
-        mu = np.asarray(mu, dtype=np.float64)
-        out = run_law(
-            self.t_s,
-            mu - c,
-            np.asarray(relax, dtype=np.float64).reshape(-1, 1),
-            np.exp(np.asarray(log_tau_s, dtype=np.float64)).reshape(-1, 1),
-            np.asarray(softening, dtype=np.float64).reshape(-1),
-            self.segments,
-        )
-        return out + c
+    def law(self, mu, fractions, softening, times_s) -> np.ndarray:
+        """``c + L[mu - c]`` (P, N) for P rows of fractions (P, K) and softening (P,)."""
+        return self.bind(mu, times_s)(fractions, softening)
+
+
+class BoundLaw:
+    """The print's law on one force history, as its bilinear form: with e = mu - c, the
+    softening's drive q = e (1 - e / e_max) (:func:`finray.viscoelastic.softening_factor`)
+    and R_k the Prony term of time tau_k alone, the law of fractions g and softening r is
+
+        c + e - r q + sum_k g_k (R_k e - e - r (R_k q - q))
+
+    (:func:`finray.viscoelastic.relax` is linear in the softened force e - r q), so that
+    a fit evaluates it for every walker from four basis histories computed once."""
+
+    def __init__(self, history: History, mu, times_s):
+        from ..viscoelastic import relax, softening_factor
+
+        self.base = float(history.base_N)
+        tau = np.asarray(times_s, dtype=np.float64).ravel()
+        seg = history.segments
+        e = np.asarray(mu, dtype=np.float64).ravel() - self.base
+        q = e * (1.0 - softening_factor(e, 1.0, seg))
+        one = np.eye(len(tau))  # each row one term of fraction 1 (g_inf 0): R_k itself
+        taus = np.tile(tau, (len(tau), 1))
+        self.e, self.q = e, q
+        self.A = relax(history.t_s, e, one, taus, np.zeros(len(tau)), seg) - e
+        self.B = relax(history.t_s, q, one, taus, np.zeros(len(tau)), seg) - q
+
+    def __call__(self, fractions, softening) -> np.ndarray:
+        g = np.atleast_2d(np.asarray(fractions, dtype=np.float64))
+        r = np.asarray(softening, dtype=np.float64).reshape(-1, 1)
+        return self.base + self.e - r * self.q + g @ self.A - r * (g @ self.B)
 
 
 def _segment_ids(labels) -> np.ndarray:
@@ -192,34 +234,34 @@ def _segment_ids(labels) -> np.ndarray:
 
 
 def log_posterior(
-    theta: np.ndarray, mu, s, y, priors: Priors, weight: float = 1.0, history: History | None = None
+    theta: np.ndarray, mu, s, y, priors: Priors, weight: float = 1.0, law: BoundLaw | None = None
 ) -> np.ndarray:
     """Log posterior (W,) of parameter rows ``theta`` (W, 9, :data:`PARAMS`): gain,
-    offset (N), log sigma (N), log rho, log kappa, log nu, relax, log tau (s),
+    offset (N), log sigma (N), log rho, log kappa, log nu, the two Prony fractions,
     softening; ``mu``, ``s``, ``y`` (N,) in N. ``weight``: each frame's share of the
-    likelihood (1 / the times a frame appears in ``y``). ``history``: the frames' times
-    and takes, through which the print's law reads ``mu`` (None: the static model, the
-    law's parameters unused)."""
+    likelihood (1 / the times a frame appears in ``y``). ``law``: the print's law on
+    ``mu`` over the frames' times and takes (:meth:`History.bind`; None: the static
+    model, the law's parameters unused)."""
     from scipy.special import gammaln
 
     theta = np.atleast_2d(theta)
-    g, b, ls, lr, lk, ln, rx, lt, sf = (theta[:, i : i + 1] for i in range(len(PARAMS)))
+    g, b, ls, lr, lk, ln, gf, gs, sf = (theta[:, i : i + 1] for i in range(len(PARAMS)))
     ok = g[:, 0] > 0
     bounds = [(ls, priors.sigma_N), (lr, priors.rho), (lk, priors.kappa), (ln, priors.nu)]
     for v, (lo, hi) in bounds:
         ok &= (v[:, 0] >= np.log(lo)) & (v[:, 0] <= np.log(hi))
-    timed = history is not None and priors.time_dependent
+    timed = law is not None and priors.time_dependent
     if timed:
-        for v, (lo, hi) in ((rx, priors.relax), (sf, priors.softening)):
-            ok &= (v[:, 0] >= lo) & (v[:, 0] <= hi)
-        ok &= (lt[:, 0] >= np.log(priors.tau_s[0])) & (lt[:, 0] <= np.log(priors.tau_s[1]))
+        lo, hi = priors.relax
+        ok &= (gf[:, 0] >= lo) & (gs[:, 0] >= lo) & (gf[:, 0] + gs[:, 0] <= hi)
+        ok &= (sf[:, 0] >= priors.softening[0]) & (sf[:, 0] <= priors.softening[1])
     out = np.full(len(theta), -np.inf)
     if not ok.any():
         return out
     g, b, ls, lr, lk, ln = g[ok], b[ok], ls[ok], lr[ok], lk[ok], ln[ok]
     nu = np.exp(ln)
     if timed:  # the force the print's law gives from the network's elastic one
-        f = g * history.law(mu, rx[ok, 0], lt[ok, 0], sf[ok, 0])
+        f = g * law(np.column_stack([gf[ok, 0], gs[ok, 0]]), sf[ok, 0])
         var = np.exp(2 * ls) + (np.exp(lr) * f) ** 2 + (np.exp(lk) * g * s) ** 2
         z2 = (y - f - b) ** 2 / var
     else:
@@ -231,7 +273,7 @@ def log_posterior(
     shape, rate = priors.nu_gamma
     # the Gamma prior on nu, sampled as log nu (Jacobian nu); a gain or offset of prior
     # sd 0 is fixed (:func:`fixed_params`) and has no prior term; the law's parameters
-    # are uniform (log tau: scale-free) within their bounds
+    # are uniform within their bounds
     lp = shape * ln[:, 0] - rate * nu[:, 0]
     if priors.gain_log_sd > 0:
         lg = np.log(g[:, 0])
@@ -246,8 +288,8 @@ def fixed_params(priors: Priors, timed: bool = False) -> dict[int, float]:
     """The parameters held fixed, by their index in :data:`PARAMS`: the gain at 1 where
     ``gain_log_sd`` is 0, the offset at 0 N where ``offset_sd_N`` is 0 (a model already
     fitted to the sensor's frames, whose residuals are left to the noise terms); the
-    print's law at an elastic print's (0, log 1 s, 0) where the frames have no history
-    (``timed`` False), each of relax (with tau) and softening where its bounds are [0, 0]."""
+    print's law at an elastic print's (0, 0, 0) where the frames have no history
+    (``timed`` False), the fractions and the softening each where its bounds are [0, 0]."""
     out = {
         i: v for i, v, sd in ((0, 1.0, priors.gain_log_sd), (1, 0.0, priors.offset_sd_N)) if sd == 0
     }
@@ -268,16 +310,16 @@ def _full(free: np.ndarray, fixed: dict[int, float]) -> np.ndarray:
     return out
 
 
-def _start(
-    mu, s, y, priors: Priors, weight: float = 1.0, history: History | None = None
-) -> np.ndarray:
+def _start(mu, s, y, priors: Priors, weight: float = 1.0, law: BoundLaw | None = None, start=None):
     """The posterior's mode (Nelder-Mead from a least-squares line), to start the walkers:
-    a full parameter row, the fixed ones at their values."""
+    a full parameter row, the fixed ones at their values; ``start``: the law's (relax_fast,
+    relax_slow, softening) to begin from."""
     from scipy.optimize import minimize
 
-    timed = history is not None and priors.time_dependent
+    timed = law is not None and priors.time_dependent
     fixed = fixed_params(priors, timed)
-    f = history.law(mu, *_law_start(history, priors))[0] if timed else mu
+    x_law = _law_start(start or History.start, priors) if timed else ELASTIC
+    f = law(x_law[:2], x_law[2])[0] if timed else mu
     if 0 in fixed or 1 in fixed:
         g, b = fixed.get(0, 1.0), fixed.get(1, 0.0)
         if 0 not in fixed:
@@ -297,12 +339,12 @@ def _start(
             np.log(0.05),
             0.0,
             np.log(np.clip(20.0, *priors.nu)),
-            *(_law_start(history, priors) if timed else ELASTIC),
+            *x_law,
         ]
     )
     free = [i for i in range(len(PARAMS)) if i not in fixed]
     best = minimize(
-        lambda t: -log_posterior(_full(t, fixed), mu, s, y, priors, weight, history)[0],
+        lambda t: -log_posterior(_full(t, fixed), mu, s, y, priors, weight, law)[0],
         x0[free],
         method="Nelder-Mead",
         options={"maxiter": 4000, "xatol": 1e-6, "fatol": 1e-6},
@@ -312,81 +354,70 @@ def _start(
     for i, (lo, hi) in zip((2, 3, 4, 5), (priors.sigma_N, priors.rho, priors.kappa, priors.nu)):
         x[i] = np.clip(x[i], np.log(lo) + 0.05, np.log(hi) - 0.05)
     if timed:
-        for i, (lo, hi) in ((6, priors.relax), (8, priors.softening)):
-            if i not in fixed:
-                pad = 0.02 * (hi - lo)
-                x[i] = np.clip(x[i], lo + pad, hi - pad)
-        if 7 not in fixed:
-            x[7] = np.clip(x[7], np.log(priors.tau_s[0]) + 0.05, np.log(priors.tau_s[1]) - 0.05)
+        x[6:9] = _law_start(x[6:9], priors)
     return x
 
 
-def _law_start(history: History, priors: Priors) -> tuple[float, float, float]:
-    """(relax, log tau_s, softening) of ``history.start``, the fixed ones at 0."""
-    rx, tau, sf = history.start
-    return (
-        float(rx) if priors.relax[1] > 0 else 0.0,
-        float(np.log(tau)) if priors.relax[1] > 0 else 0.0,
-        float(sf) if priors.softening[1] > 0 else 0.0,
-    )
+def _law_start(law, priors: Priors) -> np.ndarray:
+    """(relax_fast, relax_slow, softening) moved inside the priors' bounds by a margin
+    (each fraction >= relax[0], their sum <= relax[1]), the fixed ones at 0."""
+    gf, gs, sf = (float(v) for v in law)
+    lo, hi = priors.relax
+    out = np.zeros(3)
+    if hi > 0:
+        pad = 0.02 * (hi - lo)
+        g = np.maximum([gf, gs], lo + pad)
+        if g.sum() > hi - pad:
+            g = np.maximum(g * (hi - pad) / g.sum(), lo + pad)
+        out[:2] = g
+    if priors.softening[1] > 0:
+        lo_s, hi_s = priors.softening
+        pad = 0.02 * (hi_s - lo_s)
+        out[2] = np.clip(sf, lo_s + pad, hi_s - pad)
+    return out
 
 
 def time_point_fit(mu, y, history: History, priors: Priors) -> dict:
     """A least-squares fit of ``y = g (c + L[mu - c]) + b`` (N): the print's law seen
     through the network's force ``mu`` on the frames of ``history`` (its ``base_N``
     replaced by c, the median of ``mu`` on the frames below 5 % of its largest);
-    returns ``gain``, ``offset_N``, ``base_N``, ``relax``, ``tau_s``, ``softening`` and
-    ``rest_N`` = g c + b, the sensor's reading at rest."""
+    returns ``gain``, ``offset_N``, ``base_N``, ``relax_fast`` and ``relax_slow`` (the
+    fractions at ``relax_times_s``), ``softening`` and ``rest_N`` = g c + b, the sensor's
+    reading at rest."""
     from scipy.optimize import least_squares
 
     mu, y = np.asarray(mu, dtype=np.float64), np.asarray(y, dtype=np.float64)
     top = np.max(np.abs(mu)) if len(mu) else 0.0
     rest = np.abs(mu) <= 0.05 * top
     c = float(np.median(mu[rest])) if rest.any() else 0.0
-    h = replace(history, base_N=c)
+    law = replace(history, base_N=c).bind(mu, priors.relax_times_s)
     fit_relax, fit_soft = priors.relax[1] > 0, priors.softening[1] > 0
+    lo_r, hi_r = priors.relax
 
     def unpack(x):
-        rx = x[2] if fit_relax else 0.0
-        lt = x[3] if fit_relax else 0.0
-        sf = x[4] if fit_soft else 0.0
-        return x[0], x[1], rx, lt, sf
+        return x[0], x[1], x[2:4] if fit_relax else np.zeros(2), x[4] if fit_soft else 0.0
 
     def residual(x):
-        g, b, rx, lt, sf = unpack(x)
-        return g * h.law(mu, rx, lt, sf)[0] + b - y
+        g, b, fr, sf = unpack(x)
+        # the sum's bound as a penalty (least_squares takes boxes only)
+        over = max(0.0, float(np.sum(fr)) - hi_r) * 1e3 * max(np.abs(y).max(), 1.0)
+        return np.r_[g * law(fr, sf)[0] + b - y, over]
 
-    lo = [1e-3, -np.inf, priors.relax[0], np.log(priors.tau_s[0]), priors.softening[0]]
-    hi = [
-        np.inf,
-        np.inf,
-        max(priors.relax[1], 1e-9),
-        np.log(priors.tau_s[1]),
-        max(priors.softening[1], 1e-9),
-    ]
-    x0 = [
-        1.0,
-        0.0,
-        np.clip(0.1, lo[2], hi[2]),
-        np.log(np.clip(1.0, *priors.tau_s)),
-        np.clip(0.1, lo[4], hi[4]),
-    ]
-    best = None
-    for tau0 in (0.3, 3.0):  # two starts: a fast and a slow relaxation
-        x0[3] = np.log(np.clip(tau0, *priors.tau_s))
-        res = least_squares(residual, x0, bounds=(lo, hi), x_scale="jac")
-        if best is None or res.cost < best.cost:
-            best = res
-    g, b, rx, lt, sf = unpack(best.x)
+    lo = [1e-3, -np.inf, lo_r, lo_r, priors.softening[0]]
+    hi = [np.inf, np.inf, max(hi_r, 1e-9), max(hi_r, 1e-9), max(priors.softening[1], 1e-9)]
+    x0 = np.clip([1.0, 0.0, 0.05, 0.05, 0.1], np.array(lo) + 1e-12, np.array(hi) - 1e-12)
+    best = least_squares(residual, x0, bounds=(lo, hi), x_scale="jac")
+    g, b, fr, sf = unpack(best.x)
     return {
         "gain": float(g),
         "offset_N": float(b),
         "base_N": c,
-        "relax": float(rx),
-        "tau_s": float(np.exp(lt)),
+        "relax_fast": float(fr[0]),
+        "relax_slow": float(fr[1]),
+        "relax_times_s": [float(v) for v in priors.relax_times_s],
         "softening": float(sf),
         "rest_N": float(g * c + b),
-        "rmse_N": float(np.sqrt(np.mean(best.fun**2))),
+        "rmse_N": float(np.sqrt(np.mean(best.fun[:-1] ** 2))),
     }
 
 
@@ -415,12 +446,13 @@ def fit_calibration(
         history = None
     if history is not None:
         history = history.subset(keep)
+    law = None if history is None else history.bind(mu, priors.relax_times_s)
     if len(y) < 10:
         raise CalibrationError(f"too few frames to calibrate ({len(y)}; at least 10)")
     rng = np.random.default_rng(sampler.seed)
     fixed = fixed_params(priors, history is not None)
     free = [i for i in range(len(PARAMS)) if i not in fixed]
-    x0 = _start(mu, s, y, priors, weight, history)[free]
+    x0 = _start(mu, s, y, priors, weight, law, None if history is None else history.start)[free]
     p0 = x0 + 1e-3 * rng.standard_normal((sampler.walkers, len(free))) * np.maximum(np.abs(x0), 0.1)
     # differential-evolution moves shorten the autocorrelation; mixed with the stretch
     # move (acceptance ~0.6 here) for an acceptance fraction within 0.2-0.5
@@ -432,7 +464,7 @@ def fit_calibration(
     ens = emcee.EnsembleSampler(
         sampler.walkers,
         len(free),
-        lambda t: log_posterior(_full(t, fixed), mu, s, y, priors, weight, history),
+        lambda t: log_posterior(_full(t, fixed), mu, s, y, priors, weight, law),
         vectorize=True,
         moves=moves,
     )
@@ -490,9 +522,11 @@ def summarise(samples: np.ndarray) -> dict:
     also unlogged."""
     samples = np.asarray(samples)
     cols = dict(zip(PARAMS, samples.T))
-    for k in ("log_sigma_N", "log_rho", "log_kappa", "log_nu", "log_tau_s"):
+    for k in ("log_sigma_N", "log_rho", "log_kappa", "log_nu"):
         if k in cols:
             cols[k[4:]] = np.exp(cols[k])
+    if "relax_fast" in cols:  # the fraction relaxed after long: both terms
+        cols["relax"] = cols["relax_fast"] + cols["relax_slow"]
     return {
         k: {
             "median": float(np.median(v)),
@@ -506,6 +540,12 @@ def posterior_samples(calibration: dict) -> np.ndarray:
     """The posterior's samples (S, 9) of :data:`PARAMS`; a calibration of the static
     model's six (:data:`STATIC_PARAMS`, before the print's law) with the law elastic."""
     theta = np.asarray(calibration["posterior"]["samples"], dtype=np.float64)
+    names = tuple(calibration["posterior"].get("names", PARAMS[: theta.shape[1]]))
+    if names not in (PARAMS, STATIC_PARAMS):
+        raise CalibrationError(
+            f"the calibration's parameters {list(names)} are not this version's "
+            f"{list(PARAMS)}: run finray calibrate again"
+        )
     if theta.shape[1] == len(STATIC_PARAMS):
         theta = np.column_stack([theta, np.tile(ELASTIC, (len(theta), 1))])
     return theta
@@ -514,6 +554,12 @@ def posterior_samples(calibration: dict) -> np.ndarray:
 def is_time_dependent(calibration: dict) -> bool:
     """Whether the calibration reads the network's force through the print's law."""
     return calibration.get("history_base_N") is not None
+
+
+def law_times(calibration: dict) -> tuple[float, ...]:
+    """The relaxation times (s) of a calibration's two Prony fractions."""
+    times = calibration.get("priors", {}).get("relax_times_s", Priors.relax_times_s)
+    return tuple(float(v) for v in times)
 
 
 def predictive(
@@ -542,7 +588,7 @@ def predictive(
     f = None
     if history is not None and is_time_dependent(calibration):
         h = replace(history, base_N=float(calibration["history_base_N"]))
-        f = h.law(mu, theta[:, 6], theta[:, 7], theta[:, 8])  # (S, N)
+        f = h.law(mu, theta[:, 6:8], theta[:, 8], law_times(calibration))  # (S, N)
     rng = np.random.default_rng(seed)
     q = (50.0, 50 * (1 - level), 50 * (1 + level))
     out = np.empty((3, len(mu)))
@@ -572,9 +618,8 @@ class CalibratedStream:
         self.sig, self.rho, self.kap, self.nu = (np.exp(theta[:, i]) for i in (2, 3, 4, 5))
         self.timed = is_time_dependent(calibration)
         self.base = float(calibration.get("history_base_N") or 0.0)
-        self.law = (
-            Response(theta[:, 6:7], np.exp(theta[:, 7:8]), theta[:, 8]) if self.timed else None
-        )
+        times = np.tile(law_times(calibration), (len(theta), 1))
+        self.law = Response(theta[:, 6:8], times, theta[:, 8]) if self.timed else None
         self.frames = 0
 
     def step(self, t_s: float | None, mu: float, s: float) -> dict:
@@ -620,8 +665,16 @@ def read_calibration(path: str | Path) -> dict:
             f"{path}: history_base_N must be a finite number or null, got {base!r}"
         )
     law = posterior_samples(cal)[:, 6:]
-    if np.any(law[:, [0, 2]] < 0) or np.any(law[:, [0, 2]] >= 1):
-        raise CalibrationError(f"{path}: relax and softening samples must lie in [0, 1)")
+    if np.any(law < 0) or np.any(law[:, :2].sum(1) >= 1) or np.any(law[:, 2] >= 1):
+        raise CalibrationError(
+            f"{path}: relaxed fractions (their sum) and softening samples must lie in [0, 1)"
+        )
+    try:
+        times = np.asarray(law_times(cal) if isinstance(cal.get("priors"), dict) else (1.0, 1.0))
+    except (TypeError, ValueError):
+        times = np.zeros(0)
+    if times.shape != (2,) or not np.isfinite(times).all() or np.any(times <= 0):
+        raise CalibrationError(f"{path}: priors.relax_times_s must be two times > 0 s")
     if not np.isfinite(np.asarray(samples, dtype=np.float64)).all():
         raise CalibrationError(f"{path}: posterior samples that are not finite numbers")
     level = cal.get("level", 0.9)
@@ -807,15 +860,15 @@ def fit_rig(
     if history is not None and priors.time_dependent:
         first = fit_heads(model, features, y, fit, anchor=anchor)
         point = time_point_fit(head_forces(model, first, features).mean(0), y, history, priors)
-        law = PrintLaw((point["relax"],), (point["tau_s"],), point["softening"])
+        fractions = (point["relax_fast"], point["relax_slow"])
+        law = PrintLaw(fractions, tuple(priors.relax_times_s), point["softening"])
         rest = point["rest_N"]  # the sensor's reading at rest: the law acts from there
         target = rest + unrelax(history.t_s, y - rest, law, history.segments)
-        history = replace(
-            history, base_N=rest, start=(point["relax"], point["tau_s"], point["softening"])
-        )
+        history = replace(history, base_N=rest, start=(*fractions, point["softening"]))
         log(
-            f"  print's law (least squares): relax {point['relax']:.3f} at "
-            f"{point['tau_s']:.2f} s, softening {point['softening']:.3f}"
+            "  print's law (least squares): relax "
+            + " + ".join(f"{g:.3f} at {t:g} s" for g, t in zip(fractions, priors.relax_times_s))
+            + f", softening {point['softening']:.3f}"
         )
     else:
         history = None
