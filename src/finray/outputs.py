@@ -188,8 +188,22 @@ class Staged:
         return used
 
     def check(self) -> None:
-        """Refuse an ``out`` of the wrong kind, or a used one without ``overwrite``."""
+        """Refuse an ``out`` of the wrong kind, a link, a name the file system cannot
+        hold with the temporary's suffix, or a used one without ``overwrite`` (with it,
+        one that cannot be moved aside)."""
         out, opt = self.out, self.option
+        if out.is_symlink():  # replacing it would replace the link, not what it names
+            raise UsageError(
+                f"{opt} {out} is a symbolic link; give what it points to "
+                f"({os.path.realpath(out)}) or another {opt}"
+            )
+        limit = _name_max(out.parent) - NAME_ROOM
+        if len(os.fsencode(out.name)) > limit:
+            raise UsageError(
+                f"{opt} name is {len(os.fsencode(out.name))} bytes long; at most {limit} "
+                f"here (the file system's {limit + NAME_ROOM}, less room for the "
+                "temporary's and the companions' suffixes)"
+            )
         if self.kind == "folder" and out.exists() and not out.is_dir():
             raise UsageError(f"{opt} {out} is a file, not a folder")
         if self.kind == "file" and out.is_dir():
@@ -202,6 +216,11 @@ class Staged:
                 else f"exists ({_listing(used)})"
             )
             raise UsageError(f"{opt} {out} {what}; give --overwrite to replace, or another {opt}")
+        if used and self.kind == "folder" and not os.access(out, os.W_OK | os.X_OK):
+            raise UsageError(
+                f"{opt} {out} cannot be moved aside to be replaced (no write permission "
+                f"on it); give another {opt}"
+            )
         if used:  # replaced: never an input of the run, nor the folder it runs in
             gone = [Path(os.path.realpath(out))]
             if self.kind == "file":
@@ -237,14 +256,22 @@ class Staged:
         return text.replace(str(self.tmp) + os.sep, str(self.out.parent) + os.sep)
 
     def commit(self) -> None:
-        """Move the complete outputs into place (the earlier ones, if any, replaced)."""
+        """Move the complete outputs into place (the earlier ones, if any, replaced); a
+        move the file system refuses is one line, the outputs kept where they are."""
         with held():
-            if self.kind == "folder":
-                _replace(self.tmp, self.out)
-            else:
-                for entry in sorted(self.tmp.iterdir()):
-                    _replace(entry, self.out.parent / entry.name)
-                self.tmp.rmdir()
+            try:
+                if self.kind == "folder":
+                    _replace(self.tmp, self.out)
+                else:
+                    for entry in sorted(self.tmp.iterdir()):
+                        _replace(entry, self.out.parent / entry.name)
+                    self.tmp.rmdir()
+            except OSError as exc:
+                self._close()
+                raise UsageError(
+                    f"{self.option} {self.out}: the complete outputs could not be moved "
+                    f"into place ({exc.strerror or exc}); they are kept in {self.tmp}"
+                ) from None
             COMMITTED.append(self.out)
             self._close()
 
@@ -276,6 +303,23 @@ class Staged:
         else:
             self.discard()
         return False
+
+
+#: bytes of a name kept for the suffixes added to ``out``'s (``.part-<pid>``,
+#: ``.old-<pid>``, a file's companions such as ``.model.ts.json``)
+NAME_ROOM = 32
+
+
+def _name_max(folder: Path) -> int:
+    """The longest file name (bytes) the file system of ``folder`` (or of the nearest
+    folder above it that exists) holds."""
+    for p in [folder, *folder.parents]:
+        if p.is_dir():
+            try:
+                return int(os.pathconf(p, "PC_NAME_MAX"))
+            except (OSError, ValueError):
+                break
+    return 255
 
 
 def _replace(src: Path, dest: Path) -> None:

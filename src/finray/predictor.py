@@ -29,7 +29,6 @@ above :attr:`Predictor.contact_min_force_N`; below, it is a guess.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -122,12 +121,9 @@ class Predictor:
             self.device = resolve_device(device, "device")
         except DeviceError as exc:
             raise DeviceInputError(str(exc)) from None
-        try:
-            self.meta = json.loads(meta_path.read_text())
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise InputError(
-                f"{meta_path} is not the model's JSON settings ({one_line(exc)})"
-            ) from None
+        from .train.settings import read_settings
+
+        self.meta, settings_note = read_settings(meta_path)
         _check_meta(self.meta, meta_path)
         self.size = (self.meta["height"], self.meta["width"])
         #: Names of the force outputs, in order (``fx_N`` first; exports before the force
@@ -144,7 +140,7 @@ class Predictor:
         #: How the finger is found in a frame (default: the model's grey-level threshold).
         self.finder = finder or FingerFinder.grey(self.segment_kw, self.roi_stride)
         #: One line per setting an old export lacks and that is assumed here.
-        self.notes: list[str] = []
+        self.notes: list[str] = [settings_note] if settings_note else []
         #: The stress maps' reference (MPa): a map holds log10(1 + sigma / stress_ref_MPa).
         self.stress_ref_MPa = self.meta.get("stress_ref_MPa")
         if self.stress_ref_MPa is None:

@@ -98,7 +98,7 @@ def test_checkpoints_hold_plain_data_and_come_back(models):
     model, ck = load_checkpoint(models["a"] / "model.pt")
     assert model.cfg.height == 64 and isinstance(ck["net_config"]["hidden"], list)
     meta = json.loads((models["a"] / "model.ts.json").read_text())
-    assert set(meta["sha256"]) == {"torchscript", "checkpoint", "onnx", "onnx_force"}
+    assert set(meta["sha256"]) == {"torchscript", "checkpoint", "onnx", "onnx_force", "settings"}
 
 
 @pytest.mark.parametrize("kind", ["empty", "text", "list"])

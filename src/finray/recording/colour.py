@@ -33,6 +33,8 @@ from scipy import ndimage as ndi
 
 from ..dataset.imageops import clean_mask
 
+#: The colour spaces a range may be given in.
+SPACES = ("hsv", "hcv", "lab")
 #: Named colours: hue ranges (deg) with saturation >= 0.35 and value >= 0.2.
 NAMED_HUES = {
     "red": (345.0, 15.0),
@@ -54,6 +56,18 @@ class ColourRange:
     lo: tuple[float, float, float]
     hi: tuple[float, float, float]
     source: str = "given"
+
+    def __post_init__(self):
+        if self.space not in SPACES:
+            raise ValueError(f"colour space {self.space!r} is not one of {', '.join(SPACES)}")
+        for name, v in (("lo", self.lo), ("hi", self.hi)):
+            if len(v) != 3 or not np.isfinite(np.asarray(v, dtype=np.float64)).all():
+                raise ValueError(f"{name} must be three finite numbers, got {list(v)}")
+        # hue wraps through 0 (lo above hi: red); the other channels are ranges
+        first = 0 if self.space == "lab" else 1
+        for i in range(first, 3):
+            if self.lo[i] > self.hi[i]:
+                raise ValueError(f"lo {list(self.lo)} is above hi {list(self.hi)} in channel {i}")
 
     @classmethod
     def from_take(cls, spec) -> "ColourRange":

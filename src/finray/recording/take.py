@@ -21,6 +21,7 @@ Every check fails with :class:`TakeError`, whose text is one line naming the fil
 from __future__ import annotations
 
 import json
+import os
 from dataclasses import dataclass, field
 from pathlib import Path, PurePath
 
@@ -37,6 +38,9 @@ MIN_SAMPLES = 10
 
 _NUMBER = {"type": "number"}
 _RANGE3 = {"type": "array", "items": _NUMBER, "minItems": 3, "maxItems": 3}
+#: a focal length or principal point (px): a camera's frame is at most tens of
+#: thousands of pixels across
+_PX = {"type": "number", "minimum": 0, "maximum": 1e5}
 COLOUR_NAMES = ("red", "orange", "yellow", "green", "cyan", "blue", "purple", "magenta")
 
 TAKE_SCHEMA = {
@@ -44,16 +48,21 @@ TAKE_SCHEMA = {
     "required": ["object", "contact_height_mm", "push_axis"],
     "properties": {
         "object": {"type": "string", "minLength": 1},
-        "contact_height_mm": {"type": "number", "exclusiveMinimum": 0},
+        # on the finger: a Fin Ray finger is tens to a few hundred mm long
+        "contact_height_mm": {"type": "number", "exclusiveMinimum": 0, "maximum": 1000},
         "push_axis": {"type": "string", "pattern": "^[+-]?f[xyz]$"},
         "camera": {
             "type": "object",
             "properties": {
-                "px_per_mm": {"type": "number", "exclusiveMinimum": 0},
+                # from a wide view (0.1 px/mm) to a macro lens (1000 px/mm, 1 um pixels)
+                "px_per_mm": {"type": "number", "minimum": 0.1, "maximum": 1000},
                 "intrinsics": {
                     "type": "object",
                     "required": ["fx", "fy", "cx", "cy"],
-                    "properties": {k: _NUMBER for k in ("fx", "fy", "cx", "cy")},
+                    "properties": {
+                        **{k: {**_PX, "exclusiveMinimum": 0} for k in ("fx", "fy")},
+                        **{k: _PX for k in ("cx", "cy")},
+                    },
                 },
             },
             "additionalProperties": True,
@@ -101,12 +110,20 @@ def read_take_json(path: Path) -> dict:
         where = "/".join(str(k) for k in bad[0]) or "top level"
         raise TakeError(f"{path}: {where}: must be a finite number, got {bad[1]}")
     video = meta.get("video")
-    if video is not None:
-        v = PurePath(video)
-        if v.is_absolute() or ".." in v.parts or not v.parts:
-            raise TakeError(f"{path}: video: {video!r} is not a file in the take's own folder")
+    if video is not None and not inside(path.parent, video):
+        raise TakeError(f"{path}: video: {video!r} is not a file in the take's own folder")
     meta.setdefault("camera", {})
     return meta
+
+
+def inside(folder: Path, name) -> bool:
+    """Whether ``name`` (a path a take's file gives) is a file under ``folder``: relative,
+    without ``..``, and, links followed, still under it."""
+    v = PurePath(str(name))
+    if v.is_absolute() or ".." in v.parts or not v.parts:
+        return False
+    real, top = Path(os.path.realpath(folder / v)), Path(os.path.realpath(folder))
+    return real == top or top in real.parents
 
 
 def _times(values: np.ndarray, name: str) -> np.ndarray:
@@ -248,7 +265,14 @@ def open_frames(take: Path, meta: dict) -> FrameSource:
 
     df = _read_csv(take / "frames.csv", ("frame", "t_s"))
     t = _times(pd.to_numeric(df["t_s"], errors="coerce").to_numpy(), str(take / "frames.csv"))
-    files = [folder / str(name).strip() for name in df["frame"]]
+    names = [str(name).strip() for name in df["frame"]]
+    outside = [n for n in names if not inside(folder, n)]
+    if outside:
+        raise TakeError(
+            f"{take / 'frames.csv'}: frame {outside[0]!r} is not a file in {folder} "
+            f"({len(outside)} such)"
+        )
+    files = [folder / n for n in names]
     missing = [f.name for f in files if not f.is_file()]
     if missing:
         raise TakeError(

@@ -24,6 +24,7 @@ from ..errors import ModelError
 from ..model import FinRayNet, NetConfig
 from .config import History
 from .data import FORCE_COMPONENTS
+from .settings import settings_digest
 
 
 def _plain(value):
@@ -146,13 +147,17 @@ def model_file(ts_path: str | Path, role: str) -> Path:
 
 def model_settings(ts_path: str | Path) -> dict:
     """The settings exported beside ``model.ts`` (``model.ts.json``: preprocessing, force
-    names, the training's ranges ``trained``...)."""
-    return json.loads(Path(str(ts_path) + ".json").read_text())
+    names, the training's ranges ``trained``...), checked
+    (:func:`~finray.train.settings.read_settings`)."""
+    from .settings import read_settings
+
+    return read_settings(Path(str(ts_path) + ".json"))[0]
 
 
 def seal(ts_path: str | Path, roles=("torchscript",)) -> None:
     """Record the SHA-256 of the model's files of ``roles`` (:data:`MODEL_FILES`; those
-    that exist) in ``ts_path + '.json'`` (``sha256``), beside the ones it has."""
+    that exist) in ``ts_path + '.json'`` (``sha256``), beside the ones it has, and of the
+    settings themselves (``sha256.settings``, :func:`~finray.train.settings.settings_digest`)."""
     meta_path = Path(str(ts_path) + ".json")
     meta = json.loads(meta_path.read_text())
     hashes = dict(meta.get("sha256") or {})
@@ -161,6 +166,7 @@ def seal(ts_path: str | Path, roles=("torchscript",)) -> None:
         if f.is_file():
             hashes[role] = sha256(f)
     meta["sha256"] = {r: hashes[r] for r in MODEL_FILES if r in hashes}
+    meta["sha256"]["settings"] = settings_digest(meta)  # the file's own values
     meta_path.write_text(json.dumps(meta, indent=1))
 
 
