@@ -370,6 +370,12 @@ def _run_simulate(args) -> int:
         )
     args.height_mm = args.height_mm[0]
     name, spec = one
+    known = raw.get("materials") if isinstance(raw.get("materials"), dict) else None
+    if known is not None and args.material not in known:  # the flag, not an internal key
+        raise UsageError(
+            f"--material {args.material}: not a material of the config (one of "
+            f"{', '.join(sorted(known))})"
+        )
     spec["materials"] = [args.material]
     raw["objects"] = {name: spec}
     raw["heights_mm"] = [args.height_mm]

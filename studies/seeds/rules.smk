@@ -31,6 +31,7 @@ rule spread_train:
     output:
         model=f"{SPREAD}/{{variant}}/train/{{model}}/model.pt",
         torchscript=f"{SPREAD}/{{variant}}/train/{{model}}/model.ts",
+        settings=f"{SPREAD}/{{variant}}/train/{{model}}/model.ts.json",
         onnx=f"{SPREAD}/{{variant}}/train/{{model}}/model.onnx",
         onnx_force=f"{SPREAD}/{{variant}}/train/{{model}}/model.force.onnx",
         history=f"{SPREAD}/{{variant}}/train/{{model}}/history.json",

@@ -82,3 +82,16 @@ def test_the_fea_raises_the_errors_of_the_one_home():
 
     assert finray.fea.SimulationError is errors.SimulationError
     assert finray.fea.linear.NotPositiveDefinite is errors.NotPositiveDefinite
+
+
+def test_an_unknown_material_names_the_flag_and_the_choices(tmp_path, capsys):
+    argv = ["simulate", "--object", "circle", "--size-mm", "20", "--height-mm", "30"]
+    assert main([*argv, "--material", "unobtainium", "--out", str(tmp_path / "o")]) == 2
+    from finray.config import default_config_path, read_config_file
+
+    known = ", ".join(sorted(read_config_file(default_config_path())["materials"]))
+    err = capsys.readouterr().err.strip()
+    assert err == (
+        f"finray simulate: --material unobtainium: not a material of the config (one of {known})"
+    )
+    assert not (tmp_path / "o").exists()

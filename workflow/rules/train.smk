@@ -10,6 +10,7 @@ rule train_model:
     output:
         model=f"{TRAIN}/{{model}}/model.pt",
         torchscript=f"{TRAIN}/{{model}}/model.ts",
+        settings=f"{TRAIN}/{{model}}/model.ts.json",  # what predict and calibrate read beside it
         onnx=f"{TRAIN}/{{model}}/model.onnx",
         onnx_force=f"{TRAIN}/{{model}}/model.force.onnx",
         history=f"{TRAIN}/{{model}}/history.json",
