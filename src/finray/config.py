@@ -402,6 +402,31 @@ def read_config_file_raw(path: str | Path) -> dict:
     return raw
 
 
+def typed_overrides(value):
+    """Snakemake's ``--config key={a: 1}`` values typed as YAML types them: Snakemake
+    reads a nested value with YAML's base loader, every scalar a string, so that
+    ``train={lr: 0.0001}`` gave the string '0.0001'. Strings are read again as YAML
+    scalars (numbers such as 1e-4 too); mappings and lists recursively."""
+    if isinstance(value, dict):
+        return {k: typed_overrides(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [typed_overrides(v) for v in value]
+    if not isinstance(value, str):
+        return value
+    try:
+        out = yaml.safe_load(value)
+    except yaml.YAMLError:
+        return value
+    if isinstance(out, str):
+        try:
+            return (
+                float(out) if out.strip().lower() not in ("nan", "inf", "-inf", "infinity") else out
+            )
+        except ValueError:
+            return value
+    return out if isinstance(out, (bool, int, float)) or out is None else value
+
+
 def merge_config(base: dict, over: dict) -> dict:
     """``base`` with ``over`` on top: mappings merged key by key (recursively), any other
     value (lists included) replaced, as Snakemake merges ``--configfile a b``."""
@@ -415,10 +440,31 @@ def merge_config(base: dict, over: dict) -> dict:
     return out
 
 
+#: keys of a whole config: a file with none of them holds changes to the defaults
+WHOLE_KEYS = ("finger", "objects")
+
+
+def is_partial(raw: dict) -> bool:
+    """Whether a config mapping holds only changes (no ``extends`` and none of
+    :data:`WHOLE_KEYS`): it is read on top of ``config/config.yaml``."""
+    return "extends" not in raw and not any(k in raw for k in WHOLE_KEYS)
+
+
 def resolve_extends(raw: dict, folder: str | Path, seen: tuple = ()) -> dict:
     """A config that ``extends: <file>`` (relative to ``folder``, the config's own): that
     file's config (itself resolved) with this one's keys on top (:func:`merge_config`),
-    so that a variant of a config holds only what differs. Unchanged without the key."""
+    so that a variant of a config holds only what differs. A config of changes only
+    (:func:`is_partial`) extends the source tree's ``config/config.yaml``. Unchanged
+    otherwise."""
+    if is_partial(raw) and not seen:
+        base = default_config_path()
+        if not base.is_file():
+            raise ConfigError(
+                "<config>",
+                "the config names none of finger, objects (changes only) and there is no "
+                "config/config.yaml here to change: add 'extends: <path to config.yaml>'",
+            )
+        return merge_config(read_config_file_raw(base), raw)
     if "extends" not in raw:
         return raw
     base_path = Path(folder) / str(raw["extends"])

@@ -11,7 +11,10 @@ from snakemake.utils import update_config
 from finray.config import (
     ConfigError,
     extra_train_heights,
+    is_partial,
+    merge_config,
     resolve_extends,
+    typed_overrides,
     scenes,
     sim2real_model_name,
     validate_config,
@@ -26,12 +29,18 @@ end_timers_at_exit()
 #: the repository root (this workflow is workflow/Snakefile, the catalog's layout)
 REPO = os.path.dirname(workflow.basedir)
 DEFAULT_CONFIGFILE = os.path.join(REPO, "config", "config.yaml")
+# --config KEY=VALUE, typed as YAML types it (Snakemake reads a nested value's scalars
+# as strings), on top of whichever config is read
+_cli = typed_overrides(dict(workflow.config_settings.config or {}))
 if not workflow.config_settings.configfiles:
-    # no --configfile: the paper's full set-up, with any --config KEY=VALUE on top
-    _overrides = dict(config)
+    # no --configfile: the paper's full set-up
     config.clear()
     config.update(yaml.safe_load(open(DEFAULT_CONFIGFILE)))
-    update_config(config, _overrides)
+elif is_partial(config):
+    # a config file of changes only (no finger, no objects): on top of config.yaml
+    _merged = merge_config(yaml.safe_load(open(DEFAULT_CONFIGFILE)), dict(config))
+    config.clear()
+    config.update(_merged)
 elif "extends" in config:
     # a config file that extends another (config/diverse.yaml: config.yaml plus the
     # generated objects): that file under the given ones, the path relative to the last
@@ -48,6 +57,7 @@ elif "extends" in config:
         sys.exit(1)
     config.clear()
     config.update(_merged)
+update_config(config, _cli)
 
 try:
     _validated = validate_config(config, base_dir=REPO)
