@@ -5,6 +5,8 @@ flag and the message; the stress reference saved with the model labels the colou
 import csv
 import json
 
+from finray.train.export import seal
+
 import numpy as np
 import pytest
 import torch
@@ -231,6 +233,7 @@ def test_a_contact_outside_the_trained_heights_is_flagged(model, tmp_path):
     # heights trained far above the predicted one
     meta["trained"]["contact_mm"] = [out["contact_mm"] + 10.0, out["contact_mm"] + 30.0]
     (d / "model.ts.json").write_text(json.dumps(meta))
+    seal(d / "model.ts")  # an export of these ranges (an edited file is refused)
     p = Predictor(d / "model.ts", backend="torchscript", finder=finder_from_spec("orange"))
     assert p.check(mask, conf, p.network_input(mask), out) == ["contact_range"]
     # below the smallest force the height was trained on, the height is a guess: not flagged

@@ -51,7 +51,7 @@ def test_calibrate_moves_its_outputs_into_place_whole(tmp_path):
     assert f"-> {out.parent / 'calibration.ingest' / 't1' / 'shard.npz'}" in log
     # the adapted model's settings keep its hash: predict checks it (no note)
     meta = json.loads((out.parent / "calibration.model.ts.json").read_text())
-    assert set(meta["sha256"]) == {"torchscript"}
+    assert set(meta["sha256"]) == {"torchscript", "settings"}
     p = start_finray(args, tmp_path)
     _, err = p.communicate(timeout=60)
     assert p.returncode == 2 and "calibration.json exists (" in err and "--overwrite" in err

@@ -604,7 +604,7 @@ def posterior_samples(calibration: dict) -> np.ndarray:
     """The posterior's samples (S, 9) of :data:`PARAMS`; a calibration of the static
     model's six (:data:`STATIC_PARAMS`, before the print's law) with the law elastic."""
     theta = np.asarray(calibration["posterior"]["samples"], dtype=np.float64)
-    names = tuple(calibration["posterior"].get("names", PARAMS[: theta.shape[1]]))
+    names = tuple(calibration["posterior"].get("names") or PARAMS[: theta.shape[1]])
     if names not in (PARAMS, STATIC_PARAMS):
         raise CalibrationError(
             f"the calibration's parameters {list(names)} are not this version's "
