@@ -71,3 +71,13 @@ def scene(tmp_path_factory):
         "model": tmp / "model.ts",
         "size": size,
     }
+
+
+@pytest.fixture(scope="module")
+def small_model(tmp_path_factory):
+    """A tiny untrained network (64 x 32 input) exported to model.ts (+ .json): the path."""
+    torch.manual_seed(0)
+    net = FinRayNet(NetConfig(in_channels=1, base_channels=4, height=64, width=32)).eval()
+    d = tmp_path_factory.mktemp("model")
+    export_torchscript(net, d / "model.ts", PREPROCESS)
+    return d / "model.ts"

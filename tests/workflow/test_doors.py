@@ -9,11 +9,9 @@ import shutil
 from pathlib import Path
 
 import pytest
-import torch
 
 from finray.cli import main
 
-from helpers import PREPROCESS
 from recording_synth import write_take
 
 SMALL_TAKE = dict(size=(320, 240), duration_s=2.5, starts=(0.3, 1.35), ramp=0.35, hold=0.2)
@@ -27,15 +25,9 @@ def one_line(capsys, prefix: str) -> str:
 
 
 @pytest.fixture(scope="module")
-def model(tmp_path_factory):
-    from finray.model import FinRayNet, NetConfig
-    from finray.train import export_torchscript
-
-    torch.manual_seed(0)
-    net = FinRayNet(NetConfig(in_channels=1, base_channels=4, height=64, width=32)).eval()
-    d = tmp_path_factory.mktemp("model")
-    export_torchscript(net, d / "model.ts", PREPROCESS)
-    return d
+def model(small_model):
+    """The folder of conftest's small exported model."""
+    return small_model.parent
 
 
 def _with(model_dir: Path, tmp_path: Path, change, reseal: bool) -> Path:

@@ -11,13 +11,12 @@ import time
 from pathlib import Path
 
 import pytest
-import torch
 
 from finray.cli import main
 from finray.errors import UsageError
 from finray.outputs import Staged, catch_signals, held
 
-from helpers import PREPROCESS, start_finray
+from helpers import start_finray
 from recording_synth import write_take
 
 SMALL_TAKE = dict(size=(320, 240), duration_s=2.5, starts=(0.3, 1.35), ramp=0.35, hold=0.2)
@@ -182,18 +181,6 @@ def test_ingest_refuses_a_used_out_and_replaces_an_earlier_run_whole(tmp_path, c
     assert f"-> {out / 'shard.npz'}" in log and ".part-" not in log
     assert names(out) == ["frames.csv", "ingest.json", "qa.png", "shard.npz", "sync.json"]
     assert [p.name for p in tmp_path.iterdir() if ".part-" in p.name] == []
-
-
-@pytest.fixture(scope="module")
-def small_model(tmp_path_factory):
-    from finray.model import FinRayNet, NetConfig
-    from finray.train import export_torchscript
-
-    torch.manual_seed(0)
-    net = FinRayNet(NetConfig(in_channels=1, base_channels=4, height=64, width=32)).eval()
-    d = tmp_path_factory.mktemp("model")
-    export_torchscript(net, d / "model.ts", PREPROCESS)
-    return d / "model.ts"
 
 
 def test_predict_overwrite_with_an_unreadable_input_keeps_the_earlier_run(
