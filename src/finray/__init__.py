@@ -1,7 +1,13 @@
 """finray: contact force and stress of a soft Fin Ray finger from camera images,
 learned from finite-element simulations. Units: mm, N, MPa, degrees."""
 
-__version__ = "0.1.0"
+from importlib.metadata import PackageNotFoundError as _NotFound
+from importlib.metadata import version as _version
+
+try:  # one home: pyproject.toml's version, as pip installed it
+    __version__ = _version("finray")
+except _NotFound:  # the source tree on sys.path without an install
+    __version__ = "0+unknown"
 
 import sys as _sys
 

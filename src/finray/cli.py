@@ -773,16 +773,16 @@ def _ingest_parser(sub) -> None:
 
 
 def _ingest_params(raw: dict):
-    """Ingest's settings from a config mapping: the dataset's sizes and crop, the
-    finger's base width (never ``lab:``)."""
+    """Ingest's settings from a config mapping: the dataset's sizes and the input window
+    of its ``finger`` and ``dataset`` sections (never ``lab:``)."""
     from .config import section_params
     from .dataset.params import DatasetParams
+    from .dataset.window import InputWindow
     from .recording import IngestParams
 
     d = section_params("dataset", DatasetParams.from_config, raw.get("dataset"))
-    base = float((raw.get("finger") or {}).get("base_width_mm", 30.0))
     return IngestParams(
-        sizes=d.sizes, crop_x_mm=d.crop_x_mm, crop_y_mm=d.crop_y_mm, base_width_mm=base
+        sizes=d.sizes, window=InputWindow.from_sections(raw.get("finger"), raw.get("dataset"))
     )
 
 

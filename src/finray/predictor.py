@@ -34,7 +34,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from .dataset.imageops import EmptyMaskError, base_anchored_box, segment, silhouette_input
+from .dataset.imageops import EmptyMaskError, segment, silhouette_input
+from .dataset.window import InputWindow
 from .errors import DeviceInputError, FrameError, InputError, ModelError
 from .media import one_line
 from .precision import DeviceError, resolve_device
@@ -129,18 +130,18 @@ class Predictor:
         #: Names of the force outputs, in order (``fx_N`` first; exports before the force
         #: vector had ``fx_N`` only).
         self.force_names = list(self.meta.get("forces") or ["fx_N"])
-        pre = self.meta.get("preprocess", {})
-        self.base_width_mm = pre.get("base_width_mm", 30.0)
-        self.crop_x_mm = tuple(pre.get("crop_x_mm", (-5.0, 35.0)))
-        self.crop_y_mm = tuple(pre.get("crop_y_mm", (0.0, 80.0)))
-        self.segment_kw = pre.get("segment", {})
-        #: the base is the widest row among the lowest base_band of the mask's height
-        #: (dataset.base_band; 0, the lowest row, for exports before it)
-        self.base_band = float(pre.get("base_band", 0.0))
+        #: Where in a frame the network looks, and the renders' segmentation (the model's
+        #: ``preprocess``; :class:`~finray.dataset.window.InputWindow`).
+        self.window, lacking = InputWindow.from_json(self.meta.get("preprocess", {}))
         #: How the finger is found in a frame (default: the model's grey-level threshold).
-        self.finder = finder or FingerFinder.grey(self.segment_kw, self.roi_stride)
+        self.finder = finder or FingerFinder.grey(self.window.segment, self.roi_stride)
         #: One line per setting an old export lacks and that is assumed here.
         self.notes: list[str] = [settings_note] if settings_note else []
+        if lacking:
+            self.notes.append(
+                f"{meta_path.name} gives no preprocess/{', '.join(lacking)} (an older export): "
+                "the config schema's defaults are assumed"
+            )
         #: The stress maps' reference (MPa): a map holds log10(1 + sigma / stress_ref_MPa).
         self.stress_ref_MPa = self.meta.get("stress_ref_MPa")
         if self.stress_ref_MPa is None:
@@ -269,9 +270,7 @@ class Predictor:
         """Training window in pixel edges ``(col0, row0, col1, row1)`` from the mask
         (:func:`~finray.dataset.imageops.base_anchored_box`)."""
         try:
-            return base_anchored_box(
-                mask, self.base_width_mm, self.crop_x_mm, self.crop_y_mm, base_band=self.base_band
-            )
+            return self.window.box(mask)
         except EmptyMaskError as exc:
             raise FrameError(str(exc)) from None
 

@@ -12,7 +12,7 @@ import it checks the command line and refuses the trap in one line (exit code 1)
     before --configfile, or use --configfile=<file>
 
 It does nothing else: it acts only in a ``snakemake`` process, only on words after
-``--configfile``/``--configfiles`` that are not YAML or JSON files. The logger it
+``--configfile``/``--configfiles`` that are not YAML or JSON files on disk. The logger it
 registers (``--logger finray-args``) writes Snakemake's messages to stderr unchanged;
 nothing selects it by default.
 """
@@ -31,9 +31,10 @@ _OPTIONS = ("--configfile", "--configfiles")
 
 def misread_configfile(argv: list[str]) -> str | None:
     """The first word of ``argv`` (Snakemake's arguments, without the program) that
-    ``--configfile`` would read as a config file although it is none: not ending in
-    .yaml/.yml/.json and not an existing file (a target such as a figure), or an
-    existing file that is not one of those; None where every such word is a config."""
+    ``--configfile`` would read as a config file although it is none: a word not ending
+    in .yaml/.yml/.json (a target such as a figure), or one that does but is no file (a
+    target such as ``results/lab/qa.json``, or a config file's name mistyped); None
+    where every such word is a config file."""
     i = 0
     while i < len(argv):
         word = argv[i]
@@ -43,15 +44,20 @@ def misread_configfile(argv: list[str]) -> str | None:
         while i < len(argv) and not argv[i].startswith("-"):
             path = argv[i]
             i += 1
-            if not path.lower().endswith(CONFIG_SUFFIXES):
+            if not path.lower().endswith(CONFIG_SUFFIXES) or not os.path.isfile(path):
                 return path
     return None
 
 
 def message(path: str) -> str:
     """The one line that refuses ``path``."""
+    none = (
+        ""
+        if os.path.isfile(path) or not path.lower().endswith(CONFIG_SUFFIXES)
+        else ", and is no file"
+    )
     return (
-        f"finray: '{path}' was read as a config file: put targets before "
+        f"finray: '{path}' was read as a config file{none}: put targets before "
         f"--configfile, or use --configfile=<file>"
     )
 

@@ -85,7 +85,7 @@ def test_training_and_evaluation_read_the_same_frames(shards):
 def test_no_context_frames_in_each_view(shards, tmp_path):
     """The no-context fit's simulated frames: front, camera or both views, forces and
     table row for row with the images; camera views a shard lacks are one clear error."""
-    from finray.evaluate.sim2real import _frames
+    from finray.sim2real.experiment import _frames
 
     cam = [tmp_path / f"cam{i}.npz" for i in range(len(shards))]
     for src, dst in zip(shards, cam):

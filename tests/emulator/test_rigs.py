@@ -1,4 +1,4 @@
-"""Drawn emulated rigs (finray.emulator.rigs) and the summary over rigs (finray.evaluate.rigs)."""
+"""Drawn emulated rigs (finray.emulator.rigs) and the summary over rigs (finray.sim2real.rigs)."""
 
 import colorsys
 
@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 
 from finray.config import load_config
-from finray.evaluate.rigs import rigs_summary, rigs_table
+from finray.sim2real.rigs import rigs_summary, rigs_table
 from finray.emulator.rigs import draw_rig, rig_index, rig_names, selection_rig_names
 
 
@@ -149,8 +149,8 @@ def _sim2real_frames(k, context, group, height_mm, sensor_N, pred_N) -> pd.DataF
 def test_sim2real_metrics_per_contact_height_and_over_rigs():
     """Sim-to-real's metrics: each contact height over its contexts (NRMSE in % of that
     height's largest force), carried into the summary and the summary over rigs."""
-    from finray.evaluate.rigs import rigs_heights
-    from finray.evaluate.sim2real import metrics_table
+    from finray.sim2real.rigs import rigs_heights
+    from finray.sim2real.experiment import metrics_table
 
     fr = _sim2real_frames(
         1, "a", "b", [10.0, 10.0, 60.0, 60.0], [10.0, 20.0, 1.0, 2.0], [10.0, 21.0, 1.0, 2.1]

@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from finray.evaluate.rigs import rigs_summary, rigs_table
+from finray.sim2real.rigs import rigs_summary, rigs_table
 from finray.evaluate.spread import (
     manuscript_rows,
     rig_figures,
@@ -110,7 +110,7 @@ def test_manuscript_rows_take_each_variants_worst_pitch_before_the_range(tmp_pat
 
 
 def _rigs(per_rig: dict[str, tuple[list, list, int]]) -> dict:
-    """A rigs summary (finray.evaluate.rigs) from rig -> (NRMSE per context count, coverage, frames)."""
+    """A rigs summary (finray.sim2real.rigs) from rig -> (NRMSE per context count, coverage, frames)."""
     table = rigs_table(
         {
             r: {

@@ -97,6 +97,53 @@ def test_frame_folder_ingests_and_crops_like_the_predictor(png, tmp_path, capsys
         np.testing.assert_array_equal(s["input_64x32"][10 * k], silhouette_input(m, box, (64, 32)))
 
 
+def test_one_frame_gives_one_network_input_through_dataset_ingest_and_predictor(
+    png, tmp_path, capsys
+):
+    """The input window has one home (finray.dataset.window): the camera views' path (the
+    dataset's window of the config), ingest's shard and a model's Predictor (the window
+    train_model writes into model.ts.json) cut and resample one mask alike."""
+    import torch
+
+    from finray.dataset import DatasetParams
+    from finray.model import FinRayNet, NetConfig
+    from finray.predictor import Predictor
+    from finray.train.export import export_torchscript
+
+    d, truth = png
+    rc, cap = ingest_cli(d / "take", tmp_path / "out", capsys)
+    assert rc == 0, cap.err
+    s = load_shard(tmp_path / "out" / "shard.npz")
+    window = DatasetParams().window(30.0)
+    torch.manual_seed(0)
+    net = FinRayNet(NetConfig(in_channels=1, base_channels=4, height=64, width=32)).eval()
+    (tmp_path / "m").mkdir()
+    export_torchscript(net, tmp_path / "m" / "model.ts", window.to_json())
+    predictor = Predictor(tmp_path / "m" / "model.ts")
+    assert predictor.window == window
+    assert not any("preprocess" in n for n in predictor.notes), predictor.notes
+    for k in range(0, len(truth["masks"]), 10):
+        m = truth["masks"][k]
+        dataset = window.inputs(m, [(64, 32)])[(64, 32)]
+        np.testing.assert_array_equal(s["input_64x32"][k], dataset)
+        x = np.rint(predictor.network_input(m)[0, 0] * 255.0).astype(np.uint8)
+        np.testing.assert_array_equal(x, dataset)
+
+
+def test_the_base_is_the_widest_of_four_rows_on_every_path():
+    """A ragged bottom row (a video's colour blocks at the clamp, 12 px of the base's 60)
+    does not set the scale: the window's base is the widest of the lowest 4 rows, on a
+    mask too short for base_band to reach them."""
+    from finray.dataset.window import BASE_ROWS, InputWindow
+
+    mask = np.zeros((40, 100), bool)
+    mask[5:39, 20:80] = True
+    mask[39, 44:56] = True  # the ragged row
+    box = InputWindow(base_band=0.0).box(mask)
+    assert BASE_ROWS == 4
+    assert box[2] - box[0] == pytest.approx(60 / 30.0 * 40.0)  # 2 px/mm x the 40 mm window
+
+
 def test_a_sideways_camera_is_turned_by_take_json(png, tmp_path, capsys):
     """Frames filmed with the finger lying on its side (turned 90 deg clockwise) and
     ``rotate_deg: 90`` in take.json give the upright take's shard."""

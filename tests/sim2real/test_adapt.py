@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import torch
 
-from finray.adapt import (
+from finray.sim2real.adapt import (
     HeadEnsemble,
     HeadFit,
     SimAnchor,
@@ -284,7 +284,7 @@ def test_epochs_give_the_same_passes_over_any_number_of_frames():
 def test_heads_come_back_from_their_weights(net, tmp_path):
     """A fitted head saved as its state dict (as the no-context fit's file holds it) and
     rebuilt on the model gives the same forces, bit for bit."""
-    from finray.adapt import head_from_state
+    from finray.sim2real.adapt import head_from_state
 
     x = torch.rand(32, 1, 64, 32, generator=torch.Generator().manual_seed(3))
     f = encoder_features(net, x)
@@ -301,7 +301,7 @@ def _one_head_at_a_time(model, features, force_N, fit):
 
     from torch import nn
 
-    from finray.adapt import _single_output
+    from finray.sim2real.adapt import _single_output
 
     target = (
         torch.tensor(force_N, dtype=torch.float32) - model.force_mean_N[0]
@@ -371,7 +371,7 @@ def test_the_no_context_file_keeps_the_simulated_frames(net, tmp_path):
     SimAnchor.from_file gives them back with the heads; a file written without them, or of
     another encoder, is refused in one line."""
     from finray.errors import CalibrationError
-    from finray.evaluate.sim2real import save_no_context
+    from finray.sim2real.experiment import save_no_context
 
     f = encoder_features(net, torch.rand(16, 1, 64, 32, generator=torch.Generator().manual_seed(4)))
     y = np.linspace(0, 2, 16)

@@ -7,7 +7,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from finray.calibration import (
+from finray.sim2real.calibration import (
     PARAMS,
     CalibrationError,
     Priors,
@@ -170,7 +170,7 @@ def test_gain_and_offset_of_prior_sd_zero_are_fixed():
     of fresh frames; the corner plot shows the free parameters only."""
     import matplotlib.pyplot as plt
 
-    from finray.calibration import corner_figure, fixed_params
+    from finray.sim2real.calibration import corner_figure, fixed_params
 
     rng = np.random.default_rng(11)
     mu = 4 * np.abs(rng.normal(0, 1, 1600))

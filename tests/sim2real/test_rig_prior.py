@@ -1,11 +1,11 @@
-"""The rig prior's gain from the FEA (finray.evaluate.rig_prior): variants, force gains,
+"""The rig prior's gain from the FEA (finray.sim2real.rig_prior): variants, force gains,
 and the prior's log-gain mean and sd against their closed forms."""
 
 import numpy as np
 import pandas as pd
 import pytest
 
-from finray.evaluate.rig_prior import force_gain, rig_prior, variants
+from finray.sim2real.rig_prior import force_gain, rig_prior, variants
 
 SPEC = {
     "youngs_modulus_scale": [0.5, 1.0],

@@ -119,7 +119,7 @@ def test_he_init_keeps_the_scale_and_bfloat16_gradients_follow_float32():
 
 def test_contact_head_is_a_head_of_its_own_in_mm():
     """The contact head reads the latent beside the force head (which keeps its layers,
-    what finray.adapt re-fits), its height comes in mm through its own normalisation, and
+    what finray.sim2real.adapt re-fits), its height comes in mm through its own normalisation, and
     the paths agree: contact, force_contact (no decoder) and forward_contact. Drawn
     after the other layers, it leaves their initial weights those of a model without it."""
     torch.manual_seed(0)

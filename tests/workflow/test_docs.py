@@ -38,7 +38,11 @@ FULL_RUN = (
     "test -d .venv || python3.11 -m venv .venv; .venv/bin/pip install -q -e . && "
     ".venv/bin/snakemake --cores 2"
 )
-TUTORIAL_PAGES = [DOCS / "getting-started.md", *sorted((DOCS / "tutorials").glob("*.md"))]
+TUTORIAL_PAGES = [
+    DOCS / "getting-started.md",
+    *sorted((DOCS / "tutorials").glob("*.md")),
+    *sorted((DOCS / "guide").glob("*.md")),
+]
 TMP_MARK = "/tmp/finray-tutorial"
 
 
@@ -158,9 +162,15 @@ def test_citation_licence_changelog_agree_with_the_package():
     assert paper["doi"] == "10.3389/frobt.2021.631371"
     assert [a["family-names"] for a in paper["authors"]][0] == "De Barrie"
     assert "MIT License" in (ROOT / "LICENSE").read_text()
-    changelog = (ROOT / "CHANGELOG.md").read_text()
-    assert "## [Unreleased]" in changelog
-    assert f"## [{project['version']}]" in changelog
+    import finray
+
+    assert finray.__version__ == project["version"], "pip install -e . again: a stale install"
+    sections = re.findall(
+        r"^## \[([^\]]+)\](?: - (\S+))?$", (ROOT / "CHANGELOG.md").read_text(), re.M
+    )
+    assert sections[0] == ("Unreleased", ""), "CHANGELOG.md opens with [Unreleased]"
+    # the newest section is this version, released on CITATION's date
+    assert sections[1] == (project["version"], str(cff["date-released"]))
 
 
 # ------------------------------------------------------------------ tutorials
@@ -239,6 +249,8 @@ def test_tutorial_commands_dry_run(cmds, tmp_path):
             _parse_finray(cmd)
             continue
         assert Path(argv[0]).name == "snakemake", cmd
+    # one dry run per set of options: a block's targets planned together
+    for argv in _merged_snakemake_calls([shlex.split(_resolve(c, tmp_path)) for c in cmds]):
         if "-n" not in argv:
             argv.insert(1, "-n")
         r = subprocess.run(
@@ -249,7 +261,59 @@ def test_tutorial_commands_dry_run(cmds, tmp_path):
             env=_env(),
             timeout=600,
         )
-        assert r.returncode == 0, f"{cmd}\n{r.stdout[-2000:]}\n{r.stderr[-2000:]}"
+        assert r.returncode == 0, f"{argv}\n{r.stdout[-2000:]}\n{r.stderr[-2000:]}"
+
+
+#: Snakemake options that take a value; --config and --configfile(s) take every word up
+#: to the next option.
+_VALUE_OPTIONS = {"--cores", "-c", "--jobs", "-j", "--directory", "-d", "--workflow-profile",
+                  "--profile", "--rerun-triggers", "--forcerun", "--until", "--report"}  # fmt: skip
+_LIST_OPTIONS = {"--config", "-C", "--configfile", "--configfiles"}
+
+
+def _merged_snakemake_calls(argvs: list[list[str]]) -> list[list[str]]:
+    """The ``snakemake`` calls of ``argvs`` (finray's left out) with the same options
+    merged into one, their targets after the options."""
+    groups: dict[tuple, list[str]] = {}
+    for argv in argvs:
+        if Path(argv[0]).name != "snakemake":
+            continue
+        options, targets, i = [argv[0]], [], 1
+        while i < len(argv):
+            word = argv[i]
+            i += 1
+            if word in _VALUE_OPTIONS and i < len(argv):
+                options += [word, argv[i]]
+                i += 1
+            elif word in _LIST_OPTIONS:
+                options.append(word)
+                while i < len(argv) and not argv[i].startswith("-"):
+                    options.append(argv[i])
+                    i += 1
+            elif word.startswith("-"):
+                options.append(word)
+            else:
+                targets.append(word)
+        # a call without targets (rule all) is planned on its own
+        groups.setdefault((tuple(options), bool(targets)), []).extend(targets)
+    return [[*options, *targets] for (options, _), targets in groups.items()]
+
+
+def test_snakemake_calls_merge_by_their_options():
+    calls = [
+        ["snakemake", "--cores", "2", "a.pdf"],
+        ["finray", "predict"],
+        ["snakemake", "--cores", "2", "b.json", "studies"],
+        ["snakemake", "--cores", "2", "--configfile", "c.yaml", "d"],
+        ["snakemake", "-n", "--cores", "2"],
+        ["snakemake", "--cores", "2"],
+    ]
+    assert _merged_snakemake_calls(calls) == [
+        ["snakemake", "--cores", "2", "a.pdf", "b.json", "studies"],
+        ["snakemake", "--cores", "2", "--configfile", "c.yaml", "d"],
+        ["snakemake", "-n", "--cores", "2"],
+        ["snakemake", "--cores", "2"],
+    ]
 
 
 @pytest.mark.parametrize("cmds", list(_cases("parse")))
@@ -288,15 +352,26 @@ def test_configfile_trap_is_refused_in_one_line():
     ]
 
 
-def test_configfile_trap_detection():
-    from snakemake_logger_plugin_finray_args import misread_configfile
+def test_configfile_trap_detection(tmp_path, monkeypatch):
+    from snakemake_logger_plugin_finray_args import message, misread_configfile
 
+    monkeypatch.chdir(tmp_path)
+    for name in ("a.yaml", "a.yml", "b.json", "b.YAML"):
+        (tmp_path / name).write_text("{}\n")
     assert misread_configfile(["--configfile", "a.yaml", "fig.pdf"]) == "fig.pdf"
     assert misread_configfile(["--configfiles", "a.yml", "b.json", "x/y.csv", "-n"]) == "x/y.csv"
     assert misread_configfile(["fig.pdf", "--configfile", "a.yaml", "b.YAML"]) is None
     assert misread_configfile(["--configfile=a.yaml", "fig.pdf"]) is None
     assert misread_configfile(["--configfile", "a.yaml", "--cores", "2", "fig.pdf"]) is None
     assert misread_configfile(["--cores", "2"]) is None
+    # a .json target (no such file) is the same trap, and so is a mistyped config name
+    qa = "results/lab/qa.json"
+    assert misread_configfile(["--configfile", "a.yaml", qa]) == qa
+    assert misread_configfile(["--configfile", "smoke.yml"]) == "smoke.yml"
+    assert message(qa) == (
+        f"finray: '{qa}' was read as a config file, and is no file: put targets before "
+        "--configfile, or use --configfile=<file>"
+    )
 
 
 @pytest.mark.slow
@@ -355,3 +430,62 @@ def test_readme_commands_parse_or_dry_run(tmp_path):
                 timeout=600,
             )
             assert r.returncode == 0, f"{cmd}\n{r.stderr[-2000:]}"
+
+
+def paragraphs(text: str) -> list[str]:
+    """The paragraphs of a Markdown page: its blocks between blank lines, each list item
+    one, code blocks and tables left out."""
+    text = re.sub(r"```.*?```", "", text, flags=re.S)
+    out = []
+    for block in re.split(r"\n\s*\n", text):
+        if block.strip() and not block.lstrip().startswith("|"):
+            out += re.split(r"\n(?=\s*(?:[-*]|\d+\.)\s)", block)
+    return out
+
+
+GUIDE_PAGES = sorted(
+    [*(ROOT / "docs" / "guide").glob("*.md"), *(ROOT / "docs" / "tutorials").glob("*.md")]
+) + [ROOT / "docs" / "getting-started.md", ROOT / "docs" / "index.md", ROOT / "README.md"]
+
+
+@pytest.mark.parametrize("page", GUIDE_PAGES, ids=lambda p: p.stem)
+def test_guide_paragraphs_stay_under_200_words(page):
+    """The guides say what to do, then why, in paragraphs a reader takes in at once
+    (measurements live on the studies' pages)."""
+    long = [p[:60] for p in paragraphs(page.read_text()) if len(p.split()) > 200]
+    assert long == []
+
+
+def test_paragraphs_split_items_and_skip_code():
+    text = "a b\n\n- one two\n- three\n\n```\nx y z\n```\n\n| t | u |\n"
+    assert [p.split() for p in paragraphs(text)] == [
+        ["a", "b"],
+        ["-", "one", "two"],
+        ["-", "three"],
+    ]
+
+
+def _python_blocks(page: Path) -> str:
+    """The ```python blocks of ``page``, in order, as one program (a later block may use
+    an earlier one's names)."""
+    return "\n".join(re.findall(r"```python\n(.*?)```", page.read_text(), flags=re.S))
+
+
+PYTHON_PAGES = [
+    p for p in (*GUIDE_PAGES, *sorted(DOCS.rglob("*.md"))) if "```python" in p.read_text()
+]
+
+
+@pytest.mark.parametrize("page", sorted(set(PYTHON_PAGES)), ids=lambda p: p.stem)
+def test_every_python_snippet_runs(page, small_model, render_png):
+    """Each page's Python runs as written, on a small exported model in place of the
+    run's (the same files: model.ts and model.ts.json) and a rendered camera frame as
+    ``frame`` (and ``first_frames``)."""
+    from PIL import Image
+    import numpy as np
+
+    code = _python_blocks(page)
+    assert "results/train/" in code, "a snippet names the run's model"
+    code = re.sub(r'"results/train/\w+/model\.ts"', repr(str(small_model)), code)
+    frame = np.asarray(Image.open(render_png).convert("RGB"))
+    exec(compile(code, str(page), "exec"), {"frame": frame, "first_frames": [frame] * 3})

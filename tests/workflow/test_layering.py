@@ -6,7 +6,7 @@ or lower. The top-level modules that are not stages get the rank of what they im
 
 - ``errors``, ``logs``, ``precision``, ``paper_reference``, ``media``, ``annotate``,
   ``lazy``, ``schema``, ``numba_cache``, ``outputs``, ``_start``, ``scheduler_timers``,
-  ``viscoelastic``: import nothing of finray but
+  ``viscoelastic``, ``plotting``: import nothing of finray but
   ``errors``; shared
   helpers (rank 0; ``errors`` holds the package's exceptions, ``media`` reads camera
   frames for predict and recording, ``annotate`` draws predict's output over them,
@@ -14,7 +14,8 @@ or lower. The top-level modules that are not stages get the rank of what they im
   defaults for every stage's settings, ``numba_cache`` points Numba's cache away from
   the source tree; ``outputs``, where every command's outputs go; ``scheduler_timers``
   ends Snakemake's rate-limit timers with the run; ``viscoelastic``, a print's time
-  dependence, which the emulated print obeys and a calibration fits).
+  dependence, which the emulated print obeys and a calibration fits; ``plotting``, the
+  figures' matplotlib backend and saving).
 - ``config``: validates every section, so it imports geometry (shapes), render and
   dataset (their parameters): above dataset, below train. No stage below it may
   import it (the FEA studies do, from ``benchmarks``).
@@ -25,8 +26,7 @@ or lower. The top-level modules that are not stages get the rank of what they im
   on a trained model, ``sim2real.calibration`` the sensor model on them (from ingested
   takes: recording's level), ``sim2real.rig_prior`` the gain's prior from FEA variants:
   at train's rank, so that ``predict`` may apply a calibration; ``sim2real.experiment``
-  and ``sim2real.rigs`` score and draw: evaluate's rank. ``adapt`` and ``calibration``
-  (top level) are aliases of the first two for a release.
+  and ``sim2real.rigs`` score and draw: evaluate's rank.
 - ``emulator``: the emulated rig: FEA results through a camera into takes (render's level
   and up: rank 35). ``recording``: a real rig's takes -> shards, the dataset stage's
   counterpart; it must never import ``emulator`` (ingest must not see the emulator's truth).
@@ -55,6 +55,7 @@ RANK = {
     "outputs": 0,
     "scheduler_timers": 0,
     "viscoelastic": 0,
+    "plotting": 0,
     "geometry": 10,
     "fea": 20,
     "render": 30,
@@ -66,8 +67,6 @@ RANK = {
     "train": 50,
     "predictor": 50,
     "predict": 50,
-    "adapt": 50,
-    "calibration": 50,
     "sim2real": 50,
     "sim2real.adapt": 50,
     "sim2real.calibration": 50,
@@ -252,3 +251,30 @@ def test_architecture_names_every_stage_of_the_layering_map():
     text = (SRC.parents[1] / "docs" / "architecture.md").read_text()
     missing = [m for m in RANK if f"`{m}`" not in text]
     assert not missing, missing
+
+
+def unit_cycles(modules) -> list[tuple[str, str]]:
+    """Pairs of units of ``modules`` ((module name, source) pairs) that import each other."""
+    edges = {
+        (own, unit)
+        for m, source in modules
+        for own in [_unit(m.split(".")[1:])]
+        for _, target in finray_imports(source, m)
+        for unit in [_unit(target.split(".")[1:])]
+        if unit != own and unit != "__init__"
+    }
+    return sorted((a, b) for a, b in edges if (b, a) in edges and a < b)
+
+
+def test_no_two_units_import_each_other():
+    """Within a rank too, imports run one way (sim2real's scoring uses evaluate's metrics;
+    evaluate imports nothing of sim2real)."""
+    assert unit_cycles((m, f.read_text()) for f, m in _modules()) == []
+
+
+def test_the_check_finds_a_cycle():
+    modules = [
+        ("finray.evaluate.figures", "from ..sim2real.rigs import rigs_table\n"),
+        ("finray.sim2real.rigs", "from ..evaluate.figures import _plt\n"),
+    ]
+    assert unit_cycles(modules) == [("evaluate", "sim2real.rigs")]

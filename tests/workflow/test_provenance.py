@@ -211,7 +211,10 @@ READERS: list[tuple[str, set[str]]] = [
             "evaluate_experiment",
         },
     ),
-    ("dataset.base_band", _RENDER | {"train_model"}),  # camera views' crop, the predictor's
+    (
+        "dataset.base_band",
+        _RENDER | {"train_model", "lab_ingest"},
+    ),  # camera views' crop, the predictor's
     ("dataset.*", _SEGMENT),
     (
         "train.input_size",

@@ -143,7 +143,7 @@ rule lab_ingest:
     params:
         # what a real rig's take would be ingested with: the dataset's crop and the
         # nominal finger, never lab:
-        dataset=section("dataset", keys=("sizes", "crop_x_mm", "crop_y_mm")),
+        dataset=section("dataset", keys=("sizes", "crop_x_mm", "crop_y_mm", "base_band")),
         base_width_mm=config["finger"]["base_width_mm"],
     script:
         "../scripts/lab_ingest.py"

@@ -111,7 +111,7 @@ use rule lab_ingest as rig_ingest with:
     benchmark:
         f"{RESULTS}/benchmarks/lab/rigs/{{rig}}/{{object}}_h{{height}}_ingest.tsv"
     params:
-        dataset=section("dataset", keys=("sizes", "crop_x_mm", "crop_y_mm")),
+        dataset=section("dataset", keys=("sizes", "crop_x_mm", "crop_y_mm", "base_band")),
         base_width_mm=config["finger"]["base_width_mm"],
 
 

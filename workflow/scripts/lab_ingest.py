@@ -6,13 +6,7 @@ from finray.recording import IngestParams, TakeError, ingest
 
 p = snakemake.params
 d = DatasetParams.from_config(p.dataset)
-params = IngestParams(
-    sizes=d.sizes,
-    crop_x_mm=d.crop_x_mm,
-    crop_y_mm=d.crop_y_mm,
-    base_width_mm=p.base_width_mm,
-    write_masks=True,
-)
+params = IngestParams(sizes=d.sizes, window=d.window(p.base_width_mm), write_masks=True)
 failed = None
 with log_to(snakemake.log[0]):
     try:

@@ -1,5 +1,6 @@
 from pathlib import Path
 
+from finray.dataset.window import InputWindow
 from finray.logs import log_to
 from finray.model import NetConfig
 from finray.train import AugmentConfig, TrainConfig, pitch_geometry, train_from_shards
@@ -37,16 +38,7 @@ with log_to(snakemake.log[0]):
     d = p.dataset
     aug = AugmentConfig(**p.augment, **pitch_geometry(d, p.render, h, p.finger["extrusion_mm"]))
     occ = {k: tuple(v) for k, v in d["occlusion_levels"].items()}
-    preprocess = {
-        "base_width_mm": p.finger["base_width_mm"],
-        "crop_x_mm": d["crop_x_mm"],
-        "crop_y_mm": d["crop_y_mm"],
-        "base_band": d["base_band"],
-        "segment": {
-            k: d[k]
-            for k in ("threshold", "foreground", "min_object_frac", "max_hole_frac", "keep_largest")
-        },
-    }
+    preprocess = InputWindow.from_sections(p.finger, d).to_json()
     train_from_shards(
         snakemake.input.shards,
         Path(snakemake.output.model).parent,

@@ -19,7 +19,8 @@ import numpy as np
 from ..geometry.mesh import TriMesh
 from ..render.camera_views import VIEW_COLUMNS, CameraViews
 from ..render.perspective import PerspectiveRaster
-from .imageops import EmptyMaskError, base_anchored_box, segment, silhouette_input
+from .imageops import EmptyMaskError, segment
+from .window import InputWindow
 from .params import DatasetParams, size_key
 
 
@@ -36,8 +37,7 @@ class CameraViewPreparer:
         extrusion_mm: float,
         views: CameraViews,
         params: DatasetParams,
-        base_width_mm: float,
-        base_band: float,
+        window: InputWindow,
         scene_id: str,
         look=None,
     ):
@@ -46,7 +46,7 @@ class CameraViewPreparer:
         self.raster = PerspectiveRaster(mesh, extrusion_mm, views.supersample, corners_only=True)
         self.look = look or RenderParams()  # colours and light
         self.views, self.params, self.scene_id = views, params, scene_id
-        self.base_width_mm, self.base_band = float(base_width_mm), float(base_band)
+        self.window = window
         self._inputs: dict[str, list] = {size_key(s): [] for s in params.sizes}
         self._rows: list[np.ndarray] = []
 
@@ -54,34 +54,23 @@ class CameraViewPreparer:
         """The camera's finger mask over the raster's window (h, w) bool, segmented as
         :func:`~finray.dataset.imageops.segment` segments the whole frame."""
         rgb, _ = self.raster.image(points2d, camera, self.look)
-        p = self.params
+        kw = dict(self.window.segment)
         scale = camera.width * camera.height / (rgb.shape[0] * rgb.shape[1])  # of the whole frame
-        return segment(
-            rgb,
-            p.threshold,
-            p.foreground,
-            p.min_object_frac * scale,
-            p.max_hole_frac * scale,
-            p.keep_largest,
-        )
+        kw["min_object_frac"] *= scale
+        kw["max_hole_frac"] *= scale
+        return segment(rgb, **kw)
 
     def prepare(self, frame: int, points2d: np.ndarray) -> tuple[dict[str, np.ndarray], np.ndarray]:
         cam, row = self.views.sample(self.scene_id, frame)
         mask = self.mask(points2d, cam)
         try:
-            box = base_anchored_box(
-                mask,
-                self.base_width_mm,
-                self.params.crop_x_mm,
-                self.params.crop_y_mm,
-                base_band=self.base_band,
-            )
+            inputs = self.window.inputs(mask, self.params.sizes)
         except EmptyMaskError:
             raise ValueError(
                 f"{self.scene_id} frame {frame}: the camera view {dict(zip(VIEW_COLUMNS, row))} "
                 "sees no finger"
             ) from None
-        return {size_key(s): silhouette_input(mask, box, s) for s in self.params.sizes}, row
+        return {size_key(s): v for s, v in inputs.items()}, row
 
     def add(self, frame: int, points2d: np.ndarray) -> None:
         inputs, row = self.prepare(frame, points2d)

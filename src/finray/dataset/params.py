@@ -9,6 +9,7 @@ import numpy as np
 
 from .augment import noise_levels, occlusion_levels
 from .imageops import segment
+from .window import SEGMENT_KEYS, InputWindow
 from ..schema import schema_default
 
 
@@ -112,6 +113,17 @@ class DatasetParams:
             self.min_object_frac,
             self.max_hole_frac,
             self.keep_largest,
+        )
+
+    def window(self, base_width_mm: float) -> InputWindow:
+        """The network's input window of these settings, for a finger ``base_width_mm``
+        (mm) wide at its base."""
+        return InputWindow(
+            base_width_mm,
+            self.crop_x_mm,
+            self.crop_y_mm,
+            self.base_band,
+            {k: getattr(self, k) for k in SEGMENT_KEYS},
         )
 
     def to_dict(self) -> dict:

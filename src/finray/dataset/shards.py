@@ -311,8 +311,7 @@ def render_shard(
             extrusion_mm,
             camera_views,
             params,
-            base_width_mm,
-            params.base_band,
+            params.window(base_width_mm),
             sid,
             render_params,
         )

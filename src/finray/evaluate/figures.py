@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..plotting import pyplot, save_figure
 from .experiments import load_examples
 from .tables import headline_rows
 
@@ -28,23 +29,6 @@ LABELS = {
 }
 #: the names in a panel's title that are not the model's own (one word each, so that several fit)
 SHORT = {"plain": "CNN", "baseline": "ridge"}
-
-
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _save(fig, out_pdf, out_png=None):
-    out_pdf = Path(out_pdf)
-    out_pdf.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out_pdf)
-    fig.savefig(out_png or out_pdf.with_suffix(".png"), dpi=150)
-    _plt().close(fig)
 
 
 def _predictors(frames: pd.DataFrame) -> list[str]:
@@ -127,7 +111,7 @@ def _force_and_stress_grid(exp_dir, group_col: str, extra_cols: int = 0):
     """Figure of an experiment with one condition: force over the test frames per group
     (top row) and FEA vs network stress maps at the largest force (bottom row), plus
     ``extra_cols`` empty columns; returns ``(fig, gridspec, groups)``."""
-    plt = _plt()
+    plt = pyplot()
     exp_dir = Path(exp_dir)
     frames = pd.read_csv(exp_dir / "frames.csv")
     if "path" in frames:  # the test video: shard inputs of every frame
@@ -165,7 +149,7 @@ def generalisation_figure(exp_dir, out_pdf, group_col: str, title: str):
     fig, _, _ = _force_and_stress_grid(exp_dir, group_col)
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    _save(fig, out_pdf)
+    save_figure(fig, out_pdf)
 
 
 def material_figure(exp_dir, out_pdf, fea_seconds: dict[str, float], net_ms: float):
@@ -185,7 +169,7 @@ def material_figure(exp_dir, out_pdf, fea_seconds: dict[str, float], net_ms: flo
         fontsize=10,
     )
     fig.tight_layout()
-    _save(fig, out_pdf)
+    save_figure(fig, out_pdf)
 
 
 def condition_figure(
@@ -198,7 +182,7 @@ def condition_figure(
 ):
     """Occlusion or pitch: force NRMSE per condition and predictor, with the inputs
     and stress maps of each condition."""
-    plt = _plt()
+    plt = pyplot()
     exp_dir = Path(exp_dir)
     metrics = headline_rows(pd.read_csv(exp_dir / "metrics.csv"))
     ex = load_examples(exp_dir / "examples.npz")
@@ -261,13 +245,13 @@ def condition_figure(
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.005, 1.0))
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    _save(fig, out_pdf)
+    save_figure(fig, out_pdf)
 
 
 def speed_figure(speed: dict, out_pdf):
     """FEA s/scene vs network ms/frame, and the job time per pipeline stage and per study
     (apart), with the DAG's wall time."""
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(1, 2, figsize=(9, 3.4))
     fea = speed["fea_seconds_per_scene"]
     names = list(fea) + ["CNN (1 thread)"]
@@ -297,7 +281,7 @@ def speed_figure(speed: dict, out_pdf):
     )
     fig.suptitle("Speed: FEA against the network, and the pipeline's stages", fontsize=10)
     fig.tight_layout()
-    _save(fig, out_pdf)
+    save_figure(fig, out_pdf)
 
 
 def annotated_figure(
@@ -369,7 +353,7 @@ def annotated_figure(
             best = (img, forces)
     if best is None:
         raise ValueError(f"no frame of {lab_video} shows the finger's colour")
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(1, 2, figsize=(9, 4.6))
     for a, img, title in (
         (ax[0], left, "pyvista render of a held-out shape"),
@@ -383,7 +367,7 @@ def annotated_figure(
         fontsize=10,
     )
     fig.tight_layout()
-    _save(fig, out_pdf)
+    save_figure(fig, out_pdf)
 
 
 def face_figure(heights_csvs: dict[str, str], out_pdf, paper_band_mm=(20.0, 40.0)):
@@ -392,7 +376,7 @@ def face_figure(heights_csvs: dict[str, str], out_pdf, paper_band_mm=(20.0, 40.0
     training (``heights_csvs``: a training's label, e.g. its seed, -> the shape
     experiment's ``heights.csv``), filled markers at heights no training scene used; and
     the largest |Fx| at each height. The paper's heights are shaded."""
-    plt = _plt()
+    plt = pyplot()
     fig, (ax, axf) = plt.subplots(1, 2, figsize=(10, 4), gridspec_kw={"width_ratios": [1.6, 1]})
     styles = ["-", "--", ":", "-."]
     forces = None
@@ -437,4 +421,4 @@ def face_figure(heights_csvs: dict[str, str], out_pdf, paper_band_mm=(20.0, 40.0
     axf.set_ylabel("largest |Fx| of the held-out shapes (N)")
     fig.suptitle("Force error over the finger's front face", fontsize=10)
     fig.tight_layout()
-    _save(fig, out_pdf)
+    save_figure(fig, out_pdf)

@@ -24,12 +24,13 @@ from __future__ import annotations
 import itertools
 import json
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from ..dataset.imageops import base_anchored_box, silhouette_input
+from ..dataset.imageops import silhouette_input
+from ..dataset.window import InputWindow
 from ..dataset.params import scene_id, size_key
 from ..dataset.shards import save_npz
 from ..schema import schema_default
@@ -47,14 +48,9 @@ class IngestParams:
     settings."""
 
     sizes: tuple[tuple[int, int], ...] = schema_default("dataset.sizes")
-    crop_x_mm: tuple[float, float] = schema_default("dataset.crop_x_mm")
-    crop_y_mm: tuple[float, float] = schema_default("dataset.crop_y_mm")
-    base_width_mm: float = schema_default("finger.base_width_mm")
-    #: The base is the widest of the lowest rows of the mask (see base_anchored_box):
-    #: at least ``base_rows``, and at least ``base_band`` of the mask's height (the
-    #: finger's 3 mm base plate is 0.0375 of its 80 mm).
-    base_rows: int = 4
-    base_band: float = schema_default("dataset.base_band")
+    #: The network's input window (the crop around the base, as the model's own: a
+    #: calibration passes the model's; :class:`~finray.dataset.window.InputWindow`).
+    window: InputWindow = field(default_factory=InputWindow)
     #: Subsampling (rows and columns) of the frame for finding the finger.
     stride: int = 4
     #: Frames the finger's colour is learned from when take.json gives none.
@@ -191,7 +187,7 @@ class _ImageSignal:
     def __init__(self, p: IngestParams):
         self.p = p
         self.big = max(p.sizes, key=lambda s: s[0] * s[1])
-        self.crop_w_mm = p.crop_x_mm[1] - p.crop_x_mm[0]
+        self.crop_w_mm = p.window.crop_x_mm[1] - p.window.crop_x_mm[0]
         self.ref = self.ref_edges = self.ppm0 = None
 
     def measure(self, mask: np.ndarray, box) -> dict:
@@ -200,17 +196,17 @@ class _ImageSignal:
         sets the reference."""
         p, big, crop_w_mm = self.p, self.big, self.crop_w_mm
         ppm = (box[2] - box[0]) / crop_w_mm
-        left, base_edge = box[0] - p.crop_x_mm[0] * ppm, box[3] + p.crop_y_mm[0] * ppm
+        left, base_edge = box[0] - p.window.crop_x_mm[0] * ppm, box[3] + p.window.crop_y_mm[0] * ppm
         if self.ref is None:
             self.ppm0 = ppm
         ppm0 = self.ppm0
         # the image signal's window: anchored on this frame's base, at the first
         # frame's scale (a pixel more or less of base width must not read as bending)
         sig_box = (
-            left + p.crop_x_mm[0] * ppm0,
-            base_edge - p.crop_y_mm[1] * ppm0,
-            left + p.crop_x_mm[1] * ppm0,
-            base_edge - p.crop_y_mm[0] * ppm0,
+            left + p.window.crop_x_mm[0] * ppm0,
+            base_edge - p.window.crop_y_mm[1] * ppm0,
+            left + p.window.crop_x_mm[1] * ppm0,
+            base_edge - p.window.crop_y_mm[0] * ppm0,
         )
         x = silhouette_input(mask, sig_box, big).astype(np.float32)
         edges = side_edges(x)
@@ -228,7 +224,7 @@ class _ImageSignal:
         )
         w = x.sum(axis=0)
         cx_mm = (
-            p.crop_x_mm[0]
+            p.window.crop_x_mm[0]
             + crop_w_mm * float((w * (np.arange(big[1]) + 0.5)).sum() / max(w.sum(), 1e-9)) / big[1]
         )
         return {
@@ -270,11 +266,9 @@ def _measure_frames(frames, finder, src, p: IngestParams, log, t_wall: float) ->
             bits = np.packbits(mask if mask is not None else np.zeros(rgb.shape[:2], bool), axis=-1)
             out.packed.append((k, bits, rgb.shape[:2]))
         if mask is not None:
-            box = base_anchored_box(
-                mask, p.base_width_mm, p.crop_x_mm, p.crop_y_mm, p.base_rows, p.base_band
-            )
-            for s in p.sizes:
-                out.inputs[size_key(s)].append(silhouette_input(mask, box, s))
+            box = p.window.box(mask)
+            for s, x in p.window.inputs(mask, p.sizes, box).items():
+                out.inputs[size_key(s)].append(x)
             row.update(mask_area_px=int(mask.sum()), **signal.measure(mask, box))
             out.boxes.append(box)
             if k % thumb_every == 0:
@@ -394,10 +388,10 @@ def _write_shard(
         "crop_box_px": "per frame: crop_box_px array",
         "dataset": {
             "sizes": [list(s) for s in p.sizes],
-            "crop_x_mm": list(p.crop_x_mm),
-            "crop_y_mm": list(p.crop_y_mm),
+            "crop_x_mm": list(p.window.crop_x_mm),
+            "crop_y_mm": list(p.window.crop_y_mm),
         },
-        "base_width_mm": p.base_width_mm,
+        "base_width_mm": p.window.base_width_mm,
         "camera": meta["camera"],
         "colour": colour.to_dict(),
         "sync": sync,

@@ -99,16 +99,17 @@ def read_take_json(path: Path) -> dict:
         meta = json.loads(path.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise TakeError(f"{path} is not JSON ({one_line(exc)})") from None
+    # JSON's NaN and Infinity are numbers to the schema: name them before its ranges do
+    bad = non_finite(meta)
+    if bad is not None:
+        where = "/".join(str(k) for k in bad[0]) or "top level"
+        raise TakeError(f"{path}: {where}: must be a finite number, got {bad[1]}")
     err = jsonschema.exceptions.best_match(
         jsonschema.Draft202012Validator(TAKE_SCHEMA).iter_errors(meta)
     )
     if err is not None:
         where = "/".join(str(p) for p in err.absolute_path) or "top level"
         raise TakeError(f"{path}: {where}: {err.message}")
-    bad = non_finite(meta)  # JSON's NaN and Infinity pass the schema's numbers
-    if bad is not None:
-        where = "/".join(str(k) for k in bad[0]) or "top level"
-        raise TakeError(f"{path}: {where}: must be a finite number, got {bad[1]}")
     video = meta.get("video")
     if video is not None and not inside(path.parent, video):
         raise TakeError(f"{path}: video: {video!r} is not a file in the take's own folder")

@@ -16,7 +16,4 @@ rigs         the experiment over every emulated rig: the table, the figure, the 
 ``adapt`` and ``calibration`` are at the train stage's rank (``finray predict`` applies a
 calibration); ``experiment`` and ``rigs`` at evaluate's (they score and draw). This
 ``__init__`` imports none of them, so that importing one does not import the others.
-The former homes (``finray.adapt``, ``finray.calibration``, ``finray.evaluate.sim2real``,
-``finray.evaluate.rigs``, ``finray.evaluate.rig_prior``) are aliases of these modules
-for one release.
 """

@@ -989,6 +989,7 @@ def calibrate_takes(
     and the corner plot ``<out>.corner.png``; returns the calibration."""
     from .adapt import HeadEnsemble, SimAnchor, encoder_features, export_ensemble
     from ..dataset import load_frames
+    from ..dataset.window import InputWindow
     from ..recording import ingest
     from ..recording.ingest import check_take
     from ..train import load_checkpoint
@@ -1020,6 +1021,9 @@ def calibrate_takes(
         from .adapt import check_no_context
 
         check_no_context(model, no_context)
+    # the takes are cropped and scaled as the model's own training frames were
+    window, _ = InputWindow.from_json(meta.get("preprocess", {}))
+    ingest_params = replace(ingest_params, window=window)
     stem = out_json.with_suffix("")
     for take in map(Path, takes):  # every take checked before any is ingested (~25 s each)
         check_take(take)

@@ -635,6 +635,6 @@ def sim2real_figure(frames: pd.DataFrame, summary: dict, path) -> None:
         fontsize=9,
     )
     fig.tight_layout()
-    from ..evaluate.figures import _save
+    from ..plotting import save_figure
 
-    _save(fig, path)
+    save_figure(fig, path)

@@ -103,11 +103,11 @@ def phases_summary(phases: pd.DataFrame, max_nrmse_pct: float = 5.0) -> dict:
 def phases_figure(phases: pd.DataFrame, level: float, path) -> None:
     """NRMSE and coverage per phase of the takes (loading, hold, unloading, second cycle),
     a bar per rig, one panel pair per context count (PNG)."""
-    from ..evaluate.figures import _plt
+    from ..plotting import pyplot
 
     from .phases import PHASES
 
-    plt = _plt()
+    plt = pyplot()
     ks = sorted(phases["context_objects"].unique()) if len(phases) else [0]
     fig, axes = plt.subplots(2, len(ks), figsize=(3.2 * len(ks), 4.6), squeeze=False, sharey="row")
     order = [p for p in PHASES if p != "rest"]
@@ -189,9 +189,9 @@ def rigs_figure(table: pd.DataFrame, level: float, path) -> None:
     """NRMSE and interval coverage against the number of context objects, a line per rig
     (dashed: the NRMSE on the frames not flagged ``near_base``, where any is; ``path``: a
     PDF, a PNG beside it; or a PNG alone)."""
-    from ..evaluate.figures import _plt, _save
+    from ..plotting import pyplot, save_figure
 
-    plt = _plt()
+    plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(8, 3.2))
     for rig, g in table.groupby("rig", sort=False):
         g = g.sort_values("context_objects")
@@ -224,7 +224,7 @@ def rigs_figure(table: pd.DataFrame, level: float, path) -> None:
         fig.savefig(path, dpi=150)
         plt.close(fig)
     else:
-        _save(fig, path)
+        save_figure(fig, path)
 
 
 def write_rigs(summaries: dict[str, dict], rigs: dict, out) -> dict:
@@ -336,11 +336,11 @@ def write_print_time(pairs: dict, out, max_nrmse_pct: float = 5.0) -> dict:
 def _print_time_figure(table: pd.DataFrame, path) -> None:
     """Per phase, each (variant, rig)'s NRMSE with the most context objects: static
     against time-dependent (PNG)."""
-    from ..evaluate.figures import _plt
+    from ..plotting import pyplot
 
     from .phases import PHASES
 
-    plt = _plt()
+    plt = pyplot()
     order = [p for p in PHASES if p != "rest"]
     k = table["context_objects"].max()
     fig, ax = plt.subplots(figsize=(6.4, 3.2))

@@ -1,6 +1,6 @@
 # Helpers of the evaluation rules (evaluate.smk): each experiment's test shards, models and
 # conditions; sim-to-real's model; the diversity comparison; the rig prior's FEA.
-from finray.evaluate.rig_prior import variants as rig_prior_variants
+from finray.sim2real.rig_prior import variants as rig_prior_variants
 
 
 def pitch_series_shards():
@@ -197,7 +197,7 @@ def no_context_params():
 
 
 def rig_prior_variant(variant):
-    """A variant's as-built changes (finray.evaluate.rig_prior.variants), one line if unknown."""
+    """A variant's as-built changes (finray.sim2real.rig_prior.variants), one line if unknown."""
     v = rig_prior_variants(rig_prior_spec()).get(variant)
     if v is None:
         raise ValueError(f"no rig-prior variant {variant!r}")
