@@ -81,3 +81,18 @@ def small_model(tmp_path_factory):
     d = tmp_path_factory.mktemp("model")
     export_torchscript(net, d / "model.ts", PREPROCESS)
     return d / "model.ts"
+
+
+#: The longest test files (the smoke DAG and its studies, the provenance of every config
+#: key), handed to the xdist workers first (--dist loadfile sends files in collection
+#: order), so that the short files fill the other worker around them instead of one long
+#: file running alone at the end.
+FIRST = ("tests/workflow/test_workflow.py", "tests/workflow/test_provenance.py")
+
+
+def pytest_collection_modifyitems(items):
+    def rank(item):
+        path = item.nodeid.split("::")[0]
+        return FIRST.index(path) if path in FIRST else len(FIRST)
+
+    items.sort(key=rank)  # stable: the order within and among the other files is kept

@@ -527,7 +527,7 @@ def _predict_loop(p, run: _Run, writer) -> dict:
                             row,
                             cal,
                             label,
-                            crop_y_mm=p.crop_y_mm,
+                            crop_y_mm=p.window.crop_y_mm,
                             contact_min_force_N=p.contact_min_force_N,
                             stress_ref_MPa=p.stress_ref_MPa,
                             flags=flags,

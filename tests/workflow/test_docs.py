@@ -42,6 +42,7 @@ TUTORIAL_PAGES = [
     DOCS / "getting-started.md",
     *sorted((DOCS / "tutorials").glob("*.md")),
     *sorted((DOCS / "guide").glob("*.md")),
+    *sorted((DOCS / "studies").glob("*.md")),
 ]
 TMP_MARK = "/tmp/finray-tutorial"
 
@@ -180,7 +181,9 @@ def _blocks(page: Path) -> list[tuple[str, list[str]]]:
     """(marker, command lines) of each ```bash block of ``page``; marker '' if none."""
     text = page.read_text()
     out = []
-    for m in re.finditer(r"(?:<!-- test: (\S+)[^>]*-->\n)?```bash\n(.*?)```", text, flags=re.S):
+    for m in re.finditer(
+        r"(?:<!-- test: (\S+)[^>]*-->\n)?[ \t]*```bash\n(.*?)```", text, flags=re.S
+    ):
         joined = m.group(2).replace("\\\n", " ")
         cmds = []
         for ln in joined.splitlines():
@@ -239,31 +242,6 @@ def test_tutorial_commands_run(cmds, tmp_path):
         assert r.returncode == 0, f"{cmd}\n{r.stdout[-2000:]}\n{r.stderr[-2000:]}"
 
 
-@pytest.mark.slow
-@pytest.mark.workflow
-@pytest.mark.parametrize("cmds", list(_cases("dry-run")))
-def test_tutorial_commands_dry_run(cmds, tmp_path):
-    for cmd in cmds:
-        argv = shlex.split(_resolve(cmd, tmp_path))
-        if Path(argv[0]).name == "finray":
-            _parse_finray(cmd)
-            continue
-        assert Path(argv[0]).name == "snakemake", cmd
-    # one dry run per set of options: a block's targets planned together
-    for argv in _merged_snakemake_calls([shlex.split(_resolve(c, tmp_path)) for c in cmds]):
-        if "-n" not in argv:
-            argv.insert(1, "-n")
-        r = subprocess.run(
-            argv + ["--quiet", "rules"],
-            cwd=ROOT,
-            capture_output=True,
-            text=True,
-            env=_env(),
-            timeout=600,
-        )
-        assert r.returncode == 0, f"{argv}\n{r.stdout[-2000:]}\n{r.stderr[-2000:]}"
-
-
 #: Snakemake options that take a value; --config and --configfile(s) take every word up
 #: to the next option.
 _VALUE_OPTIONS = {"--cores", "-c", "--jobs", "-j", "--directory", "-d", "--workflow-profile",
@@ -273,7 +251,7 @@ _LIST_OPTIONS = {"--config", "-C", "--configfile", "--configfiles"}
 
 def _merged_snakemake_calls(argvs: list[list[str]]) -> list[list[str]]:
     """The ``snakemake`` calls of ``argvs`` (finray's left out) with the same options
-    merged into one, their targets after the options."""
+    merged into one, their targets before the options."""
     groups: dict[tuple, list[str]] = {}
     for argv in argvs:
         if Path(argv[0]).name != "snakemake":
@@ -296,7 +274,45 @@ def _merged_snakemake_calls(argvs: list[list[str]]) -> list[list[str]]:
                 targets.append(word)
         # a call without targets (rule all) is planned on its own
         groups.setdefault((tuple(options), bool(targets)), []).extend(targets)
-    return [[*options, *targets] for (options, _), targets in groups.items()]
+    # targets first: after --configfile they would be read as config files
+    return [[options[0], *targets, *options[1:]] for (options, _), targets in groups.items()]
+
+
+def _dry_run_calls() -> list[list[str]]:
+    """The Snakemake calls of every block marked dry-run, merged by their options (one
+    dry run plans every target the pages give with the same options)."""
+    argvs = [
+        [w for w in shlex.split(cmd) if w != "-n"]
+        for cmds in _cases("dry-run")
+        for cmd in cmds.values[0]
+    ]
+    return _merged_snakemake_calls(argvs)
+
+
+@pytest.mark.parametrize("cmds", list(_cases("dry-run")))
+def test_tutorial_dry_run_blocks_hold_snakemake_or_finray_commands(cmds):
+    for cmd in cmds:
+        argv = shlex.split(cmd)
+        if Path(argv[0]).name == "finray":
+            _parse_finray(cmd)
+        else:
+            assert Path(argv[0]).name == "snakemake", cmd
+
+
+@pytest.mark.slow
+@pytest.mark.workflow
+@pytest.mark.parametrize("argv", _dry_run_calls(), ids=lambda a: " ".join(a[1:4]))
+def test_tutorial_commands_dry_run(argv, tmp_path):
+    argv = [_resolve(a, tmp_path) for a in argv]
+    r = subprocess.run(
+        [argv[0], "-n", *argv[1:], "--quiet", "rules"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        env=_env(),
+        timeout=600,
+    )
+    assert r.returncode == 0, f"{argv}\n{r.stdout[-2000:]}\n{r.stderr[-2000:]}"
 
 
 def test_snakemake_calls_merge_by_their_options():
@@ -304,13 +320,13 @@ def test_snakemake_calls_merge_by_their_options():
         ["snakemake", "--cores", "2", "a.pdf"],
         ["finray", "predict"],
         ["snakemake", "--cores", "2", "b.json", "studies"],
-        ["snakemake", "--cores", "2", "--configfile", "c.yaml", "d"],
+        ["snakemake", "--cores", "2", "d", "--configfile", "c.yaml"],
         ["snakemake", "-n", "--cores", "2"],
         ["snakemake", "--cores", "2"],
     ]
     assert _merged_snakemake_calls(calls) == [
-        ["snakemake", "--cores", "2", "a.pdf", "b.json", "studies"],
-        ["snakemake", "--cores", "2", "--configfile", "c.yaml", "d"],
+        ["snakemake", "a.pdf", "b.json", "studies", "--cores", "2"],
+        ["snakemake", "d", "--cores", "2", "--configfile", "c.yaml"],
         ["snakemake", "-n", "--cores", "2"],
         ["snakemake", "--cores", "2"],
     ]

@@ -242,3 +242,14 @@ def test_schema_default_names_a_missing_key():
         schema_default("train.models.plain")
     assert schema_default("render.window_x_mm") == (-5.0, 35.0)
     assert schema_default("dataset.sizes") == ((128, 64), (64, 32))
+
+
+def test_the_input_window_of_the_schema_defaults_is_its_default():
+    """The window built from the schema's finger and dataset sections is InputWindow(),
+    and so is the one DatasetParams() gives for the schema's base width."""
+    from finray.dataset import DatasetParams
+    from finray.dataset.window import InputWindow
+
+    built = InputWindow.from_sections(_section_defaults("finger"), _section_defaults("dataset"))
+    assert built == InputWindow() == DatasetParams().window(schema_default("finger.base_width_mm"))
+    assert InputWindow.from_json(built.to_json()) == (built, [])

@@ -20,6 +20,7 @@ from pathlib import Path
 import torch
 from torch import nn
 
+from ..dataset.window import InputWindow
 from ..errors import ModelError
 from ..model import FinRayNet, NetConfig
 from .config import History
@@ -248,7 +249,13 @@ def export_torchscript(
         extra["trained"] = trained
     Path(str(path) + ".json").write_text(
         json.dumps(
-            {**model.config_dict(), "forces": names, **extra, "preprocess": preprocess or {}},
+            {
+                **model.config_dict(),
+                "forces": names,
+                **extra,
+                # none given: the window of the config schema's defaults (InputWindow())
+                "preprocess": InputWindow().to_json() if preprocess is None else preprocess,
+            },
             indent=1,
         )
     )
