@@ -486,3 +486,17 @@ def test_the_documented_overrides_plan(tmp_path, how):
         text=True,
     )
     assert r.returncode == 0 and "config error" not in r.stderr, r.stderr[-2000:]
+
+
+def test_finray_reads_a_config_of_changes_only_with_the_defaults(tmp_path, monkeypatch):
+    """``finray ... --config mine.yaml`` where mine.yaml holds ``train: {epochs: 3}`` only:
+    the command sees the default config with that change (the finger and objects of
+    config/config.yaml), not an empty one."""
+    from finray.cli import _raw_config
+
+    mine = tmp_path / "mine.yaml"
+    mine.write_text("train: {epochs: 3}\n")
+    monkeypatch.chdir(tmp_path)  # away from the source tree's own config
+    raw = _raw_config(mine)
+    assert raw["train"]["epochs"] == 3
+    assert raw["objects"] == FULL["objects"] and raw["finger"] == FULL["finger"]
