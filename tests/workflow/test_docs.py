@@ -226,20 +226,19 @@ def _parse_finray(cmd: str) -> None:
     build_parser().parse_args(argv[1:])  # SystemExit on an unknown option
 
 
+def _succeeds(cmd, shell: bool = False) -> None:
+    """``cmd`` (a shell line, or an argv) run from the repository exits 0."""
+    r = subprocess.run(
+        cmd, shell=shell, cwd=ROOT, capture_output=True, text=True, env=_env(), timeout=600
+    )
+    assert r.returncode == 0, f"{cmd}\n{r.stdout[-2000:]}\n{r.stderr[-2000:]}"
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("cmds", list(_cases("run")))
 def test_tutorial_commands_run(cmds, tmp_path):
     for cmd in cmds:
-        r = subprocess.run(
-            _resolve(cmd, tmp_path),
-            shell=True,
-            cwd=ROOT,
-            capture_output=True,
-            text=True,
-            env=_env(),
-            timeout=600,
-        )
-        assert r.returncode == 0, f"{cmd}\n{r.stdout[-2000:]}\n{r.stderr[-2000:]}"
+        _succeeds(_resolve(cmd, tmp_path), shell=True)
 
 
 #: Snakemake options that take a value; --config and --configfile(s) take every word up
@@ -304,15 +303,7 @@ def test_tutorial_dry_run_blocks_hold_snakemake_or_finray_commands(cmds):
 @pytest.mark.parametrize("argv", _dry_run_calls(), ids=lambda a: " ".join(a[1:4]))
 def test_tutorial_commands_dry_run(argv, tmp_path):
     argv = [_resolve(a, tmp_path) for a in argv]
-    r = subprocess.run(
-        [argv[0], "-n", *argv[1:], "--quiet", "rules"],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        env=_env(),
-        timeout=600,
-    )
-    assert r.returncode == 0, f"{argv}\n{r.stdout[-2000:]}\n{r.stderr[-2000:]}"
+    _succeeds([argv[0], "-n", *argv[1:], "--quiet", "rules"])
 
 
 def test_snakemake_calls_merge_by_their_options():
